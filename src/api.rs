@@ -1,0 +1,256 @@
+//! The JSON request/response contract shared by `nmci fuse` and the wasm export `fuse`.
+//!
+//! A request names two estimates, the pattern of `P_ab` and a method; the response carries
+//! the fused estimate, the bound, the gains and everything a user needs to judge it. Unknown
+//! fields are rejected.
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{InputError, RequestError};
+use crate::fusion::ci::covariance_intersection;
+use crate::fusion::nmci::non_monolithic_ci;
+use crate::fusion::sample::SamplerSettings;
+use crate::fusion::sdp::{optimal_fusion, SdpSettings};
+use crate::fusion::{Criterion, Fused, FusionProblem};
+use crate::linalg::{matrix_from_rows, matrix_to_rows};
+use crate::structure::CrossPattern;
+
+/// Which fusion rule a request asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Covariance intersection, one weight.
+    Ci,
+    /// Non-monolithic CI, one weight per independent block.
+    Nmci,
+    /// Sampled-SDP approximation of the optimal bound.
+    Sdp,
+}
+
+/// A fusion request (see the README for the JSON form).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FuseRequest {
+    /// `P_a`, row-major nested rows.
+    pub pa: Vec<Vec<f64>>,
+    /// `P_b`, row-major nested rows.
+    pub pb: Vec<Vec<f64>>,
+    /// `x_a` (default zeros).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub xa: Option<Vec<f64>>,
+    /// `x_b` (default zeros).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub xb: Option<Vec<f64>>,
+    /// `n × n`, `true` = `P_ab[i][j]` may be non-zero, `false` = known zero (default all `true`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pab_unknown: Option<Vec<Vec<bool>>>,
+    /// The rule.
+    pub method: Method,
+    /// `trace` (default) or `logdet`; `sdp` supports `trace` only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub criterion: Option<Criterion>,
+    /// `sdp`: number of sampled cross-covariances (default 200).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub samples: Option<usize>,
+    /// `sdp`: sampler seed (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// `sdp`: rejection-sampler trial budget (default 2 000 000).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_trials: Option<u64>,
+}
+
+/// A fusion response.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FuseResponse {
+    /// The rule used.
+    pub method: Method,
+    /// The criterion minimised.
+    pub criterion: Criterion,
+    /// Fused estimate.
+    pub x: Vec<f64>,
+    /// Covariance bound, nested rows.
+    pub p: Vec<Vec<f64>>,
+    /// Gain on `x_a`.
+    pub ka: Vec<Vec<f64>>,
+    /// Gain on `x_b`.
+    pub kb: Vec<Vec<f64>>,
+    /// `tr P`.
+    pub trace: f64,
+    /// `det P`.
+    pub det: f64,
+    /// CI: `[ω]`; nmCI: one `ω` per block; absent for `sdp`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub omega: Option<Vec<f64>>,
+    /// nmCI: the independent blocks (0-based state indices).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blocks: Option<Vec<Vec<usize>>>,
+    /// `sdp`: number of samples.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub samples: Option<usize>,
+    /// `sdp`: Clarabel's status, `Solved` or `AlmostSolved`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub status: Option<String>,
+    /// `sdp`: interior-point iterations (all working-set rounds).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<u32>,
+    /// `sdp`: rejection-sampler acceptance rate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acceptance_rate: Option<f64>,
+    /// `sdp`: LMIs in the final working set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lmis: Option<usize>,
+    /// `sdp`: smallest `λ_min(P̄ − K P'_i Kᵀ)` over the samples.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst_sample_margin: Option<f64>,
+}
+
+fn matrix(name: &str, rows: &[Vec<f64>]) -> Result<DMatrix<f64>, InputError> {
+    if rows.is_empty() {
+        return Err(InputError::Empty { name: name.into() });
+    }
+    let m = matrix_from_rows(rows).map_err(|(_, len)| InputError::NotSquare {
+        name: name.into(),
+        rows: rows.len(),
+        cols: len,
+    })?;
+    Ok(m)
+}
+
+impl FuseRequest {
+    /// The validated problem this request describes.
+    pub fn problem(&self) -> Result<FusionProblem, RequestError> {
+        let pa = matrix("P_a", &self.pa)?;
+        let pb = matrix("P_b", &self.pb)?;
+        let n = pa.nrows();
+        let vector = |v: &Option<Vec<f64>>| match v {
+            Some(v) => DVector::from_row_slice(v),
+            None => DVector::zeros(n),
+        };
+        let pattern = match &self.pab_unknown {
+            Some(rows) => CrossPattern::from_rows(rows)?,
+            None => CrossPattern::fully_unknown(n),
+        };
+        Ok(FusionProblem::new(
+            vector(&self.xa),
+            pa,
+            vector(&self.xb),
+            pb,
+            pattern,
+        )?)
+    }
+
+    fn check_fields(&self) -> Result<(), RequestError> {
+        if self.method != Method::Sdp {
+            for (name, set) in [
+                ("samples", self.samples.is_some()),
+                ("seed", self.seed.is_some()),
+                ("max_trials", self.max_trials.is_some()),
+            ] {
+                if set {
+                    return Err(RequestError::Invalid(format!(
+                        "`{name}` applies to method \"sdp\" only"
+                    )));
+                }
+            }
+        }
+        if self.method == Method::Sdp && self.criterion == Some(Criterion::Logdet) {
+            return Err(RequestError::Invalid(
+                "method \"sdp\" minimises the trace; criterion \"logdet\" is not available for it"
+                    .into(),
+            ));
+        }
+        if self.samples == Some(0) {
+            return Err(RequestError::Invalid("`samples` must be at least 1".into()));
+        }
+        if self.max_trials == Some(0) {
+            return Err(RequestError::Invalid(
+                "`max_trials` must be at least 1".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn response(method: Method, criterion: Criterion, fused: &Fused) -> FuseResponse {
+    FuseResponse {
+        method,
+        criterion,
+        x: fused.x.iter().copied().collect(),
+        p: matrix_to_rows(&fused.P),
+        ka: matrix_to_rows(&fused.K_a),
+        kb: matrix_to_rows(&fused.K_b),
+        trace: fused.trace(),
+        det: fused.P.determinant(),
+        omega: None,
+        blocks: None,
+        samples: None,
+        status: None,
+        iterations: None,
+        acceptance_rate: None,
+        lmis: None,
+        worst_sample_margin: None,
+    }
+}
+
+/// Runs a request.
+///
+/// ```
+/// let req: nmci::FuseRequest = serde_json::from_str(
+///     r#"{"pa": [[3,0],[0,1]], "pb": [[1,0],[0,4]],
+///         "pab_unknown": [[true,false],[false,true]], "method": "nmci"}"#).unwrap();
+/// let res = nmci::fuse(&req).unwrap();
+/// assert_eq!(res.omega, Some(vec![0.0, 1.0]));
+/// assert_eq!(res.trace, 2.0);
+/// ```
+pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
+    request.check_fields()?;
+    let problem = request.problem()?;
+    let criterion = request.criterion.unwrap_or_default();
+    match request.method {
+        Method::Ci => {
+            let ci = covariance_intersection(&problem, criterion)?;
+            let mut r = response(Method::Ci, criterion, &ci.fused);
+            r.omega = Some(vec![ci.omega]);
+            Ok(r)
+        }
+        Method::Nmci => {
+            let nm = non_monolithic_ci(&problem, criterion)?;
+            let mut r = response(Method::Nmci, criterion, &nm.fused);
+            r.omega = Some(nm.omega);
+            r.blocks = Some(nm.blocks);
+            Ok(r)
+        }
+        Method::Sdp => {
+            let defaults = SdpSettings::default();
+            let settings = SdpSettings {
+                samples: request.samples.unwrap_or(defaults.samples),
+                seed: request.seed.unwrap_or(defaults.seed),
+                sampler: SamplerSettings {
+                    max_trials: request
+                        .max_trials
+                        .unwrap_or(defaults.sampler.max_trials),
+                },
+                ..defaults
+            };
+            let opt = optimal_fusion(&problem, &settings)?;
+            let mut r = response(Method::Sdp, Criterion::Trace, &opt.fused);
+            r.samples = Some(opt.samples);
+            r.status = Some(opt.status.as_str().into());
+            r.iterations = Some(opt.iterations);
+            r.acceptance_rate = Some(opt.acceptance_rate);
+            r.lmis = Some(opt.lmis);
+            r.worst_sample_margin = Some(opt.worst_sample_margin);
+            Ok(r)
+        }
+    }
+}
+
+/// Parses a JSON request, runs it and returns the JSON response.
+pub fn fuse_json(request: &str) -> Result<String, RequestError> {
+    let req: FuseRequest =
+        serde_json::from_str(request).map_err(|e| RequestError::Malformed(e.to_string()))?;
+    let res = fuse(&req)?;
+    serde_json::to_string_pretty(&res).map_err(|e| RequestError::Malformed(e.to_string()))
+}

@@ -1,0 +1,140 @@
+//! One error enum per concern, as in Clarabel: bad input, sampling, solving, and the
+//! request/response contract that wraps them.
+
+use thiserror::Error;
+
+/// An input matrix, vector or pattern that cannot be fused.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum InputError {
+    /// A matrix with no rows.
+    #[error("{name} is empty")]
+    Empty {
+        /// Which input (e.g. `P_a`).
+        name: String,
+    },
+    /// A matrix that is not square, or a nested array whose rows differ in length.
+    #[error("{name} is not square ({rows}×{cols})")]
+    NotSquare {
+        /// Which input.
+        name: String,
+        /// Number of rows.
+        rows: usize,
+        /// Number of columns (of the offending row for nested arrays).
+        cols: usize,
+    },
+    /// A NaN or infinite entry.
+    #[error("{name} has a non-finite entry at ({row}, {col})")]
+    NotFinite {
+        /// Which input.
+        name: String,
+        /// Row (0-based).
+        row: usize,
+        /// Column (0-based; 0 for vectors).
+        col: usize,
+    },
+    /// `|A[i,j] − A[j,i]|` exceeds the relative symmetry tolerance.
+    #[error("{name} is not symmetric: entry ({row}, {col}) is {value} but ({col}, {row}) is {mirror}")]
+    NotSymmetric {
+        /// Which input.
+        name: String,
+        /// Row (0-based).
+        row: usize,
+        /// Column (0-based).
+        col: usize,
+        /// `A[row, col]`.
+        value: f64,
+        /// `A[col, row]`.
+        mirror: f64,
+    },
+    /// A covariance with a non-positive eigenvalue.
+    #[error("{name} is not positive definite (smallest eigenvalue {min_eigenvalue:.6e})")]
+    NotPositiveDefinite {
+        /// Which input.
+        name: String,
+        /// Its smallest eigenvalue.
+        min_eigenvalue: f64,
+    },
+    /// An input whose size does not match `P_a`.
+    #[error("{name} has size {found}, expected {expected} (the size of P_a)")]
+    SizeMismatch {
+        /// Which input.
+        name: String,
+        /// Size found.
+        found: usize,
+        /// Size expected.
+        expected: usize,
+    },
+}
+
+/// The sampler of admissible cross-covariances could not deliver.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SampleError {
+    /// The rejection sampler used up its trial budget.
+    #[error("the rejection sampler accepted only {accepted} of {requested} requested samples in {trials} trials (acceptance rate {rate:.2e}); raise max_trials or make fewer entries of P_ab unknown")]
+    BudgetExhausted {
+        /// Samples accepted before the budget ran out.
+        accepted: usize,
+        /// Samples requested.
+        requested: usize,
+        /// Trials used (the budget).
+        trials: u64,
+        /// `accepted / trials`.
+        rate: f64,
+    },
+    /// A settings value out of range.
+    #[error("invalid sampler setting: {0}")]
+    InvalidSettings(String),
+}
+
+/// The sampled semidefinite program did not produce a usable bound.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SolveError {
+    /// Clarabel ended with a status other than `Solved` or `AlmostSolved`.
+    #[error("the SDP solver stopped with status {status} after {iterations} iterations; no bound was produced")]
+    SolverFailed {
+        /// Clarabel's status, e.g. `MaxIterations`.
+        status: String,
+        /// Interior-point iterations used.
+        iterations: u32,
+    },
+    /// Clarabel refused the problem data or settings.
+    #[error("the SDP solver rejected the problem: {0}")]
+    Setup(String),
+    /// A settings value out of range.
+    #[error("invalid SDP setting: {0}")]
+    InvalidSettings(String),
+    /// The working-set loop hit its round limit with samples still violated.
+    #[error("the working-set loop stopped after {rounds} rounds with {violated} samples still violated (worst {worst:.3e})")]
+    WorkingSetStalled {
+        /// Rounds run.
+        rounds: usize,
+        /// Samples still violated.
+        violated: usize,
+        /// Their worst `λ_min(P̄ − K P' Kᵀ)`.
+        worst: f64,
+    },
+    /// Drawing the sample set failed.
+    #[error(transparent)]
+    Sample(#[from] SampleError),
+}
+
+/// Any failure of a [`crate::FuseRequest`]: the one error type of the JSON contract shared
+/// by the CLI and the wasm module.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RequestError {
+    /// The request is not valid JSON, has an unknown field, or a value of the wrong type.
+    #[error("invalid request: {0}")]
+    Malformed(String),
+    /// A field value out of range (e.g. `samples: 0`).
+    #[error("invalid request: {0}")]
+    Invalid(String),
+    /// A matrix, vector or pattern that cannot be fused.
+    #[error(transparent)]
+    Input(#[from] InputError),
+    /// The optimal bound could not be computed.
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    /// Sampling admissible cross-covariances failed.
+    #[error(transparent)]
+    Sample(#[from] SampleError),
+}

@@ -1,0 +1,53 @@
+//! Conservativeness: does a bound `P̄` with gains `K = [K_a, K_b]` dominate the true fused
+//! covariance `K P' Kᵀ` for a given admissible joint covariance `P'`?
+
+use nalgebra::DMatrix;
+
+use super::{Fused, FusionProblem};
+use crate::linalg::min_eigenvalue;
+
+/// The fused error covariance `K P' Kᵀ = K_a P_a K_aᵀ + K_a P_ab K_bᵀ + K_b P_abᵀ K_aᵀ + K_b P_b K_bᵀ`
+/// (the paper's `P_f`) of the gains in `fused` when the cross-covariance is `P_ab`.
+#[allow(non_snake_case)]
+pub fn fused_error_covariance(
+    problem: &FusionProblem,
+    K_a: &DMatrix<f64>,
+    K_b: &DMatrix<f64>,
+    P_ab: &DMatrix<f64>,
+) -> DMatrix<f64> {
+    let cross = K_a * P_ab * K_b.transpose();
+    K_a * &problem.P_a * K_a.transpose()
+        + &cross
+        + cross.transpose()
+        + K_b * &problem.P_b * K_b.transpose()
+}
+
+/// `λ_min(P̄ − K P' Kᵀ)` for one cross-covariance: `≥ 0` means conservative for it.
+#[allow(non_snake_case)]
+pub fn conservativeness_margin(
+    problem: &FusionProblem,
+    fused: &Fused,
+    P_ab: &DMatrix<f64>,
+) -> f64 {
+    let P_f = fused_error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
+    min_eigenvalue(&(&fused.P - P_f))
+}
+
+/// The smallest [`conservativeness_margin`] over a set of cross-covariances (`+∞` for none).
+///
+/// ```
+/// use nalgebra::{DMatrix, DVector};
+/// use nmci::*;
+/// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+/// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
+///     CrossPattern::diagonal(2)).unwrap();
+/// let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap();
+/// let s = sample_cross_covariances(&p, 100, 1, SamplerSettings::default()).unwrap();
+/// assert!(worst_margin(&p, &nm.fused, &s.cross) >= -1e-12);
+/// ```
+pub fn worst_margin(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f64>]) -> f64 {
+    cross
+        .iter()
+        .map(|p| conservativeness_margin(problem, fused, p))
+        .fold(f64::INFINITY, f64::min)
+}

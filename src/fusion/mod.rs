@@ -1,0 +1,248 @@
+//! Fusion rules for two estimates with partially known cross-covariance.
+
+pub(crate) mod check;
+pub(crate) mod ci;
+pub(crate) mod nmci;
+pub(crate) mod sample;
+pub(crate) mod sdp;
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use crate::error::InputError;
+use crate::linalg::{min_eigenvalue, symmetrize, SYMMETRY_RTOL};
+use crate::structure::CrossPattern;
+
+/// What a fusion rule minimises over its weights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Criterion {
+    /// `tr P` (the paper's choice).
+    #[default]
+    Trace,
+    /// `log det P` (volume of the covariance ellipsoid).
+    Logdet,
+}
+
+/// Two estimates `(x_a, P_a)`, `(x_b, P_b)` and the pattern of their unknown cross-covariance,
+/// validated: square, same size, finite, symmetric to a relative `1e-9`, positive definite.
+///
+/// Inputs are symmetrised (`(A + Aᵀ)/2`) after the check, so every rule sees exactly symmetric
+/// matrices.
+#[allow(non_snake_case)]
+#[derive(Debug, Clone, PartialEq)]
+pub struct FusionProblem {
+    /// Estimate of agent `a`.
+    pub x_a: DVector<f64>,
+    /// Its error covariance.
+    pub P_a: DMatrix<f64>,
+    /// Estimate of agent `b`.
+    pub x_b: DVector<f64>,
+    /// Its error covariance.
+    pub P_b: DMatrix<f64>,
+    /// Which entries of `P_ab` may be non-zero.
+    pub cross_pattern: CrossPattern,
+}
+
+/// Checks that `m` is a usable covariance: non-empty, square, finite, symmetric, positive definite.
+pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
+    if m.nrows() == 0 {
+        return Err(InputError::Empty { name: name.into() });
+    }
+    if m.nrows() != m.ncols() {
+        return Err(InputError::NotSquare {
+            name: name.into(),
+            rows: m.nrows(),
+            cols: m.ncols(),
+        });
+    }
+    let n = m.nrows();
+    for j in 0..n {
+        for i in 0..n {
+            if !m[(i, j)].is_finite() {
+                return Err(InputError::NotFinite {
+                    name: name.into(),
+                    row: i,
+                    col: j,
+                });
+            }
+        }
+    }
+    let scale = m.amax();
+    for i in 0..n {
+        for j in i + 1..n {
+            let (v, w) = (m[(i, j)], m[(j, i)]);
+            if (v - w).abs() > SYMMETRY_RTOL * scale {
+                return Err(InputError::NotSymmetric {
+                    name: name.into(),
+                    row: i,
+                    col: j,
+                    value: v,
+                    mirror: w,
+                });
+            }
+        }
+    }
+    let sym = symmetrize(m);
+    let lambda_min = min_eigenvalue(&sym);
+    if nalgebra::Cholesky::new(sym).is_none() || lambda_min <= 0.0 {
+        return Err(InputError::NotPositiveDefinite {
+            name: name.into(),
+            min_eigenvalue: lambda_min,
+        });
+    }
+    Ok(())
+}
+
+fn validate_vector(name: &str, v: &DVector<f64>, n: usize) -> Result<(), InputError> {
+    if v.len() != n {
+        return Err(InputError::SizeMismatch {
+            name: name.into(),
+            found: v.len(),
+            expected: n,
+        });
+    }
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(InputError::NotFinite {
+            name: name.into(),
+            row: i,
+            col: 0,
+        });
+    }
+    Ok(())
+}
+
+#[allow(non_snake_case)]
+impl FusionProblem {
+    /// Validates and builds a problem.
+    ///
+    /// ```
+    /// use nalgebra::{DMatrix, DVector};
+    /// use nmci::{CrossPattern, FusionProblem};
+    /// let p = FusionProblem::new(
+    ///     DVector::zeros(2), DMatrix::from_diagonal(&DVector::from_vec(vec![3.0, 1.0])),
+    ///     DVector::zeros(2), DMatrix::from_diagonal(&DVector::from_vec(vec![1.0, 4.0])),
+    ///     CrossPattern::diagonal(2),
+    /// ).unwrap();
+    /// assert_eq!(p.dim(), 2);
+    /// let bad = FusionProblem::new(
+    ///     DVector::zeros(2), DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 1.0]),
+    ///     DVector::zeros(2), DMatrix::identity(2, 2), CrossPattern::fully_unknown(2),
+    /// );
+    /// assert_eq!(bad.unwrap_err().to_string(),
+    ///     "P_a is not positive definite (smallest eigenvalue -1.000000e0)");
+    /// ```
+    pub fn new(
+        x_a: DVector<f64>,
+        P_a: DMatrix<f64>,
+        x_b: DVector<f64>,
+        P_b: DMatrix<f64>,
+        cross_pattern: CrossPattern,
+    ) -> Result<Self, InputError> {
+        validate_covariance("P_a", &P_a)?;
+        let n = P_a.nrows();
+        if P_b.nrows() != n || P_b.ncols() != n {
+            return Err(InputError::SizeMismatch {
+                name: "P_b".into(),
+                found: P_b.nrows().max(P_b.ncols()),
+                expected: n,
+            });
+        }
+        validate_covariance("P_b", &P_b)?;
+        validate_vector("x_a", &x_a, n)?;
+        validate_vector("x_b", &x_b, n)?;
+        if cross_pattern.dim() != n {
+            return Err(InputError::SizeMismatch {
+                name: "pab_unknown".into(),
+                found: cross_pattern.dim(),
+                expected: n,
+            });
+        }
+        Ok(Self {
+            x_a,
+            P_a: symmetrize(&P_a),
+            x_b,
+            P_b: symmetrize(&P_b),
+            cross_pattern,
+        })
+    }
+
+    /// A problem with zero means (only covariances matter for the bounds).
+    pub fn from_covariances(
+        P_a: DMatrix<f64>,
+        P_b: DMatrix<f64>,
+        cross_pattern: CrossPattern,
+    ) -> Result<Self, InputError> {
+        let n = P_a.nrows();
+        Self::new(
+            DVector::zeros(n),
+            P_a,
+            DVector::zeros(P_b.nrows()),
+            P_b,
+            cross_pattern,
+        )
+    }
+
+    /// State dimension `n`.
+    pub fn dim(&self) -> usize {
+        self.P_a.nrows()
+    }
+
+    /// The sub-problem on the states `idx` (rows/columns of every matrix, entries of the vectors).
+    pub fn restrict(&self, idx: &[usize]) -> Self {
+        let k = idx.len();
+        Self {
+            x_a: DVector::from_fn(k, |i, _| self.x_a[idx[i]]),
+            P_a: DMatrix::from_fn(k, k, |i, j| self.P_a[(idx[i], idx[j])]),
+            x_b: DVector::from_fn(k, |i, _| self.x_b[idx[i]]),
+            P_b: DMatrix::from_fn(k, k, |i, j| self.P_b[(idx[i], idx[j])]),
+            cross_pattern: self.cross_pattern.restrict(idx),
+        }
+    }
+
+    /// The joint covariance `[[P_a, P_ab], [P_abᵀ, P_b]]` for a given cross term.
+    pub fn joint_covariance(&self, P_ab: &DMatrix<f64>) -> DMatrix<f64> {
+        let n = self.dim();
+        let mut joint = DMatrix::zeros(2 * n, 2 * n);
+        joint.view_mut((0, 0), (n, n)).copy_from(&self.P_a);
+        joint.view_mut((n, n), (n, n)).copy_from(&self.P_b);
+        joint.view_mut((0, n), (n, n)).copy_from(P_ab);
+        joint.view_mut((n, 0), (n, n)).copy_from(&P_ab.transpose());
+        joint
+    }
+}
+
+/// The result of a linear fusion rule `x = K_a x_a + K_b x_b` with its covariance bound `P`.
+#[allow(non_snake_case)]
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fused {
+    /// Fused estimate.
+    pub x: DVector<f64>,
+    /// Covariance bound `P̄` (symmetric).
+    pub P: DMatrix<f64>,
+    /// Gain on `x_a`.
+    pub K_a: DMatrix<f64>,
+    /// Gain on `x_b` (`K_a + K_b = I`).
+    pub K_b: DMatrix<f64>,
+}
+
+#[allow(non_snake_case)]
+impl Fused {
+    /// `tr P`.
+    pub fn trace(&self) -> f64 {
+        self.P.trace()
+    }
+
+    /// `log det P`.
+    pub fn logdet(&self) -> f64 {
+        crate::linalg::logdet_spd(&self.P)
+    }
+
+    /// The value of a criterion at `P`.
+    pub fn criterion(&self, criterion: Criterion) -> f64 {
+        match criterion {
+            Criterion::Trace => self.trace(),
+            Criterion::Logdet => self.logdet(),
+        }
+    }
+}

@@ -1,0 +1,359 @@
+//! The sampled-SDP approximation of the optimal robust bound (paper eq. (sampled_sdp)).
+//!
+//! The robust problem (paper eq. (robust_sdp)) is
+//! `min tr P̄  s.t.  K_a + K_b = I,  P̄ ⪰ K P' Kᵀ  ∀ admissible P'`, `K = [K_a, K_b]`.
+//! Replacing "all admissible `P'`" by a sample set `{P'_1, …, P'_N}` gives a semidefinite
+//! program whose optimum is a **lower bound** on the robust optimum (a relaxation), and whose
+//! solution is only guaranteed conservative for the samples.
+//!
+//! ## Formulation
+//! The paper writes each constraint as `[[P̄, K], [Kᵀ, P'_i⁻¹]] ⪰ 0`. Near the boundary of
+//! the admissible set (correlations near ±1) `P'_i` is nearly singular, `P'_i⁻¹` explodes
+//! and the interior-point solver stalls. With `P'_i = L_i L_iᵀ` the congruent form
+//!
+//! `[[P̄, K L_i], [(K L_i)ᵀ, I₂ₙ]] ⪰ 0`   ⇔   `P̄ − K L_i L_iᵀ Kᵀ ⪰ 0`   (Schur complement)
+//!
+//! is the same constraint, stays bounded, and is affine in `K_a` because
+//! `K L_i = K_a (L_i,top − L_i,bot) + L_i,bot` once `K_b = I − K_a` is substituted. That is
+//! the form used here; decision variables are `K_a` (n²) and the upper triangle of `P̄`.
+//!
+//! ## Working set
+//! Only a few samples are active at the optimum. By default the program is solved on a small
+//! working set; every other sample is then checked by `λ_min(P̄ − K P'_i Kᵀ)`, the most
+//! violated are added, and the loop repeats until none of the `N` is violated (beyond a
+//! tolerance). The final point is then feasible for all `N` constraints and optimal for a
+//! subset of them, hence optimal for the full `N`-sample program.
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
+use nalgebra::{DMatrix, SymmetricEigen};
+
+use super::check::{conservativeness_margin, worst_margin};
+use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
+use super::{Fused, FusionProblem};
+use crate::error::SolveError;
+use crate::linalg::symmetrize;
+
+/// How Clarabel ended a solve that produced a usable bound.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SdpStatus {
+    /// Solved to the requested tolerances.
+    Solved,
+    /// Solved to Clarabel's reduced tolerances: a valid but less accurate result.
+    AlmostSolved,
+}
+
+impl SdpStatus {
+    /// The status name as Clarabel spells it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SdpStatus::Solved => "Solved",
+            SdpStatus::AlmostSolved => "AlmostSolved",
+        }
+    }
+}
+
+/// Settings of the sampled SDP, with defaults and [`SdpSettings::validate`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SdpSettings {
+    /// Number of sampled cross-covariances `N` (default 200).
+    pub samples: usize,
+    /// Seed of the sampler's `ChaCha8Rng` (default 0).
+    pub seed: u64,
+    /// Rejection-sampler settings.
+    pub sampler: SamplerSettings,
+    /// Interior-point iteration limit per solve (default 200).
+    pub max_iter: u32,
+    /// Clarabel's gap and feasibility tolerances (default `1e-9`).
+    pub tolerance: f64,
+    /// Solve on a working set of samples (default `true`); `false` puts all `N` LMIs in one program.
+    pub working_set: bool,
+    /// Samples in the first working set (default 8).
+    pub initial_working_set: usize,
+    /// Most violated samples added per round (default 8).
+    pub batch: usize,
+    /// Round limit of the working-set loop (default 100).
+    pub max_rounds: usize,
+}
+
+impl Default for SdpSettings {
+    fn default() -> Self {
+        Self {
+            samples: 200,
+            seed: 0,
+            sampler: SamplerSettings::default(),
+            max_iter: 200,
+            tolerance: 1e-9,
+            working_set: true,
+            initial_working_set: 8,
+            batch: 8,
+            max_rounds: 100,
+        }
+    }
+}
+
+impl SdpSettings {
+    /// Checks every value.
+    pub fn validate(&self) -> Result<(), SolveError> {
+        let bad = |m: &str| Err(SolveError::InvalidSettings(m.into()));
+        if self.samples == 0 {
+            return bad("samples must be at least 1");
+        }
+        if self.max_iter == 0 {
+            return bad("max_iter must be at least 1");
+        }
+        if !(self.tolerance > 0.0 && self.tolerance < 1.0) {
+            return bad("tolerance must be in (0, 1)");
+        }
+        if self.initial_working_set == 0 || self.batch == 0 || self.max_rounds == 0 {
+            return bad("initial_working_set, batch and max_rounds must be at least 1");
+        }
+        self.sampler.validate()?;
+        Ok(())
+    }
+}
+
+/// The sampled-SDP bound with the solver's report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SdpResult {
+    /// Fused estimate, bound `P̄` and gains.
+    pub fused: Fused,
+    /// How the last solve ended.
+    pub status: SdpStatus,
+    /// Interior-point iterations, summed over working-set rounds.
+    pub iterations: u32,
+    /// Working-set rounds (1 without a working set).
+    pub rounds: usize,
+    /// LMIs in the last program solved.
+    pub lmis: usize,
+    /// Samples `N` the bound was computed for.
+    pub samples: usize,
+    /// Sampler acceptance rate (1 when the samples were given).
+    pub acceptance_rate: f64,
+    /// Dual objective of the last solve: a lower bound on the `N`-sample optimum (and so on the robust one).
+    pub dual_objective: f64,
+    /// Smallest `λ_min(P̄ − K P'_i Kᵀ)` over all `N` samples (≈ 0 up to solver tolerance).
+    pub worst_sample_margin: f64,
+}
+
+/// Draws `settings.samples` admissible cross-covariances and solves the sampled SDP.
+///
+/// ```
+/// use nalgebra::{DMatrix, DVector};
+/// use nmci::{optimal_fusion, CrossPattern, FusionProblem, SdpSettings};
+/// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+/// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
+///     CrossPattern::diagonal(2)).unwrap();
+/// let opt = optimal_fusion(&p, &SdpSettings { samples: 100, ..Default::default() }).unwrap();
+/// assert!((opt.fused.trace() - 2.0).abs() < 1e-6);
+/// ```
+pub fn optimal_fusion(
+    problem: &FusionProblem,
+    settings: &SdpSettings,
+) -> Result<SdpResult, SolveError> {
+    settings.validate()?;
+    let samples =
+        sample_cross_covariances(problem, settings.samples, settings.seed, settings.sampler)?;
+    optimal_fusion_for_samples(problem, &samples, settings)
+}
+
+/// Solves the sampled SDP for a given sample set (`settings.samples` and `seed` are ignored).
+pub fn optimal_fusion_for_samples(
+    problem: &FusionProblem,
+    samples: &CrossSamples,
+    settings: &SdpSettings,
+) -> Result<SdpResult, SolveError> {
+    let settings = SdpSettings {
+        samples: samples.len().max(1),
+        ..*settings
+    };
+    settings.validate()?;
+    if samples.is_empty() {
+        return Err(SolveError::InvalidSettings(
+            "the sample set is empty".into(),
+        ));
+    }
+    let factors: Vec<DMatrix<f64>> = samples
+        .cross
+        .iter()
+        .map(|p| joint_factor(&problem.joint_covariance(p)))
+        .collect();
+    let n_all = factors.len();
+    let mut active: Vec<usize> = if settings.working_set {
+        (0..n_all.min(settings.initial_working_set)).collect()
+    } else {
+        (0..n_all).collect()
+    };
+    let mut iterations = 0;
+    let mut rounds = 0;
+    loop {
+        rounds += 1;
+        let solved = solve_lmis(problem, &factors, &active, &settings)?;
+        iterations += solved.iterations;
+        // Check every sample outside the working set.
+        let scale = solved.fused.P.amax().max(1.0);
+        let viol_tol = 10.0 * settings.tolerance * scale;
+        let mut in_set = vec![false; n_all];
+        for &i in &active {
+            in_set[i] = true;
+        }
+        let mut violated: Vec<(f64, usize)> = (0..n_all)
+            .filter(|&i| !in_set[i])
+            .map(|i| {
+                (
+                    conservativeness_margin(problem, &solved.fused, &samples.cross[i]),
+                    i,
+                )
+            })
+            .filter(|(m, _)| *m < -viol_tol)
+            .collect();
+        if violated.is_empty() {
+            let worst = worst_margin(problem, &solved.fused, &samples.cross);
+            return Ok(SdpResult {
+                fused: solved.fused,
+                status: solved.status,
+                iterations,
+                rounds,
+                lmis: active.len(),
+                samples: n_all,
+                acceptance_rate: samples.acceptance_rate(),
+                dual_objective: solved.dual_objective,
+                worst_sample_margin: worst,
+            });
+        }
+        if rounds >= settings.max_rounds {
+            let worst = violated.iter().map(|v| v.0).fold(f64::INFINITY, f64::min);
+            return Err(SolveError::WorkingSetStalled {
+                rounds,
+                violated: violated.len(),
+                worst,
+            });
+        }
+        violated.sort_by(|a, b| a.0.total_cmp(&b.0));
+        active.extend(violated.iter().take(settings.batch).map(|v| v.1));
+        active.sort_unstable();
+    }
+}
+
+/// A factor `L` with `L Lᵀ = P'` (Cholesky, or `V diag(√λ)` for numerically singular samples).
+fn joint_factor(joint: &DMatrix<f64>) -> DMatrix<f64> {
+    if let Some(c) = nalgebra::Cholesky::new(joint.clone()) {
+        return c.l();
+    }
+    let eig = SymmetricEigen::new(symmetrize(joint));
+    let roots = eig.eigenvalues.map(|l| l.max(0.0).sqrt());
+    eig.eigenvectors * DMatrix::from_diagonal(&roots)
+}
+
+struct Solved {
+    fused: Fused,
+    status: SdpStatus,
+    iterations: u32,
+    dual_objective: f64,
+}
+
+/// svec index of `(r, c)`, `r ≤ c`, in Clarabel's column-major upper-triangle order.
+fn svec_index(r: usize, c: usize) -> usize {
+    c * (c + 1) / 2 + r
+}
+
+#[allow(non_snake_case)]
+fn solve_lmis(
+    problem: &FusionProblem,
+    factors: &[DMatrix<f64>],
+    active: &[usize],
+    settings: &SdpSettings,
+) -> Result<Solved, SolveError> {
+    let n = problem.dim();
+    let ka = |r: usize, k: usize| r + k * n;
+    let pbar = |i: usize, j: usize| n * n + svec_index(i.min(j), i.max(j));
+    let n_vars = n * n + n * (n + 1) / 2;
+    let m = 3 * n;
+    let cone_len = m * (m + 1) / 2;
+    let sqrt2 = std::f64::consts::SQRT_2;
+
+    let mut rows = Vec::new();
+    let mut cols = Vec::new();
+    let mut vals = Vec::new();
+    let mut b = vec![0.0; cone_len * active.len()];
+    for (slot, &i) in active.iter().enumerate() {
+        let L = &factors[i];
+        let offset = slot * cone_len;
+        // P̄ block
+        for c in 0..n {
+            for r in 0..=c {
+                let scale = if r == c { 1.0 } else { sqrt2 };
+                rows.push(offset + svec_index(r, c));
+                cols.push(pbar(r, c));
+                vals.push(-scale);
+            }
+        }
+        // K L_i block: rows r < n, columns n + q
+        for q in 0..2 * n {
+            let c = n + q;
+            for r in 0..n {
+                let e = offset + svec_index(r, c);
+                b[e] = sqrt2 * L[(n + r, q)];
+                for k in 0..n {
+                    let d = L[(k, q)] - L[(n + k, q)];
+                    if d != 0.0 {
+                        rows.push(e);
+                        cols.push(ka(r, k));
+                        vals.push(-sqrt2 * d);
+                    }
+                }
+            }
+            // identity block
+            b[offset + svec_index(c, c)] = 1.0;
+        }
+    }
+    let A = CscMatrix::new_from_triplets(cone_len * active.len(), n_vars, rows, cols, vals);
+    let P = CscMatrix::zeros((n_vars, n_vars));
+    let mut q = vec![0.0; n_vars];
+    for i in 0..n {
+        q[pbar(i, i)] = 1.0;
+    }
+    let cones: Vec<SupportedConeT<f64>> = active
+        .iter()
+        .map(|_| SupportedConeT::PSDTriangleConeT(m))
+        .collect();
+    let clarabel_settings = DefaultSettings {
+        verbose: false,
+        max_iter: settings.max_iter,
+        tol_gap_abs: settings.tolerance,
+        tol_gap_rel: settings.tolerance,
+        tol_feas: settings.tolerance,
+        ..DefaultSettings::default()
+    };
+    let mut solver = DefaultSolver::new(&P, &q, &A, &b, &cones, clarabel_settings)
+        .map_err(|e| SolveError::Setup(e.to_string()))?;
+    solver.solve();
+    let sol = &solver.solution;
+    let status = match sol.status {
+        SolverStatus::Solved => SdpStatus::Solved,
+        SolverStatus::AlmostSolved => SdpStatus::AlmostSolved,
+        other => {
+            return Err(SolveError::SolverFailed {
+                status: format!("{other:?}"),
+                iterations: sol.iterations,
+            })
+        }
+    };
+    let K_a = DMatrix::from_fn(n, n, |r, k| sol.x[ka(r, k)]);
+    let K_b = DMatrix::identity(n, n) - &K_a;
+    let P_bar = DMatrix::from_fn(n, n, |i, j| sol.x[pbar(i, j)]);
+    let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
+    Ok(Solved {
+        fused: Fused {
+            x,
+            P: P_bar,
+            K_a,
+            K_b,
+        },
+        status,
+        iterations: sol.iterations,
+        dual_objective: sol.obj_val_dual,
+    })
+}

@@ -1,0 +1,59 @@
+//! # nmci — conservative fusion when the cross-covariance is unknown except for known zeros
+//!
+//! Two estimates `(x_a, P_a)`, `(x_b, P_b)` are to be fused into `x = K_a x_a + K_b x_b`
+//! with a covariance bound `P̄` that dominates the true fused covariance for every
+//! cross-covariance `P_ab` consistent with what is known: the joint covariance is positive
+//! definite and the entries of `P_ab` in a known index set `I` are zero. This crate
+//! implements the rules of Funk, Dagan, Noack and Ahmed, *Exploiting Structure for Optimal
+//! Multi-Agent Bayesian Decentralized Estimation*:
+//!
+//! | rule | function | bound type |
+//! |---|---|---|
+//! | CI, exact optimal `ω` (trace or log-det) | [`covariance_intersection`] | conservative (upper bound) |
+//! | non-monolithic CI, one `ω` per independent block | [`non_monolithic_ci`] | conservative (upper bound) |
+//! | sampled SDP (paper eq. (sampled_sdp)) | [`optimal_fusion`] | optimum is a lower bound on the robust optimum |
+//!
+//! and the tools around them: [`independent_blocks`] (the structure), the rejection sampler
+//! [`sample_cross_covariances`] and [`worst_margin`] (`λ_min(P̄ − K P' Kᵀ)`, the conservativeness
+//! check). [`fuse`] is the JSON request/response contract shared by the CLI and the wasm module.
+//!
+//! ## Symbols
+//! Textbook symbols are kept (`#[allow(non_snake_case)]`): `P_a`, `P_b` covariances of the
+//! two estimates, `P_ab` their cross-covariance, `x_a`, `x_b` the estimates, `K_a`, `K_b` the
+//! gains (`K_a + K_b = I`), `P` / `P̄` the fused bound, `ω` the CI weight on `P_a⁻¹`, `P'` an
+//! admissible joint covariance `[[P_a, P_ab'], [P_ab'ᵀ, P_b]]`.
+//!
+//! ```
+//! use nalgebra::{DMatrix, DVector};
+//! use nmci::*;
+//! let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+//! // The paper's example: P_a = diag(3, 1), P_b = diag(1, 4), P_ab diagonal.
+//! let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
+//!     CrossPattern::diagonal(2)).unwrap();
+//! let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+//! let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap();
+//! assert_eq!(nm.fused.P, d(&[1.0, 1.0]));
+//! assert!(nm.fused.trace() < ci.fused.trace());
+//! ```
+#![deny(missing_docs)]
+
+mod api;
+mod error;
+mod fusion;
+mod linalg;
+mod structure;
+#[cfg(target_arch = "wasm32")]
+mod wasm;
+
+pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method};
+pub use error::{InputError, RequestError, SampleError, SolveError};
+pub use fusion::check::{conservativeness_margin, fused_error_covariance, worst_margin};
+pub use fusion::ci::{ci_covariance, covariance_intersection, CiResult};
+pub use fusion::nmci::{non_monolithic_ci, NmciResult};
+pub use fusion::sample::{
+    sample_cross_covariances, sample_cross_covariances_with, CrossSamples, SamplerSettings,
+};
+pub use fusion::sdp::{optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings, SdpStatus};
+pub use fusion::{validate_covariance, Criterion, Fused, FusionProblem};
+pub use linalg::{logdet_spd, min_eigenvalue};
+pub use structure::{independent_blocks, CrossPattern};

@@ -1,0 +1,24 @@
+//! The wasm-bindgen bindings: a thin layer over [`crate::fuse`]. No logic lives here.
+
+use wasm_bindgen::prelude::*;
+
+use crate::api::FuseRequest;
+
+/// Runs a fusion request (the same object as `nmci fuse` reads) and returns the response
+/// object; throws an `Error` carrying the message of any invalid input.
+#[wasm_bindgen]
+pub fn fuse(request: JsValue) -> Result<JsValue, JsError> {
+    let request: FuseRequest = serde_wasm_bindgen::from_value(request)
+        .map_err(|e| JsError::new(&format!("invalid request: {e}")))?;
+    let response = crate::api::fuse(&request)?;
+    let serializer = serde_wasm_bindgen::Serializer::new().serialize_missing_as_null(false);
+    Ok(response.serialize(&serializer)?)
+}
+
+/// The crate version, for the page's footer.
+#[wasm_bindgen]
+pub fn version() -> String {
+    env!("CARGO_PKG_VERSION").into()
+}
+
+use serde::Serialize;
