@@ -43,7 +43,7 @@ mod fusion;
 mod linalg;
 mod structure;
 #[cfg(target_arch = "wasm32")]
-mod wasm;
+pub mod wasm;
 
 pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method};
 pub use error::{InputError, RequestError, SampleError, SolveError};

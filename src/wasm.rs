@@ -8,7 +8,11 @@ use crate::api::FuseRequest;
 /// object; throws an `Error` carrying the message of any invalid input.
 #[wasm_bindgen]
 pub fn fuse(request: JsValue) -> Result<JsValue, JsError> {
-    let request: FuseRequest = serde_wasm_bindgen::from_value(request)
+    // Through a JSON value, so that parsing is exactly the CLI's (serde-wasm-bindgen alone
+    // skips unknown fields instead of rejecting them).
+    let value: serde_json::Value = serde_wasm_bindgen::from_value(request)
+        .map_err(|e| JsError::new(&format!("invalid request: {e}")))?;
+    let request: FuseRequest = serde_json::from_value(value)
         .map_err(|e| JsError::new(&format!("invalid request: {e}")))?;
     let response = crate::api::fuse(&request)?;
     let serializer = serde_wasm_bindgen::Serializer::new().serialize_missing_as_null(false);

@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Every test: install what is missing, then native (cargo test), wasm in headless Chromium
+# (wasm-pack test), and the page end-to-end in headless Chromium.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export PATH="$HOME/.cargo/bin:$PATH"
+scripts/setup.sh test
+
+echo "== native: cargo test (crate, BLAS/LAPACK shims, CLI, doc examples)"
+cargo test --workspace
+
+echo "== wasm: wasm-pack test in headless Chromium"
+scripts/wasm.sh test
+
+echo "== page: build the package and drive the explorer in headless Chromium"
+scripts/wasm.sh build
+node --test tests/e2e/

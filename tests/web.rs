@@ -1,0 +1,103 @@
+//! The wasm module in headless Chromium (`scripts/wasm.sh test`): the exported `fuse` on the
+//! paper's example for every method, and invalid requests throwing with their message.
+#![cfg(target_arch = "wasm32")]
+
+use js_sys::{Reflect, JSON};
+use nmci::FuseResponse;
+use wasm_bindgen::{JsCast, JsValue};
+use wasm_bindgen_test::*;
+
+wasm_bindgen_test_configure!(run_in_browser);
+
+fn request(method: &str) -> JsValue {
+    JSON::parse(&format!(
+        r#"{{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
+            "pab_unknown": [[true, false], [false, true]], "method": "{method}", "samples": 100}}"#
+    ))
+    .unwrap()
+}
+
+fn call(req: JsValue) -> Result<FuseResponse, String> {
+    match nmci::wasm::fuse(req) {
+        Ok(v) => Ok(serde_wasm_bindgen::from_value(v).unwrap()),
+        Err(e) => {
+            let v = JsValue::from(e);
+            assert!(v.is_instance_of::<js_sys::Error>(), "throws a JS Error");
+            Err(Reflect::get(&v, &"message".into())
+                .unwrap()
+                .as_string()
+                .unwrap())
+        }
+    }
+}
+
+#[wasm_bindgen_test]
+fn paper_example_ci() {
+    let req = JSON::parse(
+        r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
+            "pab_unknown": [[true, false], [false, true]], "method": "ci"}"#,
+    )
+    .unwrap();
+    let r = call(req).unwrap();
+    let omega = r.omega.unwrap();
+    assert_eq!(omega.len(), 1);
+    assert!(omega[0] > 0.0 && omega[0] < 1.0);
+    assert!(r.trace > 2.5, "CI ignores the structure: trace {}", r.trace);
+}
+
+#[wasm_bindgen_test]
+fn paper_example_nmci() {
+    let req = JSON::parse(
+        r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
+            "pab_unknown": [[true, false], [false, true]], "method": "nmci"}"#,
+    )
+    .unwrap();
+    let r = call(req).unwrap();
+    assert_eq!(r.omega, Some(vec![0.0, 1.0]));
+    assert_eq!(r.p, vec![vec![1.0, 0.0], vec![0.0, 1.0]]);
+    assert_eq!(r.blocks, Some(vec![vec![0], vec![1]]));
+}
+
+#[wasm_bindgen_test]
+fn paper_example_sdp() {
+    let r = call(request("sdp")).unwrap();
+    assert!((r.trace - 2.0).abs() < 1e-6, "trace {}", r.trace);
+    assert_eq!(r.samples, Some(100));
+    let status = r.status.unwrap();
+    assert!(status == "Solved" || status == "AlmostSolved", "{status}");
+    assert!(r.iterations.unwrap() > 0);
+    assert!(r.omega.is_none());
+}
+
+#[wasm_bindgen_test]
+fn wasm_matches_native_formula() {
+    // The same request natively (the crate's Rust API in this wasm instance) and through JS.
+    let native: nmci::FuseRequest = serde_json::from_str(
+        r#"{"pa": [[2, 0.3], [0.3, 1]], "pb": [[1, -0.2], [-0.2, 3]], "method": "ci"}"#,
+    )
+    .unwrap();
+    let expected = nmci::fuse(&native).unwrap();
+    let js = JSON::parse(r#"{"pa": [[2, 0.3], [0.3, 1]], "pb": [[1, -0.2], [-0.2, 3]], "method": "ci"}"#)
+        .unwrap();
+    assert_eq!(call(js).unwrap(), expected);
+}
+
+#[wasm_bindgen_test]
+fn invalid_requests_throw_with_their_message() {
+    let not_pd = JSON::parse(r#"{"pa": [[1, 2], [2, 1]], "pb": [[1, 0], [0, 4]], "method": "ci"}"#)
+        .unwrap();
+    let msg = call(not_pd).unwrap_err();
+    assert!(msg.contains("P_a is not positive definite"), "{msg}");
+
+    let unknown = JSON::parse(r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "colour": 3}"#).unwrap();
+    let msg = call(unknown).unwrap_err();
+    assert!(msg.contains("unknown field `colour`"), "{msg}");
+
+    let bad_method = JSON::parse(r#"{"pa": [[1]], "pb": [[1]], "method": "magic"}"#).unwrap();
+    let msg = call(bad_method).unwrap_err();
+    assert!(msg.contains("magic"), "{msg}");
+
+    let mismatch = JSON::parse(r#"{"pa": [[1]], "pb": [[1, 0], [0, 1]], "method": "nmci"}"#).unwrap();
+    let msg = call(mismatch).unwrap_err();
+    assert!(msg.contains("P_b has size 2, expected 1"), "{msg}");
+}
