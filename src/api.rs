@@ -228,9 +228,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                 samples: request.samples.unwrap_or(defaults.samples),
                 seed: request.seed.unwrap_or(defaults.seed),
                 sampler: SamplerSettings {
-                    max_trials: request
-                        .max_trials
-                        .unwrap_or(defaults.sampler.max_trials),
+                    max_trials: request.max_trials.unwrap_or(defaults.sampler.max_trials),
                 },
                 ..defaults
             };

@@ -33,7 +33,9 @@ pub enum InputError {
         col: usize,
     },
     /// `|A[i,j] − A[j,i]|` exceeds the relative symmetry tolerance.
-    #[error("{name} is not symmetric: entry ({row}, {col}) is {value} but ({col}, {row}) is {mirror}")]
+    #[error(
+        "{name} is not symmetric: entry ({row}, {col}) is {value} but ({col}, {row}) is {mirror}"
+    )]
     NotSymmetric {
         /// Which input.
         name: String,

@@ -53,7 +53,9 @@ pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::sample::{
     sample_cross_covariances, sample_cross_covariances_with, CrossSamples, SamplerSettings,
 };
-pub use fusion::sdp::{optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings, SdpStatus};
+pub use fusion::sdp::{
+    optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings, SdpStatus,
+};
 pub use fusion::{validate_covariance, Criterion, Fused, FusionProblem};
 pub use linalg::{logdet_spd, min_eigenvalue};
 pub use structure::{independent_blocks, CrossPattern};

@@ -86,9 +86,7 @@ impl CrossPattern {
     /// The pattern restricted to the states in `idx` (rows and columns).
     pub fn restrict(&self, idx: &[usize]) -> Self {
         Self {
-            unknown: DMatrix::from_fn(idx.len(), idx.len(), |i, j| {
-                self.unknown[(idx[i], idx[j])]
-            }),
+            unknown: DMatrix::from_fn(idx.len(), idx.len(), |i, j| self.unknown[(idx[i], idx[j])]),
         }
     }
 

@@ -77,19 +77,22 @@ fn wasm_matches_native_formula() {
     )
     .unwrap();
     let expected = nmci::fuse(&native).unwrap();
-    let js = JSON::parse(r#"{"pa": [[2, 0.3], [0.3, 1]], "pb": [[1, -0.2], [-0.2, 3]], "method": "ci"}"#)
-        .unwrap();
+    let js = JSON::parse(
+        r#"{"pa": [[2, 0.3], [0.3, 1]], "pb": [[1, -0.2], [-0.2, 3]], "method": "ci"}"#,
+    )
+    .unwrap();
     assert_eq!(call(js).unwrap(), expected);
 }
 
 #[wasm_bindgen_test]
 fn invalid_requests_throw_with_their_message() {
-    let not_pd = JSON::parse(r#"{"pa": [[1, 2], [2, 1]], "pb": [[1, 0], [0, 4]], "method": "ci"}"#)
-        .unwrap();
+    let not_pd =
+        JSON::parse(r#"{"pa": [[1, 2], [2, 1]], "pb": [[1, 0], [0, 4]], "method": "ci"}"#).unwrap();
     let msg = call(not_pd).unwrap_err();
     assert!(msg.contains("P_a is not positive definite"), "{msg}");
 
-    let unknown = JSON::parse(r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "colour": 3}"#).unwrap();
+    let unknown =
+        JSON::parse(r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "colour": 3}"#).unwrap();
     let msg = call(unknown).unwrap_err();
     assert!(msg.contains("unknown field `colour`"), "{msg}");
 
@@ -97,7 +100,8 @@ fn invalid_requests_throw_with_their_message() {
     let msg = call(bad_method).unwrap_err();
     assert!(msg.contains("magic"), "{msg}");
 
-    let mismatch = JSON::parse(r#"{"pa": [[1]], "pb": [[1, 0], [0, 1]], "method": "nmci"}"#).unwrap();
+    let mismatch =
+        JSON::parse(r#"{"pa": [[1]], "pb": [[1, 0], [0, 1]], "method": "nmci"}"#).unwrap();
     let msg = call(mismatch).unwrap_err();
     assert!(msg.contains("P_b has size 2, expected 1"), "{msg}");
 }

@@ -12,7 +12,11 @@ mod cli {
     use clap::{Parser, Subcommand};
 
     #[derive(Parser)]
-    #[command(name = "nmci", version, about = "Conservative fusion with partially known cross-covariance: CI, nmCI and the sampled-SDP optimal bound")]
+    #[command(
+        name = "nmci",
+        version,
+        about = "Conservative fusion with partially known cross-covariance: CI, nmCI and the sampled-SDP optimal bound"
+    )]
     struct Cli {
         #[command(subcommand)]
         command: Command,
@@ -44,8 +48,9 @@ mod cli {
     pub fn main() -> ExitCode {
         let cli = Cli::parse();
         let result = match cli.command {
-            Command::Fuse { file } => read_input(file)
-                .and_then(|text| nmci::fuse_json(&text).map_err(|e| e.to_string())),
+            Command::Fuse { file } => {
+                read_input(file).and_then(|text| nmci::fuse_json(&text).map_err(|e| e.to_string()))
+            }
         };
         match result {
             Ok(out) => {

@@ -24,11 +24,7 @@ pub fn fused_error_covariance(
 
 /// `λ_min(P̄ − K P' Kᵀ)` for one cross-covariance: `≥ 0` means conservative for it.
 #[allow(non_snake_case)]
-pub fn conservativeness_margin(
-    problem: &FusionProblem,
-    fused: &Fused,
-    P_ab: &DMatrix<f64>,
-) -> f64 {
+pub fn conservativeness_margin(problem: &FusionProblem, fused: &Fused, P_ab: &DMatrix<f64>) -> f64 {
     let P_f = fused_error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
     min_eigenvalue(&(&fused.P - P_f))
 }

@@ -121,8 +121,7 @@ impl Pencil {
             } else {
                 0.5 * (lo + hi)
             };
-            if (next - omega).abs() <= 4.0 * f64::EPSILON * omega.max(1e-300) || hi - lo <= 0.0
-            {
+            if (next - omega).abs() <= 4.0 * f64::EPSILON * omega.max(1e-300) || hi - lo <= 0.0 {
                 return next;
             }
             omega = next;
@@ -143,10 +142,7 @@ impl Pencil {
 /// The CI covariance `P(ω) = (ω P_a⁻¹ + (1−ω) P_b⁻¹)⁻¹` for a given weight
 /// (`ω = 0` gives `P_b` and `ω = 1` gives `P_a`, exactly).
 #[allow(non_snake_case)]
-pub fn ci_covariance(
-    problem: &FusionProblem,
-    omega: f64,
-) -> Result<DMatrix<f64>, InputError> {
+pub fn ci_covariance(problem: &FusionProblem, omega: f64) -> Result<DMatrix<f64>, InputError> {
     if omega == 0.0 {
         return Ok(problem.P_b.clone());
     }

@@ -25,9 +25,7 @@
 //! subset of them, hence optimal for the full `N`-sample program.
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-};
+use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::check::{conservativeness_margin, worst_margin};

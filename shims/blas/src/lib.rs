@@ -207,9 +207,7 @@ macro_rules! blas_fns {
             c: &mut [$T],
             ldc: i32,
         ) {
-            gemm(
-                transa, transb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc,
-            )
+            gemm(transa, transb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc)
         }
 
         /// General matrix-vector product `y ← α op(A) x + β y` (reference BLAS semantics).

@@ -506,7 +506,9 @@ macro_rules! lapack_fns {
             lwork: i32,
             info: &mut i32,
         ) {
-            gesvd(jobu, jobvt, m, n, a, lda, s, u, ldu, vt, ldvt, work, lwork, info)
+            gesvd(
+                jobu, jobvt, m, n, a, lda, s, u, ldu, vt, ldvt, work, lwork, info,
+            )
         }
 
         /// Solves `A X = B` by LU factorization with partial pivoting.

@@ -1,0 +1,169 @@
+//! Covariance intersection: exact optimal ω against a brute-force scan, endpoints, gains,
+//! and conservativeness against sampled admissible cross-covariances.
+#![allow(non_snake_case)]
+
+mod common;
+
+use common::*;
+use nalgebra::DMatrix;
+use nmci::*;
+
+/// The criterion at ω computed directly: P(ω) = (ω P_a⁻¹ + (1−ω) P_b⁻¹)⁻¹.
+fn direct(problem: &FusionProblem, omega: f64, criterion: Criterion) -> f64 {
+    let info = problem.P_a.clone().try_inverse().unwrap() * omega
+        + problem.P_b.clone().try_inverse().unwrap() * (1.0 - omega);
+    let P = info.try_inverse().unwrap();
+    match criterion {
+        Criterion::Trace => P.trace(),
+        Criterion::Logdet => P.determinant().ln(),
+    }
+}
+
+/// Brute force: a 2 001-point grid (the criterion is convex), then golden-section refinement around the best point.
+fn brute_force(problem: &FusionProblem, criterion: Criterion) -> (f64, f64) {
+    let f = |w: f64| direct(problem, w, criterion);
+    let steps = 2_000;
+    let (mut best_w, mut best) = (0.0, f(0.0));
+    for k in 1..=steps {
+        let w = k as f64 / steps as f64;
+        let v = f(w);
+        if v < best {
+            best = v;
+            best_w = w;
+        }
+    }
+    let (mut lo, mut hi) = (
+        (best_w - 1.0 / steps as f64).max(0.0),
+        (best_w + 1.0 / steps as f64).min(1.0),
+    );
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..200 {
+        let a = hi - g * (hi - lo);
+        let b = lo + g * (hi - lo);
+        if f(a) < f(b) {
+            hi = b;
+        } else {
+            lo = a;
+        }
+    }
+    let w = 0.5 * (lo + hi);
+    let v = f(w);
+    if v < best {
+        (w, v)
+    } else {
+        (best_w, best)
+    }
+}
+
+#[test]
+fn exact_omega_matches_brute_force_scan() {
+    let mut r = rng(11);
+    for &n in &[2usize, 5, 14] {
+        for case in 0..6 {
+            let p = random_problem(n, CrossPattern::fully_unknown(n), &mut r);
+            for criterion in [Criterion::Trace, Criterion::Logdet] {
+                let ci = covariance_intersection(&p, criterion).unwrap();
+                let ours = direct(&p, ci.omega, criterion);
+                let reported = ci.fused.criterion(criterion);
+                let (w_bf, bf) = brute_force(&p, criterion);
+                let scale = bf.abs().max(1.0);
+                assert!(
+                    ours <= bf + 1e-12 * scale,
+                    "n={n} case={case} {criterion:?}: exact {ours} (ω={}) worse than brute force {bf} (ω={w_bf})",
+                    ci.omega
+                );
+                assert!(
+                    (ours - bf).abs() <= 1e-9 * scale,
+                    "n={n} case={case} {criterion:?}: {ours} vs {bf}"
+                );
+                assert!(
+                    (reported - ours).abs() <= 1e-9 * scale,
+                    "reported criterion {reported} vs {ours}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn endpoint_optima_are_exact() {
+    // P_a much larger than P_b in every direction: take b (ω = 0 exactly); and vice versa.
+    let p = FusionProblem::from_covariances(
+        diag(&[10.0, 20.0]),
+        diag(&[1.0, 2.0]),
+        CrossPattern::fully_unknown(2),
+    )
+    .unwrap();
+    let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+    assert_eq!(ci.omega, 0.0);
+    assert_eq!(ci.fused.P, p.P_b);
+    assert_eq!(ci.fused.K_a, DMatrix::zeros(2, 2));
+    assert_eq!(ci.fused.K_b, DMatrix::identity(2, 2));
+    let p = FusionProblem::from_covariances(
+        diag(&[1.0, 2.0]),
+        diag(&[10.0, 20.0]),
+        CrossPattern::fully_unknown(2),
+    )
+    .unwrap();
+    let ci = covariance_intersection(&p, Criterion::Logdet).unwrap();
+    assert_eq!(ci.omega, 1.0);
+    assert_eq!(ci.fused.P, p.P_a);
+    assert_eq!(ci.fused.K_a, DMatrix::identity(2, 2));
+}
+
+#[test]
+fn paper_example_ci_is_interior_and_looser_than_nmci() {
+    let p = paper_example();
+    let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+    assert!(ci.omega > 0.0 && ci.omega < 1.0);
+    assert!(ci.fused.trace() > 2.0 + 1e-3);
+    // Closed form check of the trace at ω: 1/(ω/3 + 1 − ω) + 1/(ω + (1 − ω)/4)
+    let w = ci.omega;
+    let expected = 1.0 / (w / 3.0 + 1.0 - w) + 1.0 / (w + (1.0 - w) / 4.0);
+    assert!((ci.fused.trace() - expected).abs() < 1e-12);
+}
+
+#[test]
+fn gains_are_unbiased_and_reproduce_the_ci_covariance() {
+    let mut r = rng(3);
+    for n in [2, 4, 7] {
+        let p = random_problem(n, CrossPattern::fully_unknown(n), &mut r);
+        let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+        let I = DMatrix::<f64>::identity(n, n);
+        assert!((&ci.fused.K_a + &ci.fused.K_b - &I).amax() < 1e-12);
+        // K_a = ω P P_a⁻¹, K_b = (1−ω) P P_b⁻¹
+        let Kb = &ci.fused.P * p.P_b.clone().try_inverse().unwrap() * (1.0 - ci.omega);
+        assert!((Kb - &ci.fused.K_b).amax() < 1e-9);
+        let x = &ci.fused.K_a * &p.x_a + &ci.fused.K_b * &p.x_b;
+        assert!((x - &ci.fused.x).amax() < 1e-12);
+        assert!(
+            (&ci.fused.P - ci.fused.P.transpose()).amax() == 0.0,
+            "P symmetric"
+        );
+        assert_eq!(ci_covariance(&p, ci.omega).unwrap(), ci.fused.P);
+    }
+}
+
+#[test]
+fn ci_is_conservative_for_sampled_admissible_cross_covariances() {
+    let mut r = rng(5);
+    for (n, pattern_p) in [(2usize, 1.0), (3, 0.6), (3, 1.0), (4, 0.3)] {
+        let pattern = random_pattern(n, pattern_p, &mut r);
+        let p = random_problem(n, pattern, &mut r);
+        let samples = sample_cross_covariances(
+            &p,
+            1000,
+            17,
+            SamplerSettings {
+                max_trials: 50_000_000,
+            },
+        )
+        .unwrap();
+        assert_eq!(samples.len(), 1000);
+        for criterion in [Criterion::Trace, Criterion::Logdet] {
+            let ci = covariance_intersection(&p, criterion).unwrap();
+            let m = worst_margin(&p, &ci.fused, &samples.cross);
+            assert!(m >= -1e-10, "n={n}: CI not conservative, margin {m}");
+        }
+    }
+}

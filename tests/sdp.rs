@@ -1,0 +1,180 @@
+//! The sampled SDP: the paper's example to 1e-6, lower bound against nmCI, working set
+//! equal to the full program, and solver failures reported as errors carrying the status.
+#![allow(non_snake_case)]
+
+mod common;
+
+use common::*;
+use nmci::*;
+
+#[test]
+fn paper_example_reaches_diag_1_1() {
+    let p = paper_example();
+    for (samples, seed) in [(50, 0), (100, 1), (200, 2)] {
+        let opt = optimal_fusion(
+            &p,
+            &SdpSettings {
+                samples,
+                seed,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            (opt.fused.trace() - 2.0).abs() < 1e-6,
+            "N={samples}: trace {}",
+            opt.fused.trace()
+        );
+        assert!((&opt.fused.P - diag(&[1.0, 1.0])).amax() < 1e-6);
+        assert!((&opt.fused.K_a - diag(&[0.0, 1.0])).amax() < 1e-6);
+        assert_eq!(opt.samples, samples);
+        assert!(opt.iterations > 0);
+        assert!(opt.worst_sample_margin > -1e-7);
+        assert!(opt.dual_objective <= opt.fused.trace() + 1e-7);
+    }
+}
+
+#[test]
+fn sampled_sdp_is_a_lower_bound_on_nmci() {
+    let mut r = rng(31);
+    for (n, prob) in [(2usize, 0.5), (2, 1.0), (3, 0.5), (3, 0.3), (4, 0.25)] {
+        let pattern = random_pattern(n, prob, &mut r);
+        let p = random_problem(n, pattern, &mut r);
+        let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap();
+        let opt = optimal_fusion(
+            &p,
+            &SdpSettings {
+                samples: 100,
+                seed: 3,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            opt.fused.trace() <= nm.fused.trace() + 1e-6,
+            "n={n}: SDP {} above nmCI {}",
+            opt.fused.trace(),
+            nm.fused.trace()
+        );
+        let I = nalgebra::DMatrix::<f64>::identity(n, n);
+        assert!((&opt.fused.K_a + &opt.fused.K_b - I).amax() < 1e-12);
+    }
+}
+
+#[test]
+fn working_set_equals_the_full_program() {
+    let mut r = rng(7);
+    for (n, prob) in [(2usize, 1.0), (3, 0.5)] {
+        let p = random_problem(n, random_pattern(n, prob, &mut r), &mut r);
+        let samples = sample_cross_covariances(
+            &p,
+            150,
+            1,
+            SamplerSettings {
+                max_trials: 50_000_000,
+            },
+        )
+        .unwrap();
+        let ws = optimal_fusion_for_samples(&p, &samples, &SdpSettings::default()).unwrap();
+        let full = optimal_fusion_for_samples(
+            &p,
+            &samples,
+            &SdpSettings {
+                working_set: false,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(full.lmis, 150);
+        assert!(ws.lmis < 150);
+        assert!(
+            (ws.fused.trace() - full.fused.trace()).abs() < 1e-6,
+            "{} vs {}",
+            ws.fused.trace(),
+            full.fused.trace()
+        );
+    }
+}
+
+#[test]
+fn nearly_singular_samples_are_handled() {
+    // Correlations within 1e-9 of ±1: the paper's P'⁻¹ form explodes here, the congruent form does not.
+    let p = paper_example();
+    let s3 = 3f64.sqrt();
+    let near = |rx: f64, ry: f64| diag(&[rx * s3, ry * 2.0]);
+    let cross = vec![
+        near(1.0 - 1e-9, -1.0 + 1e-9),
+        near(-1.0 + 1e-9, 1.0 - 1e-9),
+        near(0.3, 0.2),
+        near(0.99, 0.99),
+    ];
+    let samples = CrossSamples { cross, trials: 4 };
+    let opt = optimal_fusion_for_samples(&p, &samples, &SdpSettings::default()).unwrap();
+    assert!(
+        (opt.fused.trace() - 2.0).abs() < 1e-6,
+        "trace {}",
+        opt.fused.trace()
+    );
+}
+
+#[test]
+fn solver_failure_is_an_error_carrying_the_status() {
+    let p = paper_example();
+    let err = optimal_fusion(
+        &p,
+        &SdpSettings {
+            samples: 50,
+            max_iter: 2,
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    match &err {
+        SolveError::SolverFailed { status, iterations } => {
+            assert_eq!(status, "MaxIterations");
+            assert_eq!(*iterations, 2);
+        }
+        other => panic!("unexpected {other:?}"),
+    }
+    assert!(err.to_string().contains("MaxIterations"));
+}
+
+#[test]
+fn invalid_settings_are_rejected() {
+    let p = paper_example();
+    for s in [
+        SdpSettings {
+            samples: 0,
+            ..Default::default()
+        },
+        SdpSettings {
+            tolerance: 0.0,
+            ..Default::default()
+        },
+        SdpSettings {
+            tolerance: f64::NAN,
+            ..Default::default()
+        },
+        SdpSettings {
+            batch: 0,
+            ..Default::default()
+        },
+        SdpSettings {
+            max_iter: 0,
+            ..Default::default()
+        },
+    ] {
+        assert!(
+            matches!(optimal_fusion(&p, &s), Err(SolveError::InvalidSettings(_))),
+            "{s:?}"
+        );
+    }
+    let empty = CrossSamples {
+        cross: vec![],
+        trials: 0,
+    };
+    assert!(matches!(
+        optimal_fusion_for_samples(&p, &empty, &SdpSettings::default()),
+        Err(SolveError::InvalidSettings(_))
+    ));
+}

@@ -1,0 +1,195 @@
+//! Every validation error path, in the Rust API and through the JSON contract.
+#![allow(non_snake_case)]
+
+mod common;
+
+use common::*;
+use nalgebra::{DMatrix, DVector};
+use nmci::*;
+
+fn problem(P_a: DMatrix<f64>, P_b: DMatrix<f64>) -> Result<FusionProblem, InputError> {
+    FusionProblem::from_covariances(P_a, P_b, CrossPattern::fully_unknown(2))
+}
+
+#[test]
+fn covariance_errors_name_the_problem() {
+    let I = DMatrix::<f64>::identity(2, 2);
+    let e = problem(DMatrix::zeros(0, 0), I.clone()).unwrap_err();
+    assert_eq!(e.to_string(), "P_a is empty");
+
+    let e = validate_covariance("P_a", &DMatrix::zeros(2, 3)).unwrap_err();
+    assert_eq!(e.to_string(), "P_a is not square (2×3)");
+
+    let mut nan = I.clone();
+    nan[(1, 0)] = f64::NAN;
+    let e = problem(nan, I.clone()).unwrap_err();
+    assert_eq!(e.to_string(), "P_a has a non-finite entry at (1, 0)");
+
+    let asym = DMatrix::from_row_slice(2, 2, &[2.0, 0.5, 0.4, 2.0]);
+    let e = problem(I.clone(), asym).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "P_b is not symmetric: entry (0, 1) is 0.5 but (1, 0) is 0.4"
+    );
+
+    // Within the relative tolerance: accepted and symmetrised.
+    let nearly = DMatrix::from_row_slice(2, 2, &[2.0, 0.5, 0.5 + 1e-12, 2.0]);
+    let p = problem(I.clone(), nearly).unwrap();
+    assert_eq!(p.P_b[(0, 1)], p.P_b[(1, 0)]);
+
+    let e = problem(I.clone(), diag(&[1.0, -0.3])).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "P_b is not positive definite (smallest eigenvalue -3.000000e-1)"
+    );
+    assert!(
+        matches!(e, InputError::NotPositiveDefinite { min_eigenvalue, .. } if (min_eigenvalue + 0.3).abs() < 1e-15)
+    );
+
+    let e = problem(I.clone(), diag(&[1.0, 0.0])).unwrap_err();
+    assert!(e.to_string().starts_with("P_b is not positive definite"));
+
+    let e = problem(I.clone(), DMatrix::identity(3, 3)).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "P_b has size 3, expected 2 (the size of P_a)"
+    );
+}
+
+#[test]
+fn vector_and_pattern_errors() {
+    let I = DMatrix::<f64>::identity(2, 2);
+    let e = FusionProblem::new(
+        DVector::zeros(3),
+        I.clone(),
+        DVector::zeros(2),
+        I.clone(),
+        CrossPattern::diagonal(2),
+    )
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "x_a has size 3, expected 2 (the size of P_a)"
+    );
+    let e = FusionProblem::new(
+        DVector::zeros(2),
+        I.clone(),
+        DVector::from_vec(vec![0.0, f64::INFINITY]),
+        I.clone(),
+        CrossPattern::diagonal(2),
+    )
+    .unwrap_err();
+    assert_eq!(e.to_string(), "x_b has a non-finite entry at (1, 0)");
+    let e = FusionProblem::new(
+        DVector::zeros(2),
+        I.clone(),
+        DVector::zeros(2),
+        I.clone(),
+        CrossPattern::diagonal(3),
+    )
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "pab_unknown has size 3, expected 2 (the size of P_a)"
+    );
+    let e = CrossPattern::from_rows(&[vec![true, false], vec![true]]).unwrap_err();
+    assert_eq!(e.to_string(), "pab_unknown is not square (2×1)");
+}
+
+fn run(json: &str) -> Result<String, String> {
+    fuse_json(json).map_err(|e| e.to_string())
+}
+
+#[test]
+fn request_errors() {
+    let ok = r#""pa": [[1, 0], [0, 1]], "pb": [[2, 0], [0, 2]]"#;
+    assert!(run(&format!(r#"{{{ok}, "method": "ci"}}"#)).is_ok());
+    let cases = [
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "extra": 1}"#,
+            "unknown field `extra`",
+        ),
+        (r#"{"pa": [[1]], "pb": [[1]]}"#, "missing field `method`"),
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "method": "best"}"#,
+            "unknown variant `best`",
+        ),
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "criterion": "max"}"#,
+            "unknown variant `max`",
+        ),
+        (
+            r#"{"pa": [[1, 0], [0]], "pb": [[1]], "method": "ci"}"#,
+            "P_a is not square (2×1)",
+        ),
+        (r#"{"pa": [], "pb": [[1]], "method": "ci"}"#, "P_a is empty"),
+        (
+            r#"{"pa": [["a"]], "pb": [[1]], "method": "ci"}"#,
+            "invalid request",
+        ),
+        ("not json", "invalid request"),
+        (
+            &format!(r#"{{{ok}, "method": "ci", "samples": 10}}"#),
+            "`samples` applies to method \"sdp\" only",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "nmci", "seed": 1}}"#),
+            "`seed` applies to method \"sdp\" only",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "sdp", "samples": 0}}"#),
+            "`samples` must be at least 1",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "sdp", "max_trials": 0}}"#),
+            "`max_trials` must be at least 1",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "sdp", "criterion": "logdet"}}"#),
+            "not available",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "ci", "xa": [1, 2, 3]}}"#),
+            "x_a has size 3",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "ci", "pab_unknown": [[true]]}}"#),
+            "pab_unknown has size 1",
+        ),
+        (
+            r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "method": "sdp", "samples": 50, "max_trials": 100}"#,
+            "rejection sampler accepted only",
+        ),
+    ];
+    for (json, expected) in cases {
+        let err = run(json).unwrap_err();
+        assert!(
+            err.contains(expected),
+            "{json}\n  gave: {err}\n  expected to contain: {expected}"
+        );
+        assert!(!err.contains('\n'), "one-line message: {err}");
+    }
+}
+
+#[test]
+fn response_fields_per_method() {
+    let base = r#""pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, false], [false, true]], "xa": [1, 2], "xb": [3, 4]"#;
+    let ci: FuseResponse =
+        serde_json::from_str(&run(&format!(r#"{{{base}, "method": "ci"}}"#)).unwrap()).unwrap();
+    assert_eq!(ci.omega.as_ref().unwrap().len(), 1);
+    assert!(ci.blocks.is_none() && ci.status.is_none());
+    let nm: FuseResponse =
+        serde_json::from_str(&run(&format!(r#"{{{base}, "method": "nmci"}}"#)).unwrap()).unwrap();
+    assert_eq!(nm.x, vec![3.0, 2.0]);
+    assert_eq!(nm.blocks, Some(vec![vec![0], vec![1]]));
+    assert_eq!(nm.det, 1.0);
+    let text = run(&format!(
+        r#"{{{base}, "method": "sdp", "samples": 60, "seed": 4}}"#
+    ))
+    .unwrap();
+    let sdp: FuseResponse = serde_json::from_str(&text).unwrap();
+    assert!(sdp.omega.is_none() && !text.contains("omega"));
+    assert_eq!(sdp.samples, Some(60));
+    assert!(sdp.iterations.unwrap() > 0 && sdp.acceptance_rate == Some(1.0));
+    assert!((sdp.x[0] - 3.0).abs() < 1e-6 && (sdp.x[1] - 2.0).abs() < 1e-6);
+}
