@@ -1,1 +1,74 @@
-fn main() {}
+//! Fusion benchmarks (criterion). IDs and targets (issue 2):
+//! `ci/trace/{2,14,112}`, `eigen/symmetric/112` (the cost floor: one nalgebra `SymmetricEigen`
+//! of a 112×112 SPD matrix), `nmci/112x8` (8 blocks of 14), `sdp/paper/{10,100,1000}`.
+//! Targets: `ci/trace/112` ≤ 2× `eigen/symmetric/112`; `sdp/paper/100` ≤ 10 ms,
+//! `sdp/paper/1000` ≤ 150 ms.
+#![allow(non_snake_case)]
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use nmci::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::hint::black_box;
+
+fn random_spd(n: usize, rng: &mut ChaCha8Rng) -> DMatrix<f64> {
+    let g = DMatrix::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
+    &g * g.transpose() / n as f64 + DMatrix::identity(n, n) * 0.5
+}
+
+fn block_diagonal(blocks: usize, size: usize, rng: &mut ChaCha8Rng) -> DMatrix<f64> {
+    let n = blocks * size;
+    let mut m = DMatrix::zeros(n, n);
+    for b in 0..blocks {
+        m.view_mut((b * size, b * size), (size, size)).copy_from(&random_spd(size, rng));
+    }
+    m
+}
+
+fn benches(c: &mut Bench) {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let mut group = c.benchmark_group("ci/trace");
+    for n in [2usize, 14, 112] {
+        let p = FusionProblem::from_covariances(random_spd(n, &mut rng), random_spd(n, &mut rng), CrossPattern::fully_unknown(n)).unwrap();
+        group.bench_with_input(BenchmarkId::from_parameter(n), &p, |b, p| {
+            b.iter(|| covariance_intersection(black_box(p), Criterion::Trace).unwrap())
+        });
+    }
+    group.finish();
+
+    let s = random_spd(112, &mut rng);
+    c.bench_function("eigen/symmetric/112", |b| b.iter(|| SymmetricEigen::new(black_box(s.clone()))));
+
+    // 8 blocks of 14 states, cross pattern block-diagonal (the tracking study's structure).
+    let (blocks, size) = (8, 14);
+    let n = blocks * size;
+    let pattern = CrossPattern::from_matrix(DMatrix::from_fn(n, n, |i, j| i / size == j / size)).unwrap();
+    let p = FusionProblem::new(
+        DVector::zeros(n),
+        block_diagonal(blocks, size, &mut rng),
+        DVector::zeros(n),
+        block_diagonal(blocks, size, &mut rng),
+        pattern,
+    )
+    .unwrap();
+    c.bench_function("nmci/112x8", |b| b.iter(|| non_monolithic_ci(black_box(&p), Criterion::Trace).unwrap()));
+
+    let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+    let paper = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]), CrossPattern::diagonal(2)).unwrap();
+    let mut group = c.benchmark_group("sdp/paper");
+    for samples in [10usize, 100, 1000] {
+        let settings = SdpSettings { samples, ..Default::default() };
+        group.bench_with_input(BenchmarkId::from_parameter(samples), &settings, |b, s| {
+            b.iter(|| optimal_fusion(black_box(&paper), s).unwrap())
+        });
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = fusion;
+    config = Bench::default().sample_size(20).measurement_time(std::time::Duration::from_secs(3));
+    targets = benches
+}
+criterion_main!(fusion);

@@ -12,7 +12,7 @@
 //! (then `ω` is exactly `0` or `1` and `P` is exactly `P_b` or `P_a`), otherwise the root of
 //! the derivative, found by safeguarded Newton to machine precision.
 
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::{Criterion, Fused, FusionProblem};
 use crate::error::InputError;
@@ -38,6 +38,8 @@ fn not_pd(name: &str, m: &DMatrix<f64>) -> InputError {
 struct Pencil {
     /// `W = L V`.
     basis: DMatrix<f64>,
+    /// `W⁻¹ = Vᵀ L⁻¹`.
+    basis_inv: DMatrix<f64>,
     /// `‖wᵢ‖²`.
     weights: Vec<f64>,
     /// `λᵢ − 1`, with `λᵢ = 1/μᵢ` the generalized eigenvalues of `(P_a⁻¹, P_b⁻¹)`.
@@ -47,17 +49,17 @@ struct Pencil {
 #[allow(non_snake_case)]
 impl Pencil {
     fn new(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> Result<Self, InputError> {
+        let n = P_a.nrows();
         let chol_b = cholesky(P_b).ok_or_else(|| not_pd("P_b", P_b))?;
         let L = chol_b.l();
+        let L_inv = L
+            .solve_lower_triangular(&DMatrix::identity(n, n))
+            .ok_or_else(|| not_pd("P_b", P_b))?;
         // M = L⁻¹ P_a L⁻ᵀ
-        let Y = L
-            .solve_lower_triangular(P_a)
-            .ok_or_else(|| not_pd("P_b", P_b))?;
-        let M = L
-            .solve_lower_triangular(&Y.transpose())
-            .ok_or_else(|| not_pd("P_b", P_b))?;
+        let M = &L_inv * P_a * L_inv.transpose();
         let eig = SymmetricEigen::new(symmetrize(&M));
         let basis = &L * &eig.eigenvectors;
+        let basis_inv = eig.eigenvectors.transpose() * &L_inv;
         let weights = basis.column_iter().map(|c| c.norm_squared()).collect();
         let mut slopes = Vec::with_capacity(eig.eigenvalues.len());
         for &mu in eig.eigenvalues.iter() {
@@ -68,9 +70,19 @@ impl Pencil {
         }
         Ok(Self {
             basis,
+            basis_inv,
             weights,
             slopes,
         })
+    }
+
+    /// `W diag(f(dᵢ)) W⁻¹`-style products: `W diag(s) R`.
+    fn scaled_product(&self, scales: impl Iterator<Item = f64>, right: &DMatrix<f64>) -> DMatrix<f64> {
+        let mut scaled = self.basis.clone();
+        for (mut col, s) in scaled.column_iter_mut().zip(scales) {
+            col *= s;
+        }
+        scaled * right
     }
 
     /// First and second derivative of the criterion at `ω`.
@@ -130,12 +142,14 @@ impl Pencil {
     }
 
     fn covariance(&self, omega: f64) -> DMatrix<f64> {
-        let scales = DVector::from_iterator(
-            self.slopes.len(),
-            self.slopes.iter().map(|s| 1.0 / (1.0 + omega * s)),
-        );
-        let scaled = &self.basis * DMatrix::from_diagonal(&scales);
-        symmetrize(&(scaled * self.basis.transpose()))
+        let inv_d = self.slopes.iter().map(|s| 1.0 / (1.0 + omega * s));
+        symmetrize(&self.scaled_product(inv_d, &self.basis.transpose()))
+    }
+
+    /// `K_b = (1−ω) P P_b⁻¹ = W diag((1−ω)/dᵢ) W⁻¹` (since `P_b⁻¹ = W⁻ᵀ W⁻¹`).
+    fn gain_b(&self, omega: f64) -> DMatrix<f64> {
+        let s = self.slopes.iter().map(|s| (1.0 - omega) / (1.0 + omega * s));
+        self.scaled_product(s, &self.basis_inv)
     }
 }
 
@@ -178,9 +192,7 @@ pub fn covariance_intersection(
         (problem.P_a.clone(), DMatrix::identity(n, n))
     } else {
         let P = pencil.covariance(omega);
-        let chol_a = cholesky(&problem.P_a).ok_or_else(|| not_pd("P_a", &problem.P_a))?;
-        // K_a = ω P P_a⁻¹  ⇔  K_aᵀ = ω P_a⁻¹ P
-        let K_a = (chol_a.solve(&P) * omega).transpose();
+        let K_a = DMatrix::identity(n, n) - pencil.gain_b(omega);
         (P, K_a)
     };
     let K_b = DMatrix::identity(n, n) - &K_a;
