@@ -21,7 +21,8 @@ fn block_diagonal(blocks: usize, size: usize, rng: &mut ChaCha8Rng) -> DMatrix<f
     let n = blocks * size;
     let mut m = DMatrix::zeros(n, n);
     for b in 0..blocks {
-        m.view_mut((b * size, b * size), (size, size)).copy_from(&random_spd(size, rng));
+        m.view_mut((b * size, b * size), (size, size))
+            .copy_from(&random_spd(size, rng));
     }
     m
 }
@@ -30,7 +31,12 @@ fn benches(c: &mut Bench) {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let mut group = c.benchmark_group("ci/trace");
     for n in [2usize, 14, 112] {
-        let p = FusionProblem::from_covariances(random_spd(n, &mut rng), random_spd(n, &mut rng), CrossPattern::fully_unknown(n)).unwrap();
+        let p = FusionProblem::from_covariances(
+            random_spd(n, &mut rng),
+            random_spd(n, &mut rng),
+            CrossPattern::fully_unknown(n),
+        )
+        .unwrap();
         group.bench_with_input(BenchmarkId::from_parameter(n), &p, |b, p| {
             b.iter(|| covariance_intersection(black_box(p), Criterion::Trace).unwrap())
         });
@@ -38,12 +44,15 @@ fn benches(c: &mut Bench) {
     group.finish();
 
     let s = random_spd(112, &mut rng);
-    c.bench_function("eigen/symmetric/112", |b| b.iter(|| SymmetricEigen::new(black_box(s.clone()))));
+    c.bench_function("eigen/symmetric/112", |b| {
+        b.iter(|| SymmetricEigen::new(black_box(s.clone())))
+    });
 
     // 8 blocks of 14 states, cross pattern block-diagonal (the tracking study's structure).
     let (blocks, size) = (8, 14);
     let n = blocks * size;
-    let pattern = CrossPattern::from_matrix(DMatrix::from_fn(n, n, |i, j| i / size == j / size)).unwrap();
+    let pattern =
+        CrossPattern::from_matrix(DMatrix::from_fn(n, n, |i, j| i / size == j / size)).unwrap();
     let p = FusionProblem::new(
         DVector::zeros(n),
         block_diagonal(blocks, size, &mut rng),
@@ -52,13 +61,20 @@ fn benches(c: &mut Bench) {
         pattern,
     )
     .unwrap();
-    c.bench_function("nmci/112x8", |b| b.iter(|| non_monolithic_ci(black_box(&p), Criterion::Trace).unwrap()));
+    c.bench_function("nmci/112x8", |b| {
+        b.iter(|| non_monolithic_ci(black_box(&p), Criterion::Trace).unwrap())
+    });
 
     let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
-    let paper = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]), CrossPattern::diagonal(2)).unwrap();
+    let paper =
+        FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]), CrossPattern::diagonal(2))
+            .unwrap();
     let mut group = c.benchmark_group("sdp/paper");
     for samples in [10usize, 100, 1000] {
-        let settings = SdpSettings { samples, ..Default::default() };
+        let settings = SdpSettings {
+            samples,
+            ..Default::default()
+        };
         group.bench_with_input(BenchmarkId::from_parameter(samples), &settings, |b, s| {
             b.iter(|| optimal_fusion(black_box(&paper), s).unwrap())
         });

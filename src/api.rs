@@ -7,7 +7,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use crate::error::{InputError, RequestError};
+use crate::error::{InputError, RequestError, SolveError};
 use crate::fusion::ci::covariance_intersection;
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::sample::SamplerSettings;
@@ -118,26 +118,37 @@ fn matrix(name: &str, rows: &[Vec<f64>]) -> Result<DMatrix<f64>, InputError> {
     Ok(m)
 }
 
+/// Builds and validates a problem from the nested-array form of the JSON contract.
+pub(crate) fn problem_from_parts(
+    pa: &[Vec<f64>],
+    pb: &[Vec<f64>],
+    xa: Option<&[f64]>,
+    xb: Option<&[f64]>,
+    pab_unknown: Option<&[Vec<bool>]>,
+) -> Result<FusionProblem, InputError> {
+    let pa = matrix("P_a", pa)?;
+    let pb = matrix("P_b", pb)?;
+    let n = pa.nrows();
+    let vector = |v: Option<&[f64]>| match v {
+        Some(v) => DVector::from_row_slice(v),
+        None => DVector::zeros(n),
+    };
+    let pattern = match pab_unknown {
+        Some(rows) => CrossPattern::from_rows(rows)?,
+        None => CrossPattern::fully_unknown(n),
+    };
+    FusionProblem::new(vector(xa), pa, vector(xb), pb, pattern)
+}
+
 impl FuseRequest {
     /// The validated problem this request describes.
     pub fn problem(&self) -> Result<FusionProblem, RequestError> {
-        let pa = matrix("P_a", &self.pa)?;
-        let pb = matrix("P_b", &self.pb)?;
-        let n = pa.nrows();
-        let vector = |v: &Option<Vec<f64>>| match v {
-            Some(v) => DVector::from_row_slice(v),
-            None => DVector::zeros(n),
-        };
-        let pattern = match &self.pab_unknown {
-            Some(rows) => CrossPattern::from_rows(rows)?,
-            None => CrossPattern::fully_unknown(n),
-        };
-        Ok(FusionProblem::new(
-            vector(&self.xa),
-            pa,
-            vector(&self.xb),
-            pb,
-            pattern,
+        Ok(problem_from_parts(
+            &self.pa,
+            &self.pb,
+            self.xa.as_deref(),
+            self.xb.as_deref(),
+            self.pab_unknown.as_deref(),
         )?)
     }
 
@@ -173,7 +184,7 @@ impl FuseRequest {
     }
 }
 
-fn response(method: Method, criterion: Criterion, fused: &Fused) -> FuseResponse {
+pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> FuseResponse {
     FuseResponse {
         method,
         criterion,
@@ -209,19 +220,8 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
     let problem = request.problem()?;
     let criterion = request.criterion.unwrap_or_default();
     match request.method {
-        Method::Ci => {
-            let ci = covariance_intersection(&problem, criterion)?;
-            let mut r = response(Method::Ci, criterion, &ci.fused);
-            r.omega = Some(vec![ci.omega]);
-            Ok(r)
-        }
-        Method::Nmci => {
-            let nm = non_monolithic_ci(&problem, criterion)?;
-            let mut r = response(Method::Nmci, criterion, &nm.fused);
-            r.omega = Some(nm.omega);
-            r.blocks = Some(nm.blocks);
-            Ok(r)
-        }
+        Method::Ci => Ok(ci_response(&problem, criterion)?),
+        Method::Nmci => Ok(nmci_response(&problem, criterion)?),
         Method::Sdp => {
             let defaults = SdpSettings::default();
             let settings = SdpSettings {
@@ -232,17 +232,45 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                 },
                 ..defaults
             };
-            let opt = optimal_fusion(&problem, &settings)?;
-            let mut r = response(Method::Sdp, Criterion::Trace, &opt.fused);
-            r.samples = Some(opt.samples);
-            r.status = Some(opt.status.as_str().into());
-            r.iterations = Some(opt.iterations);
-            r.acceptance_rate = Some(opt.acceptance_rate);
-            r.lmis = Some(opt.lmis);
-            r.worst_sample_margin = Some(opt.worst_sample_margin);
-            Ok(r)
+            Ok(sdp_response(&problem, &settings)?.0)
         }
     }
+}
+
+pub(crate) fn ci_response(
+    problem: &FusionProblem,
+    criterion: Criterion,
+) -> Result<FuseResponse, InputError> {
+    let ci = covariance_intersection(problem, criterion)?;
+    let mut r = response(Method::Ci, criterion, &ci.fused);
+    r.omega = Some(vec![ci.omega]);
+    Ok(r)
+}
+
+pub(crate) fn nmci_response(
+    problem: &FusionProblem,
+    criterion: Criterion,
+) -> Result<FuseResponse, InputError> {
+    let nm = non_monolithic_ci(problem, criterion)?;
+    let mut r = response(Method::Nmci, criterion, &nm.fused);
+    r.omega = Some(nm.omega);
+    r.blocks = Some(nm.blocks);
+    Ok(r)
+}
+
+pub(crate) fn sdp_response(
+    problem: &FusionProblem,
+    settings: &SdpSettings,
+) -> Result<(FuseResponse, Fused), SolveError> {
+    let opt = optimal_fusion(problem, settings)?;
+    let mut r = response(Method::Sdp, Criterion::Trace, &opt.fused);
+    r.samples = Some(opt.samples);
+    r.status = Some(opt.status.as_str().into());
+    r.iterations = Some(opt.iterations);
+    r.acceptance_rate = Some(opt.acceptance_rate);
+    r.lmis = Some(opt.lmis);
+    r.worst_sample_margin = Some(opt.worst_sample_margin);
+    Ok((r, opt.fused))
 }
 
 /// Parses a JSON request, runs it and returns the JSON response.

@@ -39,6 +39,7 @@
 
 mod api;
 mod error;
+mod explore;
 mod fusion;
 mod linalg;
 mod structure;
@@ -47,8 +48,10 @@ pub mod wasm;
 
 pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method};
 pub use error::{InputError, RequestError, SampleError, SolveError};
+pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
 pub use fusion::check::{conservativeness_margin, fused_error_covariance, worst_margin};
 pub use fusion::ci::{ci_covariance, covariance_intersection, CiResult};
+pub use fusion::known::known_correlation_fusion;
 pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::sample::{
     sample_cross_covariances, sample_cross_covariances_with, CrossSamples, SamplerSettings,

@@ -77,7 +77,11 @@ impl Pencil {
     }
 
     /// `W diag(f(dᵢ)) W⁻¹`-style products: `W diag(s) R`.
-    fn scaled_product(&self, scales: impl Iterator<Item = f64>, right: &DMatrix<f64>) -> DMatrix<f64> {
+    fn scaled_product(
+        &self,
+        scales: impl Iterator<Item = f64>,
+        right: &DMatrix<f64>,
+    ) -> DMatrix<f64> {
         let mut scaled = self.basis.clone();
         for (mut col, s) in scaled.column_iter_mut().zip(scales) {
             col *= s;
@@ -148,7 +152,10 @@ impl Pencil {
 
     /// `K_b = (1−ω) P P_b⁻¹ = W diag((1−ω)/dᵢ) W⁻¹` (since `P_b⁻¹ = W⁻ᵀ W⁻¹`).
     fn gain_b(&self, omega: f64) -> DMatrix<f64> {
-        let s = self.slopes.iter().map(|s| (1.0 - omega) / (1.0 + omega * s));
+        let s = self
+            .slopes
+            .iter()
+            .map(|s| (1.0 - omega) / (1.0 + omega * s));
         self.scaled_product(s, &self.basis_inv)
     }
 }

@@ -9,13 +9,22 @@
 //! ## Formulation
 //! The paper writes each constraint as `[[P̄, K], [Kᵀ, P'_i⁻¹]] ⪰ 0`. Near the boundary of
 //! the admissible set (correlations near ±1) `P'_i` is nearly singular, `P'_i⁻¹` explodes
-//! and the interior-point solver stalls. With `P'_i = L_i L_iᵀ` the congruent form
+//! and the interior-point solver stalls. With any factor `P'_i = L_i L_iᵀ` the congruent form
+//! `[[P̄, K L_i], [(K L_i)ᵀ, I₂ₙ]] ⪰ 0` is the same constraint (Schur complement) and stays
+//! bounded. This module uses that form in the basis where it is smallest:
 //!
-//! `[[P̄, K L_i], [(K L_i)ᵀ, I₂ₙ]] ⪰ 0`   ⇔   `P̄ − K L_i L_iᵀ Kᵀ ⪰ 0`   (Schur complement)
+//! With `K_b = I − K_a` the fused error is `e_f = e_b + K_a d`, `d = e_a − e_b`. Factor the
+//! covariance of `(d, e_b)`, `Z_i = [[S_i, C_iᵀ], [C_i, P_b]]` with `S_i = P_a + P_b − P_ab − P_abᵀ`
+//! and `C_i = P_abᵀ − P_b`, as `Z_i = L_i L_iᵀ`, `L_i = [[L₁₁, 0], [L₂₁, L₂₂]]` lower
+//! block-triangular. Then `e_f = (K_a L₁₁ + L₂₁) w₁ + L₂₂ w₂` with white `w`, so
 //!
-//! is the same constraint, stays bounded, and is affine in `K_a` because
-//! `K L_i = K_a (L_i,top − L_i,bot) + L_i,bot` once `K_b = I − K_a` is substituted. That is
-//! the form used here; decision variables are `K_a` (n²) and the upper triangle of `P̄`.
+//! `P̄ ⪰ K P'_i Kᵀ`  ⇔  `[[P̄ − L₂₂L₂₂ᵀ, K_a L₁₁ + L₂₁], [(K_a L₁₁ + L₂₁)ᵀ, Iₙ]] ⪰ 0`,
+//!
+//! an LMI of size `2n` (not `3n`), affine in `K_a`, built from one Cholesky factorization and
+//! no inverse (`L₂₂L₂₂ᵀ` is the known-correlation optimum `P*_i`). `Z_i` is positive definite
+//! exactly when `P'_i` is; a sample too close to singular for Cholesky is factored through its
+//! eigendecomposition and an LQ step. Decision variables: `K_a` (n²) and the upper triangle
+//! of `P̄`.
 //!
 //! ## Working set
 //! Only a few samples are active at the optimum. By default the program is solved on a small
@@ -176,7 +185,7 @@ pub fn optimal_fusion_for_samples(
     let factors: Vec<DMatrix<f64>> = samples
         .cross
         .iter()
-        .map(|p| joint_factor(&problem.joint_covariance(p)))
+        .map(|p| difference_factor(problem, p))
         .collect();
     let n_all = factors.len();
     let mut active: Vec<usize> = if settings.working_set {
@@ -235,14 +244,29 @@ pub fn optimal_fusion_for_samples(
     }
 }
 
-/// A factor `L` with `L Lᵀ = P'` (Cholesky, or `V diag(√λ)` for numerically singular samples).
-fn joint_factor(joint: &DMatrix<f64>) -> DMatrix<f64> {
-    if let Some(c) = nalgebra::Cholesky::new(joint.clone()) {
+/// The lower-triangular factor `L` of `Z = Cov(d, e_b)` (see the module docs) for the joint
+/// covariance `P'`: Cholesky, or for numerically singular samples `V diag(√λ)` made
+/// lower-triangular by an LQ step (`F = L Q`).
+#[allow(non_snake_case)]
+fn difference_factor(problem: &FusionProblem, P_ab: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = problem.dim();
+    let P_ba = P_ab.transpose();
+    let S = &problem.P_a + &problem.P_b - P_ab - &P_ba;
+    let C = &P_ba - &problem.P_b;
+    let mut Z = DMatrix::zeros(2 * n, 2 * n);
+    Z.view_mut((0, 0), (n, n)).copy_from(&S);
+    Z.view_mut((n, 0), (n, n)).copy_from(&C);
+    Z.view_mut((0, n), (n, n)).copy_from(&C.transpose());
+    Z.view_mut((n, n), (n, n)).copy_from(&problem.P_b);
+    let Z = symmetrize(&Z);
+    if let Some(c) = nalgebra::Cholesky::new(Z.clone()) {
         return c.l();
     }
-    let eig = SymmetricEigen::new(symmetrize(joint));
+    let eig = SymmetricEigen::new(Z);
     let roots = eig.eigenvalues.map(|l| l.max(0.0).sqrt());
-    eig.eigenvectors * DMatrix::from_diagonal(&roots)
+    let F = eig.eigenvectors * DMatrix::from_diagonal(&roots);
+    // F = L Q  ⇔  Fᵀ = Qᵀ Lᵀ: the R of the QR of Fᵀ is Lᵀ.
+    F.transpose().qr().r().transpose()
 }
 
 struct Solved {
@@ -268,7 +292,7 @@ fn solve_lmis(
     let ka = |r: usize, k: usize| r + k * n;
     let pbar = |i: usize, j: usize| n * n + svec_index(i.min(j), i.max(j));
     let n_vars = n * n + n * (n + 1) / 2;
-    let m = 3 * n;
+    let m = 2 * n;
     let cone_len = m * (m + 1) / 2;
     let sqrt2 = std::f64::consts::SQRT_2;
 
@@ -278,24 +302,30 @@ fn solve_lmis(
     let mut b = vec![0.0; cone_len * active.len()];
     for (slot, &i) in active.iter().enumerate() {
         let L = &factors[i];
+        let L11 = L.view((0, 0), (n, n));
+        let L21 = L.view((n, 0), (n, n));
+        let L22 = L.view((n, n), (n, n));
+        let P_star = L22 * L22.transpose();
         let offset = slot * cone_len;
-        // P̄ block
+        // P̄ − L₂₂L₂₂ᵀ block
         for c in 0..n {
             for r in 0..=c {
                 let scale = if r == c { 1.0 } else { sqrt2 };
-                rows.push(offset + svec_index(r, c));
+                let e = offset + svec_index(r, c);
+                rows.push(e);
                 cols.push(pbar(r, c));
                 vals.push(-scale);
+                b[e] = -scale * P_star[(r, c)];
             }
         }
-        // K L_i block: rows r < n, columns n + q
-        for q in 0..2 * n {
+        // K_a L₁₁ + L₂₁ block: rows r < n, columns n + q
+        for q in 0..n {
             let c = n + q;
             for r in 0..n {
                 let e = offset + svec_index(r, c);
-                b[e] = sqrt2 * L[(n + r, q)];
+                b[e] = sqrt2 * L21[(r, q)];
                 for k in 0..n {
-                    let d = L[(k, q)] - L[(n + k, q)];
+                    let d = L11[(k, q)];
                     if d != 0.0 {
                         rows.push(e);
                         cols.push(ka(r, k));

@@ -1,0 +1,215 @@
+//! The explorer's analysis of one state: every rule, the optimal bound, the region of
+//! possible true fused covariances and each rule's conservativeness over it — one call, so the
+//! page (in a Web Worker) and the native tests compute exactly the same numbers.
+
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+use crate::api::{ci_response, nmci_response, problem_from_parts, sdp_response, FuseResponse};
+use crate::error::RequestError;
+use crate::fusion::check::worst_margin;
+use crate::fusion::ci::covariance_intersection;
+use crate::fusion::known::known_correlation_fusion;
+use crate::fusion::nmci::non_monolithic_ci;
+use crate::fusion::sample::{sample_cross_covariances, SamplerSettings};
+use crate::fusion::sdp::SdpSettings;
+use crate::fusion::Criterion;
+
+/// What the explorer asks for.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExploreRequest {
+    /// `P_a`, nested rows.
+    pub pa: Vec<Vec<f64>>,
+    /// `P_b`, nested rows.
+    pub pb: Vec<Vec<f64>>,
+    /// `x_a` (default zeros).
+    #[serde(default)]
+    pub xa: Option<Vec<f64>>,
+    /// `x_b` (default zeros).
+    #[serde(default)]
+    pub xb: Option<Vec<f64>>,
+    /// Pattern of `P_ab` (`true` = may be non-zero; default all `true`).
+    #[serde(default)]
+    pub pab_unknown: Option<Vec<Vec<bool>>>,
+    /// Criterion of CI and nmCI (default `trace`; the SDP always minimises the trace).
+    #[serde(default)]
+    pub criterion: Option<Criterion>,
+    /// Samples of the optimal bound's SDP (default 200).
+    #[serde(default)]
+    pub samples: Option<usize>,
+    /// Seed of the SDP's samples (default 0); the region uses an independent stream.
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Admissible cross-covariances drawn for the region and the margins (default 300; 0 = none).
+    #[serde(default)]
+    pub region_samples: Option<usize>,
+    /// Rejection-sampler budget per sample set (default 200 000: interactive use).
+    #[serde(default)]
+    pub max_trials: Option<u64>,
+}
+
+/// Bounds on the robust optimum of `tr P̄`: the SDP's optimum below, nmCI above.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Gap {
+    /// Sampled-SDP optimum (lower bound on the robust optimum).
+    pub lower: f64,
+    /// nmCI trace (a certified conservative bound, hence an upper bound).
+    pub upper: f64,
+    /// `upper − lower`.
+    pub absolute: f64,
+    /// `(upper − lower) / upper`.
+    pub relative: f64,
+}
+
+/// Worst `λ_min(P̄ − K P' Kᵀ)` of each rule over the region's cross-covariances.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Margins {
+    /// CI.
+    pub ci: f64,
+    /// nmCI.
+    pub nmci: f64,
+    /// Sampled SDP (absent when it failed). Negative = not conservative for some drawn `P'`.
+    pub sdp: Option<f64>,
+}
+
+/// Everything the explorer shows for one state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Exploration {
+    /// State dimension.
+    pub n: usize,
+    /// CI.
+    pub ci: FuseResponse,
+    /// nmCI.
+    pub nmci: FuseResponse,
+    /// The sampled-SDP bound, when it could be computed.
+    pub sdp: Option<FuseResponse>,
+    /// Why it could not (sampler budget, solver status).
+    pub sdp_error: Option<String>,
+    /// SDP lower bound vs nmCI upper bound.
+    pub gap: Option<Gap>,
+    /// Region samples drawn.
+    pub region_count: usize,
+    /// Their acceptance rate.
+    pub region_acceptance_rate: Option<f64>,
+    /// Why the region could not be drawn.
+    pub region_error: Option<String>,
+    /// Conservativeness of each rule over the region's cross-covariances.
+    pub margins: Option<Margins>,
+    /// The region: `region_count` optimal known-correlation covariances `P*`, each `n × n`
+    /// row-major, concatenated (the wasm layer hands it over as a `Float64Array`).
+    #[serde(skip)]
+    pub region: Vec<f64>,
+}
+
+/// Mixes the SDP seed into an independent stream for the region samples.
+fn region_seed(seed: u64) -> u64 {
+    seed ^ 0x9E37_79B9_7F4A_7C15
+}
+
+/// Analyses one explorer state.
+///
+/// ```
+/// let req: nmci::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],
+///     "pb": [[1,0],[0,4]], "pab_unknown": [[true,false],[false,true]], "samples": 50}"#).unwrap();
+/// let a = nmci::explore(&req).unwrap();
+/// assert_eq!(a.nmci.trace, 2.0);
+/// assert!(a.gap.unwrap().absolute.abs() < 1e-6);
+/// assert_eq!(a.region.len(), 300 * 4);
+/// ```
+#[allow(non_snake_case)]
+pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
+    let problem = problem_from_parts(
+        &request.pa,
+        &request.pb,
+        request.xa.as_deref(),
+        request.xb.as_deref(),
+        request.pab_unknown.as_deref(),
+    )?;
+    let criterion = request.criterion.unwrap_or_default();
+    let samples = request.samples.unwrap_or(200);
+    if samples == 0 {
+        return Err(RequestError::Invalid("`samples` must be at least 1".into()));
+    }
+    let max_trials = request.max_trials.unwrap_or(200_000);
+    if max_trials == 0 {
+        return Err(RequestError::Invalid(
+            "`max_trials` must be at least 1".into(),
+        ));
+    }
+    let seed = request.seed.unwrap_or(0);
+    let n = problem.dim();
+
+    let ci = ci_response(&problem, criterion)?;
+    let nmci = nmci_response(&problem, criterion)?;
+    let settings = SdpSettings {
+        samples,
+        seed,
+        sampler: SamplerSettings { max_trials },
+        ..SdpSettings::default()
+    };
+    let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings) {
+        Ok((r, f)) => (Some(r), Some(f), None),
+        Err(e) => (None, None, Some(e.to_string())),
+    };
+    let gap = sdp.as_ref().map(|s| {
+        let (lower, upper) = (s.trace, nmci.trace);
+        Gap {
+            lower,
+            upper,
+            absolute: upper - lower,
+            relative: (upper - lower) / upper,
+        }
+    });
+
+    let region_samples = request.region_samples.unwrap_or(300);
+    let mut region = Vec::new();
+    let (mut region_count, mut region_acceptance_rate, mut region_error, mut margins) =
+        (0, None, None, None);
+    if region_samples > 0 {
+        match sample_cross_covariances(
+            &problem,
+            region_samples,
+            region_seed(seed),
+            SamplerSettings { max_trials },
+        ) {
+            Ok(drawn) => {
+                region.reserve(drawn.len() * n * n);
+                for P_ab in &drawn.cross {
+                    let best = known_correlation_fusion(&problem, P_ab);
+                    region.extend(rows_flat(&best.P));
+                }
+                let ci_fused = covariance_intersection(&problem, criterion)?.fused;
+                let nm_fused = non_monolithic_ci(&problem, criterion)?.fused;
+                margins = Some(Margins {
+                    ci: worst_margin(&problem, &ci_fused, &drawn.cross),
+                    nmci: worst_margin(&problem, &nm_fused, &drawn.cross),
+                    sdp: sdp_fused
+                        .as_ref()
+                        .map(|f| worst_margin(&problem, f, &drawn.cross)),
+                });
+                region_count = drawn.len();
+                region_acceptance_rate = Some(drawn.acceptance_rate());
+            }
+            Err(e) => region_error = Some(e.to_string()),
+        }
+    }
+    Ok(Exploration {
+        n,
+        ci,
+        nmci,
+        sdp,
+        sdp_error,
+        gap,
+        region_count,
+        region_acceptance_rate,
+        region_error,
+        margins,
+        region,
+    })
+}
+
+#[allow(non_snake_case)]
+fn rows_flat(P: &DMatrix<f64>) -> impl Iterator<Item = f64> + '_ {
+    (0..P.nrows()).flat_map(move |i| (0..P.ncols()).map(move |j| P[(i, j)]))
+}

@@ -1,0 +1,526 @@
+// The explorer's UI: inputs, the Web Worker round trip, drawing and the numbers panel.
+import { LAYERS, preset, patternPreset, resize, encodeHash, decodeHash } from "./state.js";
+import { el, marginal, axes, fromAxes, ellipsePath, frame } from "./plot.js";
+
+const $ = (id) => document.getElementById(id);
+const STYLE = {
+  region: { label: "possible true fused P (known P_ab)", color: "#888" },
+  pa: { label: "P_a", color: "#1f77b4" },
+  pb: { label: "P_b", color: "#e07b00" },
+  ci: { label: "CI", color: "#7b3fa0" },
+  nmci: { label: "nmCI", color: "#d62728" },
+  sdp: { label: "optimal (sampled SDP)", color: "#2a9d3f" },
+};
+
+let state = preset("paper");
+let text = null; // the grids' raw text, so an invalid entry stays visible
+let last = null; // the last valid analysis (the picture stays when an input is invalid)
+let analysedState = null;
+const timings = [];
+window.nmciStats = {
+  timings,
+  median() {
+    if (timings.length === 0) return NaN;
+    const s = [...timings].sort((a, b) => a - b);
+    return s[Math.floor(s.length / 2)];
+  },
+  runs: 0,
+};
+
+// ---------- worker round trip: latest state wins, one request in flight ----------
+const worker = new Worker(new URL("./worker.js", import.meta.url), { type: "module" });
+let nextId = 1;
+let inFlight = null; // { id, t0, state }
+let queued = null;
+
+function request(s) {
+  return {
+    pa: s.pa, pb: s.pb, pab_unknown: s.pattern, criterion: s.criterion,
+    samples: s.samples, seed: s.seed, region_samples: s.region,
+  };
+}
+
+function submit() {
+  const snapshot = structuredClone(state);
+  if (inFlight) {
+    queued = snapshot;
+    return;
+  }
+  send(snapshot);
+}
+
+function send(s) {
+  inFlight = { id: nextId++, t0: performance.now(), state: s };
+  $("busy").hidden = false;
+  document.body.dataset.ready = "false";
+  worker.postMessage({ id: inFlight.id, request: request(s) });
+}
+
+worker.onmessage = (event) => {
+  const { id, ok, result, error } = event.data;
+  if (!inFlight || id !== inFlight.id) return;
+  const done = inFlight;
+  inFlight = null;
+  if (ok) {
+    last = result;
+    analysedState = done.state;
+    clearErrors();
+    render();
+    timings.push(performance.now() - done.t0);
+    if (timings.length > 200) timings.shift();
+    window.nmciStats.runs++;
+  } else {
+    showInputError(error);
+  }
+  $("timing").textContent = timings.length
+    ? `recompute (all rules + region, worker round trip): median ${window.nmciStats.median().toFixed(1)} ms over ${timings.length}`
+    : "";
+  if (queued) {
+    const q = queued;
+    queued = null;
+    send(q);
+  } else {
+    $("busy").hidden = true;
+    document.body.dataset.ready = "true";
+  }
+};
+worker.onerror = (e) => showGeneral(`the worker failed: ${e.message}`);
+
+// ---------- errors shown inline ----------
+function clearErrors() {
+  for (const id of ["err-pa", "err-pb", "err-pattern", "err-settings", "err-general"]) $(id).textContent = "";
+}
+function showGeneral(msg) {
+  $("err-general").textContent = msg;
+}
+function showInputError(msg) {
+  clearErrors();
+  markBadCells();
+  const target = msg.startsWith("P_a") || msg.startsWith("x_a") ? "err-pa"
+    : msg.startsWith("P_b") || msg.startsWith("x_b") ? "err-pb"
+    : msg.startsWith("pab_unknown") ? "err-pattern"
+    : msg.includes("samples") || msg.includes("max_trials") ? "err-settings" : "err-general";
+  $(target).textContent = msg + (last ? " — showing the last valid result." : "");
+}
+
+// ---------- inputs ----------
+function fmtInput(v) {
+  return String(+v.toPrecision(10));
+}
+
+function buildGrids() {
+  const n = state.n;
+  text = { pa: state.pa.map((r) => r.map(fmtInput)), pb: state.pb.map((r) => r.map(fmtInput)) };
+  for (const key of ["pa", "pb"]) {
+    const grid = $(`grid-${key}`);
+    grid.replaceChildren();
+    grid.style.gridTemplateColumns = `repeat(${n}, 1fr)`;
+    for (let i = 0; i < n; i++) {
+      for (let j = 0; j < n; j++) {
+        const input = document.createElement("input");
+        input.setAttribute("aria-label", `${key === "pa" ? "P_a" : "P_b"}[${i + 1},${j + 1}]`);
+        input.dataset.i = i;
+        input.dataset.j = j;
+        input.inputMode = "decimal";
+        input.value = text[key][i][j];
+        if (i === j) input.classList.add("diag");
+        input.addEventListener("input", () => onCell(key, i, j, input.value));
+        grid.appendChild(input);
+      }
+    }
+  }
+  const pg = $("grid-pattern");
+  pg.replaceChildren();
+  pg.style.gridTemplateColumns = `repeat(${n}, 2.3em)`;
+  for (let i = 0; i < n; i++) {
+    for (let j = 0; j < n; j++) {
+      const b = document.createElement("button");
+      b.dataset.i = i;
+      b.dataset.j = j;
+      b.title = `P_ab[${i + 1},${j + 1}]: click to toggle unknown / known zero`;
+      b.setAttribute("aria-label", `P_ab[${i + 1},${j + 1}]`);
+      if (i === j) b.classList.add("diagcell");
+      b.addEventListener("click", () => {
+        state.pattern[i][j] = !state.pattern[i][j];
+        state.preset = "custom";
+        syncPattern();
+        changed();
+      });
+      pg.appendChild(b);
+    }
+  }
+  syncPattern();
+}
+
+function syncPattern() {
+  for (const b of $("grid-pattern").children) {
+    const on = state.pattern[+b.dataset.i][+b.dataset.j];
+    b.classList.toggle("on", on);
+    b.setAttribute("aria-pressed", String(on));
+  }
+}
+
+function syncGridValues(key) {
+  for (const input of $(`grid-${key}`).children) {
+    const [i, j] = [+input.dataset.i, +input.dataset.j];
+    if (document.activeElement !== input) input.value = text[key][i][j];
+  }
+}
+
+function parseCell(s) {
+  const t = s.trim();
+  if (t === "" || !/^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$/.test(t)) return NaN;
+  return Number(t);
+}
+
+function markBadCells() {
+  for (const key of ["pa", "pb"]) {
+    for (const input of $(`grid-${key}`).children) {
+      const v = parseCell(text[key][+input.dataset.i][+input.dataset.j]);
+      input.classList.toggle("bad", !Number.isFinite(v));
+    }
+  }
+}
+
+function onCell(key, i, j, value) {
+  text[key][i][j] = value;
+  text[key][j][i] = value; // symmetric entries stay tied
+  syncGridValues(key);
+  markBadCells();
+  const v = parseCell(value);
+  const name = key === "pa" ? "P_a" : "P_b";
+  if (!Number.isFinite(v)) {
+    $(`err-${key}`).textContent = `${name}[${i + 1},${j + 1}]: "${value}" is not a number` + (last ? " — showing the last valid result." : "");
+    return;
+  }
+  // Another cell may still be bad.
+  for (let a = 0; a < state.n; a++) for (let b = 0; b < state.n; b++) {
+    if (!Number.isFinite(parseCell(text[key][a][b]))) {
+      $(`err-${key}`).textContent = `${name}[${a + 1},${b + 1}]: "${text[key][a][b]}" is not a number`;
+      return;
+    }
+  }
+  state[key][i][j] = v;
+  state[key][j][i] = v;
+  state.preset = "custom";
+  $(`err-${key}`).textContent = "";
+  changed();
+}
+
+function allCellsValid() {
+  return ["pa", "pb"].every((k) => text[k].every((r) => r.every((s) => Number.isFinite(parseCell(s)))));
+}
+
+function settingInput(id, key, lo, hi) {
+  const input = $(id);
+  input.addEventListener("input", () => {
+    const v = Number(input.value);
+    if (!Number.isInteger(v) || v < lo || v > hi) {
+      input.classList.add("bad");
+      $("err-settings").textContent = `${key === "region" ? "region samples" : key}: "${input.value}" must be a whole number from ${lo} to ${hi}`;
+      return;
+    }
+    input.classList.remove("bad");
+    $("err-settings").textContent = "";
+    state[key] = v;
+    changed();
+  });
+}
+
+function syncControls() {
+  $("preset").value = PRESETS.includes(state.preset) ? state.preset : "custom";
+  $("dim").value = state.n;
+  $("criterion").value = state.criterion;
+  $("samples").value = state.samples;
+  $("seed").value = state.seed;
+  $("region").value = state.region;
+  for (const id of ["view-i", "view-j"]) {
+    const s = $(id);
+    s.replaceChildren(...Array.from({ length: state.n }, (_, k) => new Option(`x${k + 1}`, k)));
+  }
+  $("view-i").value = state.view[0];
+  $("view-j").value = state.view[1];
+  for (const l of LAYERS) {
+    const box = document.querySelector(`#legend input[data-layer=${l}]`);
+    if (box) box.checked = state.layers[l];
+  }
+}
+
+const PRESETS = ["paper", "correlated", "twoblock", "six"];
+
+function changed() {
+  $("preset").value = PRESETS.includes(state.preset) ? state.preset : "custom";
+  history.replaceState(null, "", encodeHash(state));
+  if (!allCellsValid()) return;
+  submit();
+}
+
+function load(s) {
+  state = s;
+  buildGrids();
+  syncControls();
+  clearErrors();
+  changed();
+}
+
+// ---------- drawing ----------
+let drag = null; // { key, which, axes } while a handle is dragged
+let currentFromPx = null; // pixel → data map of the current frame
+
+function render() {
+  if (!last || !analysedState) return;
+  const s = analysedState;
+  const [i, j] = state.view;
+  const svg = $("plot");
+  svg.replaceChildren();
+  const mats = {
+    pa: state.n === s.n ? state.pa : s.pa,
+    pb: state.n === s.n ? state.pb : s.pb,
+    ci: last.ci.p,
+    nmci: last.nmci.p,
+    sdp: last.sdp ? last.sdp.p : null,
+  };
+  const n = last.n;
+  const region = [];
+  for (let k = 0; k < last.region_count; k++) {
+    const o = k * n * n;
+    region.push([[last.region[o + i * n + i], last.region[o + i * n + j]], [last.region[o + j * n + i], last.region[o + j * n + j]]]);
+  }
+  const extent = Math.max(...["pa", "pb"].flatMap((k) => [mats[k][i][i], mats[k][j][j]]).map(Math.sqrt), 1e-9) * 1.15;
+  const { toPx, fromPx } = frame(svg, extent, [`x${i + 1}`, `x${j + 1}`]);
+  currentFromPx = fromPx;
+  const clip = el("clipPath", { id: "clip" }, el("defs", {}, svg));
+  el("rect", { x: 46, y: 46, width: 428, height: 428 }, clip);
+  const g = el("g", { "clip-path": "url(#clip)" }, svg);
+  if (state.layers.region && region.length) {
+    const rg = el("g", { opacity: 0.32, id: "layer-region" }, g);
+    for (const m of region) el("path", { d: ellipsePath(m, toPx, 40), fill: STYLE.region.color, stroke: "none" }, rg);
+  }
+  const widths = { pa: 2, pb: 2, ci: 2.2, nmci: 2.6, sdp: 2 };
+  const dashes = { sdp: "7 4", ci: "none" };
+  for (const k of ["pa", "pb", "ci", "nmci", "sdp"]) {
+    if (!state.layers[k] || !mats[k]) continue;
+    el("path", {
+      id: `layer-${k}`, d: ellipsePath(marginal(mats[k], i, j), toPx), fill: "none",
+      stroke: STYLE[k].color, "stroke-width": widths[k], "stroke-dasharray": dashes[k] ?? "none",
+    }, g);
+  }
+  for (const k of ["pa", "pb"]) {
+    if (!state.layers[k]) continue;
+    const a = axes(marginal(mats[k], i, j));
+    const ends = [
+      ["major", a.major, a.theta],
+      ["minor", a.minor, a.theta + Math.PI / 2],
+    ];
+    for (const [which, r, t] of ends) {
+      const [x, y] = toPx(r * Math.cos(t), r * Math.sin(t));
+      const h = el("circle", { cx: x, cy: y, r: 6.5, fill: STYLE[k].color, stroke: "#fff", "stroke-width": 1.5, cursor: "grab", class: "handle", "data-key": k, "data-axis": which }, svg);
+      h.addEventListener("pointerdown", (e) => {
+        drag = { key: k, which, axes: a };
+        svg.setPointerCapture(e.pointerId);
+        e.preventDefault();
+      });
+    }
+  }
+  renderNumbers();
+}
+
+function onDrag(e) {
+  if (!drag || !currentFromPx) return;
+  const svg = $("plot");
+  const pt = svg.createSVGPoint();
+  pt.x = e.clientX;
+  pt.y = e.clientY;
+  const p = pt.matrixTransform(svg.getScreenCTM().inverse());
+  const [x, y] = currentFromPx(p.x, p.y);
+  const r = Math.max(Math.hypot(x, y), 1e-3);
+  const angle = Math.atan2(y, x);
+  let { major, minor, theta } = drag.axes;
+  if (drag.which === "major") {
+    major = r;
+    theta = angle;
+  } else {
+    minor = r;
+    theta = angle - Math.PI / 2;
+  }
+  drag.axes = { major, minor, theta };
+  const m = fromAxes(major, minor, theta);
+  const [i, j] = state.view;
+  const round = (v) => +v.toFixed(4);
+  const key = drag.key;
+  state[key][i][i] = round(m[0][0]);
+  state[key][j][j] = round(m[1][1]);
+  state[key][i][j] = state[key][j][i] = round(m[0][1]);
+  for (const [a, b] of [[i, i], [j, j], [i, j], [j, i]]) text[key][a][b] = fmtInput(state[key][a][b]);
+  syncGridValues(key);
+  state.preset = "custom";
+  $("preset").value = "custom";
+  // Redraw the dragged ellipse immediately; the rest follows from the worker.
+  changed();
+}
+
+const f3 = (v) => (v === undefined || v === null ? "—" : Number(v).toFixed(3));
+const fe = (v) => (Math.abs(v) < 1e-3 && v !== 0 ? v.toExponential(2) : v.toFixed(4));
+
+function renderNumbers() {
+  const a = last;
+  const s = analysedState;
+  const det2 = (m) => {
+    // det of a small dense matrix by Gaussian elimination.
+    const A = m.map((r) => [...r]);
+    let d = 1;
+    for (let c = 0; c < A.length; c++) {
+      let p = c;
+      for (let r = c + 1; r < A.length; r++) if (Math.abs(A[r][c]) > Math.abs(A[p][c])) p = r;
+      if (A[p][c] === 0) return 0;
+      if (p !== c) { [A[p], A[c]] = [A[c], A[p]]; d = -d; }
+      d *= A[c][c];
+      for (let r = c + 1; r < A.length; r++) {
+        const f = A[r][c] / A[c][c];
+        for (let k = c; k < A.length; k++) A[r][k] -= f * A[c][k];
+      }
+    }
+    return d;
+  };
+  const tr = (m) => m.reduce((t, r, k) => t + r[k], 0);
+  // Negative = not conservative for some drawn P' (red). Within 1e-8·max(1, tr P) of zero it is
+  // solver round-off of a bound that touches the region (the SDP's optimum does by design).
+  const margin = (v, scale) => {
+    if (v === undefined || v === null) return ["—", ""];
+    const tol = 1e-8 * Math.max(1, scale);
+    return [fe(v), v < -tol ? "neg" : v < 0 ? "tol" : ""];
+  };
+  const rows = [
+    ["pa", "P_a", tr(s.pa), det2(s.pa), "", null],
+    ["pb", "P_b", tr(s.pb), det2(s.pb), "", null],
+    ["ci", "CI", a.ci.trace, a.ci.det, a.ci.omega.map(f3).join(", "), a.margins ? a.margins.ci : null],
+    ["nmci", "nmCI", a.nmci.trace, a.nmci.det, a.nmci.omega.map(f3).join(", "), a.margins ? a.margins.nmci : null],
+  ];
+  const body = document.querySelector("#table tbody");
+  body.replaceChildren();
+  for (const [key, label, t, d, w, m] of rows) {
+    const tr_ = document.createElement("tr");
+    tr_.id = `row-${key}`;
+    tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE[key].color}"></span> ${label}</td><td class="trace">${f3(t)}</td><td class="det">${f3(d)}</td><td class="omega">${w}</td>`;
+    const [mt, cls] = margin(m, t);
+    const td = document.createElement("td");
+    td.className = `margin ${cls}`;
+    td.textContent = mt;
+    tr_.appendChild(td);
+    body.appendChild(tr_);
+  }
+  const sdpRow = document.createElement("tr");
+  sdpRow.id = "row-sdp";
+  if (a.sdp) {
+    const [mt, cls] = margin(a.margins ? a.margins.sdp : null, a.sdp.trace);
+    sdpRow.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.sdp.color}"></span> optimal (SDP)</td><td class="trace">${f3(a.sdp.trace)}</td><td class="det">${f3(a.sdp.det)}</td><td class="omega">—</td><td class="margin ${cls}">${mt}</td>`;
+  } else {
+    sdpRow.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.sdp.color}"></span> optimal (SDP)</td><td class="na" colspan="4"></td>`;
+    sdpRow.querySelector(".na").textContent = `not available: ${a.sdp_error}`;
+  }
+  body.appendChild(sdpRow);
+
+  const blocks = a.nmci.blocks.map((b, k) => `{${b.map((x) => "x" + (x + 1)).join(", ")}}: ω = ${f3(a.nmci.omega[k])}`).join(" · ");
+  const d = $("details");
+  const parts = [];
+  parts.push(`<div id="blocks"><span class="k">nmCI blocks (${a.nmci.blocks.length}):</span> ${blocks}</div>`);
+  if (a.sdp) {
+    parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${a.sdp.status}</b>, ${a.sdp.iterations} iterations, ${a.sdp.lmis} LMIs in the final working set of ${a.sdp.samples} samples, sampler acceptance ${(a.sdp.acceptance_rate * 100).toPrecision(3)} %</div>`);
+  }
+  if (a.gap) {
+    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(SDP lower bound, nmCI upper bound): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative</span></div>`);
+  }
+  if (a.region_error) {
+    parts.push(`<div class="err" id="region-status">region: ${a.region_error}</div>`);
+  } else if (a.region_count) {
+    parts.push(`<div id="region-status"><span class="k">region and worst λ<sub>min</sub>:</span> ${a.region_count} admissible P<sub>ab</sub> drawn (acceptance ${(a.region_acceptance_rate * 100).toPrecision(3)} %), independent of the SDP's samples</div>`);
+  }
+  d.innerHTML = parts.join("");
+}
+
+// ---------- wiring ----------
+function buildLegend() {
+  const legend = $("legend");
+  for (const l of LAYERS) {
+    const lab = document.createElement("label");
+    const box = document.createElement("input");
+    box.type = "checkbox";
+    box.dataset.layer = l;
+    box.checked = state.layers[l];
+    box.addEventListener("change", () => {
+      state.layers[l] = box.checked;
+      history.replaceState(null, "", encodeHash(state));
+      render();
+    });
+    const sw = document.createElement("span");
+    sw.className = l === "region" ? "swatch fill" : "swatch";
+    sw.style[l === "region" ? "background" : "borderColor"] = STYLE[l].color;
+    lab.append(box, sw, document.createTextNode(STYLE[l].label));
+    legend.appendChild(lab);
+  }
+}
+
+function download(name, type, content) {
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(new Blob([content], { type }));
+  a.download = name;
+  a.click();
+  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+}
+
+function init() {
+  $("dim").replaceChildren(...[2, 3, 4, 5, 6].map((k) => new Option(String(k), k)));
+  buildLegend();
+  $("plot").addEventListener("pointermove", onDrag);
+  for (const ev of ["pointerup", "pointercancel"]) $("plot").addEventListener(ev, () => (drag = null));
+  $("preset").addEventListener("change", (e) => e.target.value !== "custom" && load(preset(e.target.value)));
+  $("dim").addEventListener("change", (e) => load(resize(state, Number(e.target.value))));
+  $("criterion").addEventListener("change", (e) => {
+    state.criterion = e.target.value;
+    changed();
+  });
+  settingInput("samples", "samples", 1, 5000);
+  settingInput("seed", "seed", 0, Number.MAX_SAFE_INTEGER);
+  settingInput("region", "region", 0, 5000);
+  for (const [id, k] of [["view-i", 0], ["view-j", 1]]) {
+    $(id).addEventListener("change", (e) => {
+      const v = Number(e.target.value);
+      const other = state.view[1 - k];
+      if (v === other) state.view[1 - k] = state.view[k];
+      state.view[k] = v;
+      syncControls();
+      history.replaceState(null, "", encodeHash(state));
+      render();
+    });
+  }
+  for (const b of document.querySelectorAll("[data-pattern]")) {
+    b.addEventListener("click", () => {
+      state.pattern = patternPreset(b.dataset.pattern, state.n, state.pa, state.pb);
+      state.preset = "custom";
+      syncPattern();
+      changed();
+    });
+  }
+  $("export-svg").addEventListener("click", () => {
+    const svg = $("plot").cloneNode(true);
+    svg.querySelectorAll(".handle").forEach((h) => h.remove());
+    download("nmci-view.svg", "image/svg+xml", new XMLSerializer().serializeToString(svg));
+  });
+  $("export-json").addEventListener("click", () => {
+    if (!last) return;
+    const { region, ...numbers } = last;
+    download("nmci-numbers.json", "application/json", JSON.stringify({ state, ...numbers }, null, 2));
+  });
+  $("share").addEventListener("click", () => navigator.clipboard?.writeText(location.href));
+  window.addEventListener("hashchange", () => {
+    if (location.hash === encodeHash(state)) return;
+    const { state: s, error } = decodeHash(location.hash);
+    if (s) load(s);
+    else if (error) showGeneral(error);
+  });
+  const { state: fromHash, error } = decodeHash(location.hash);
+  load(fromHash ?? preset("paper"));
+  if (error) showGeneral(error);
+}
+
+init();

@@ -1,0 +1,114 @@
+// The explorer's state: presets, resizing, and the URL hash that makes a view shareable.
+
+export const LAYERS = ["region", "pa", "pb", "ci", "nmci", "sdp"];
+
+const diag = (v) => v.map((x, i) => v.map((_, j) => (i === j ? x : 0)));
+const blockDiag = (blocks) => {
+  const n = blocks.reduce((s, b) => s + b.length, 0);
+  const m = Array.from({ length: n }, () => Array(n).fill(0));
+  let o = 0;
+  for (const b of blocks) {
+    b.forEach((row, i) => row.forEach((v, j) => (m[o + i][o + j] = v)));
+    o += b.length;
+  }
+  return m;
+};
+
+export function patternPreset(kind, n, pa, pb) {
+  const grid = (f) => Array.from({ length: n }, (_, i) => Array.from({ length: n }, (_, j) => f(i, j)));
+  switch (kind) {
+    case "full":
+      return grid(() => true);
+    case "diagonal":
+      return grid((i, j) => i === j);
+    case "block": {
+      // The blocks P_a and P_b already have (their non-zero structure), or pairs of states.
+      const comp = components(n, (i, j) => (pa && pa[i][j] !== 0) || (pb && pb[i][j] !== 0));
+      const single = new Set(comp).size === 1 || new Set(comp).size === n;
+      return grid((i, j) => (single ? Math.floor(i / 2) === Math.floor(j / 2) : comp[i] === comp[j]));
+    }
+    case "chain":
+      // diagonal + super-diagonal: links every state, so nmCI = CI; only the optimum gains.
+      return grid((i, j) => i === j || j === i + 1);
+    default:
+      throw new Error(`unknown pattern preset ${kind}`);
+  }
+}
+
+function components(n, linked) {
+  const parent = Array.from({ length: n }, (_, i) => i);
+  const find = (i) => (parent[i] === i ? i : (parent[i] = find(parent[i])));
+  for (let i = 0; i < n; i++) for (let j = i + 1; j < n; j++) if (linked(i, j)) parent[find(i)] = find(j);
+  return parent.map((_, i) => find(i));
+}
+
+export function preset(name) {
+  const base = { samples: 200, seed: 0, region: 300, criterion: "trace", view: [0, 1], layers: Object.fromEntries(LAYERS.map((l) => [l, true])), preset: name };
+  switch (name) {
+    case "paper":
+      return { ...base, n: 2, pa: diag([3, 1]), pb: diag([1, 4]), pattern: [[true, false], [false, true]] };
+    case "correlated":
+      return { ...base, n: 2, pa: [[3, 1.2], [1.2, 2]], pb: [[2, -0.9], [-0.9, 3]], pattern: [[true, false], [false, true]] };
+    case "twoblock": {
+      const pa = blockDiag([[[3, 0.5], [0.5, 1]], [[1, 0.2], [0.2, 2]]]);
+      const pb = blockDiag([[[1, -0.3], [-0.3, 2]], [[4, 1], [1, 2]]]);
+      return { ...base, n: 4, pa, pb, pattern: patternPreset("block", 4, pa, pb), view: [0, 2] };
+    }
+    case "six": {
+      const pa = blockDiag([[[3, 0.4], [0.4, 1]], [[1, 0], [0, 2]], [[2, -0.5], [-0.5, 1.5]]]);
+      const pb = blockDiag([[[1, 0.2], [0.2, 3]], [[2.5, 0.6], [0.6, 1]], [[1, 0.3], [0.3, 2.5]]]);
+      return { ...base, n: 6, pa, pb, pattern: patternPreset("diagonal", 6), view: [0, 1] };
+    }
+    default:
+      throw new Error(`unknown preset ${name}`);
+  }
+}
+
+/** Resizes a state to n states: keeps the top-left block, extends with identity / diagonal pattern. */
+export function resize(state, n) {
+  const grow = (m, fill) => Array.from({ length: n }, (_, i) => Array.from({ length: n }, (_, j) => (i < m.length && j < m.length ? m[i][j] : fill(i, j))));
+  const eye = (i, j) => (i === j ? 1 : 0);
+  const view = state.view.map((v) => Math.min(v, n - 1));
+  if (view[0] === view[1]) view[1] = view[0] === 0 ? 1 : 0;
+  return { ...state, n, pa: grow(state.pa, eye), pb: grow(state.pb, eye), pattern: grow(state.pattern, (i, j) => i === j), view, preset: "custom" };
+}
+
+export function encodeHash(state) {
+  const compact = {
+    n: state.n, pa: state.pa, pb: state.pb,
+    pattern: state.pattern.map((r) => r.map((b) => (b ? 1 : 0)).join("")),
+    samples: state.samples, seed: state.seed, region: state.region, criterion: state.criterion,
+    view: state.view, layers: LAYERS.filter((l) => state.layers[l]), preset: state.preset,
+  };
+  return "#" + encodeURIComponent(JSON.stringify(compact));
+}
+
+/** Parses a hash; returns null (and a reason) when it is not a valid state. */
+export function decodeHash(hash) {
+  if (!hash || hash.length < 2) return { state: null };
+  let c;
+  try {
+    c = JSON.parse(decodeURIComponent(hash.slice(1)));
+  } catch {
+    return { state: null, error: "the link's state could not be read" };
+  }
+  const n = c.n;
+  const square = (m) => Array.isArray(m) && m.length === n && m.every((r) => Array.isArray(r) && r.length === n && r.every((v) => typeof v === "number" && Number.isFinite(v)));
+  const okPattern = Array.isArray(c.pattern) && c.pattern.length === n && c.pattern.every((r) => typeof r === "string" && /^[01]+$/.test(r) && r.length === n);
+  if (!Number.isInteger(n) || n < 2 || n > 6 || !square(c.pa) || !square(c.pb) || !okPattern) {
+    return { state: null, error: "the link's state is incomplete or out of range" };
+  }
+  const base = preset("paper");
+  const view = Array.isArray(c.view) && c.view.length === 2 && c.view.every((v) => Number.isInteger(v) && v >= 0 && v < n) && c.view[0] !== c.view[1] ? c.view : [0, 1];
+  const int = (v, d, lo, hi) => (Number.isInteger(v) && v >= lo && v <= hi ? v : d);
+  return {
+    state: {
+      ...base, n, pa: c.pa, pb: c.pb,
+      pattern: c.pattern.map((r) => [...r].map((ch) => ch === "1")),
+      samples: int(c.samples, 200, 1, 5000), seed: int(c.seed, 0, 0, Number.MAX_SAFE_INTEGER), region: int(c.region, 300, 0, 5000),
+      criterion: c.criterion === "logdet" ? "logdet" : "trace", view,
+      layers: Array.isArray(c.layers) ? Object.fromEntries(LAYERS.map((l) => [l, c.layers.includes(l)])) : base.layers,
+      preset: typeof c.preset === "string" ? c.preset : "custom",
+    },
+  };
+}
