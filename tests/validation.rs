@@ -1,4 +1,5 @@
 //! Every validation error path, in the Rust API and through the JSON contract.
+#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 #![allow(non_snake_case)]
 
 mod common;

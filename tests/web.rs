@@ -105,3 +105,28 @@ fn invalid_requests_throw_with_their_message() {
     let msg = call(mismatch).unwrap_err();
     assert!(msg.contains("P_b has size 2, expected 1"), "{msg}");
 }
+
+#[wasm_bindgen_test]
+fn explore_hands_the_region_over_as_a_typed_array() {
+    let req = JSON::parse(
+        r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
+            "pab_unknown": [[true, false], [false, true]], "samples": 60, "region_samples": 50}"#,
+    )
+    .unwrap();
+    let out = nmci::wasm::explore(req).unwrap();
+    let region = Reflect::get(&out, &"region".into()).unwrap();
+    assert!(region.is_instance_of::<js_sys::Float64Array>());
+    let region = js_sys::Float64Array::from(region).to_vec();
+    assert_eq!(region.len(), 50 * 4);
+    let nmci = Reflect::get(&out, &"nmci".into()).unwrap();
+    assert_eq!(
+        Reflect::get(&nmci, &"trace".into()).unwrap().as_f64(),
+        Some(2.0)
+    );
+    let gap = Reflect::get(&out, &"gap".into()).unwrap();
+    let abs = Reflect::get(&gap, &"absolute".into())
+        .unwrap()
+        .as_f64()
+        .unwrap();
+    assert!(abs.abs() < 1e-6, "gap {abs}");
+}

@@ -276,6 +276,14 @@ struct Solved {
     dual_objective: f64,
 }
 
+/// Clarabel's KKT solver. The KKT system is an arrow of dense PSD-cone blocks around the few
+/// gain variables, where faer's supernodal LDLᵀ is several times faster than QDLDL's scalar
+/// factorization; faer does not build for 32-bit wasm, where QDLDL is used.
+#[cfg(not(target_arch = "wasm32"))]
+const KKT_SOLVER: &str = "faer";
+#[cfg(target_arch = "wasm32")]
+const KKT_SOLVER: &str = "qdldl";
+
 /// svec index of `(r, c)`, `r ≤ c`, in Clarabel's column-major upper-triangle order.
 fn svec_index(r: usize, c: usize) -> usize {
     c * (c + 1) / 2 + r
@@ -349,6 +357,8 @@ fn solve_lmis(
         .collect();
     let clarabel_settings = DefaultSettings {
         verbose: false,
+        direct_solve_method: KKT_SOLVER.into(),
+        max_threads: 1,
         max_iter: settings.max_iter,
         tol_gap_abs: settings.tolerance,
         tol_gap_rel: settings.tolerance,

@@ -130,7 +130,7 @@ test("toggling a pattern cell changes the detected blocks", async () => {
 });
 
 test("a URL hash restores the whole state", async () => {
-  await page.selectOption("#preset", "six");
+  await page.selectOption("#preset", "twoblock");
   await settle();
   await page.selectOption("#view-j", "3");
   await cell("pb", 2, 2).fill("2.5");
@@ -141,11 +141,11 @@ test("a URL hash restores the whole state", async () => {
   other.on("pageerror", (e) => problems.push(`page error (second page): ${e.message}`));
   await other.goto(url);
   await other.waitForFunction(() => document.body.dataset.ready === "true", null, { timeout: 60_000 });
-  assert.equal(await other.locator("#dim").inputValue(), "6");
+  assert.equal(await other.locator("#dim").inputValue(), "4");
   assert.equal(await other.locator("#view-j").inputValue(), "3");
   assert.equal(await other.locator('#grid-pb input[aria-label="P_b[2,2]"]').inputValue(), "2.5");
   assert.equal(await other.locator("#table tbody").innerText(), traces);
-  await other.screenshot({ path: join(out, "explorer-six-from-hash.png"), fullPage: true });
+  await other.screenshot({ path: join(out, "explorer-twoblock-from-hash.png"), fullPage: true });
   await other.close();
 });
 

@@ -52,8 +52,8 @@ fn dgemm_hand_computed() {
 fn dgemm_every_transpose_against_nalgebra() {
     let mut g = Lcg(1);
     let (m, n, k) = (5, 4, 3);
-    for &ta in &[b'N', b'T', b'C'] {
-        for &tb in &[b'N', b'T', b'C'] {
+    for &ta in b"NTC" {
+        for &tb in b"NTC" {
             let opa = g.matrix(m, k);
             let opb = g.matrix(k, n);
             let c0 = g.matrix(m, n);
@@ -151,7 +151,7 @@ fn dgemv_and_dsymv_against_nalgebra() {
         let m = g.matrix(4, 4);
         &m + m.transpose()
     };
-    for &uplo in &[b'U', b'L'] {
+    for &uplo in b"UL" {
         // Only the named triangle is read: poison the other one.
         let mut st = store(&s, 4);
         for j in 0..4 {
@@ -171,8 +171,8 @@ fn dgemv_and_dsymv_against_nalgebra() {
 fn dsyrk_and_dsyr2k_update_one_triangle() {
     let mut g = Lcg(3);
     let (n, k) = (4, 3);
-    for &trans in &[b'N', b'T'] {
-        for &uplo in &[b'U', b'L'] {
+    for &trans in b"NT" {
+        for &uplo in b"UL" {
             let a = if trans == b'N' {
                 g.matrix(n, k)
             } else {

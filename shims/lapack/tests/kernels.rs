@@ -113,7 +113,7 @@ fn dsyevr_hand_computed_and_reconstruction() {
         let m = g.matrix(6, 6);
         &m + m.transpose()
     }] {
-        for &uplo in &[b'U', b'L'] {
+        for &uplo in b"UL" {
             let mut poisoned = a.clone();
             for j in 0..a.ncols() {
                 for i in 0..a.nrows() {
@@ -198,7 +198,7 @@ fn dpotrf_dpotrs_hand_computed_and_random() {
     assert!((b[0] - 0.5).abs() < 1e-15 && b[1].abs() < 1e-15);
 
     let mut g = Lcg(4);
-    for &uplo in &[b'L', b'U'] {
+    for &uplo in b"LU" {
         let s = g.spd(5);
         let mut f = s.as_slice().to_vec();
         unsafe { lapack::dpotrf(uplo, 5, &mut f, 5, &mut info) };

@@ -1,0 +1,113 @@
+//! The explorer's analysis and the known-correlation fusion behind its region.
+#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
+#![allow(non_snake_case)]
+
+mod common;
+
+use common::*;
+use nalgebra::DMatrix;
+use nmci::*;
+
+#[test]
+fn known_correlation_fusion_is_the_blue() {
+    let mut r = rng(12);
+    for n in [2, 3, 5] {
+        let p = random_problem(n, random_pattern(n, 0.5, &mut r), &mut r);
+        let s = sample_cross_covariances(
+            &p,
+            20,
+            2,
+            SamplerSettings {
+                max_trials: 10_000_000,
+            },
+        )
+        .unwrap();
+        let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+        for P_ab in &s.cross {
+            let best = known_correlation_fusion(&p, P_ab);
+            // (Hᵀ P'⁻¹ H)⁻¹ with H = [I; I]
+            let inv = p.joint_covariance(P_ab).try_inverse().unwrap();
+            let info = inv.view((0, 0), (n, n))
+                + inv.view((0, n), (n, n))
+                + inv.view((n, 0), (n, n))
+                + inv.view((n, n), (n, n));
+            let reference = info.try_inverse().unwrap();
+            assert!((&best.P - &reference).amax() < 1e-8 * reference.amax().max(1.0));
+            assert_eq!(best.P, best.P.transpose());
+            // It is the fused covariance of its own gains, and no other gain does better.
+            let own = fused_error_covariance(&p, &best.K_a, &best.K_b, P_ab);
+            assert!((&own - &best.P).amax() < 1e-8 * own.amax().max(1.0));
+            let with_ci_gains = fused_error_covariance(&p, &ci.fused.K_a, &ci.fused.K_b, P_ab);
+            assert!(min_eigenvalue(&(with_ci_gains - &best.P)) > -1e-9);
+        }
+    }
+}
+
+fn request(json: &str) -> ExploreRequest {
+    serde_json::from_str(json).unwrap()
+}
+
+#[test]
+fn paper_example_analysis() {
+    let a = explore(&request(
+        r#"{"pa": [[3,0],[0,1]], "pb": [[1,0],[0,4]], "pab_unknown": [[true,false],[false,true]]}"#,
+    ))
+    .unwrap();
+    assert_eq!(a.n, 2);
+    assert_eq!(a.nmci.trace, 2.0);
+    assert!(a.ci.trace > 3.0);
+    let sdp = a.sdp.as_ref().unwrap();
+    assert!((sdp.trace - 2.0).abs() < 1e-6);
+    let gap = a.gap.as_ref().unwrap();
+    assert!(gap.absolute.abs() < 1e-6 && gap.upper == 2.0);
+    assert_eq!(a.region_count, 300);
+    assert_eq!(a.region.len(), 300 * 4);
+    let m = a.margins.as_ref().unwrap();
+    assert!(m.ci > 0.0 && m.nmci >= -1e-12 && m.sdp.unwrap() > -1e-7);
+    // Every possible true fused covariance lies inside the nmCI bound diag(1, 1).
+    for k in 0..a.region_count {
+        let P = DMatrix::from_row_slice(2, 2, &a.region[4 * k..4 * k + 4]);
+        assert!(min_eigenvalue(&(DMatrix::identity(2, 2) - P)) > -1e-12);
+    }
+}
+
+#[test]
+fn sampler_failure_leaves_ci_and_nmci_and_says_why() {
+    let eye = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
+    let a = explore(&request(&format!(
+        r#"{{"pa": {eye}, "pb": {eye}, "max_trials": 50, "samples": 20, "region_samples": 20}}"#
+    )))
+    .unwrap();
+    assert!(a.sdp.is_none() && a.gap.is_none() && a.margins.is_none());
+    assert!(a
+        .sdp_error
+        .unwrap()
+        .contains("rejection sampler accepted only"));
+    assert!(a.region_error.unwrap().contains("raise max_trials"));
+    assert!(a.ci.trace > 0.0 && a.nmci.trace > 0.0);
+}
+
+#[test]
+fn explore_rejects_bad_input() {
+    for (json, needle) in [
+        (
+            r#"{"pa": [[1,2],[2,1]], "pb": [[1,0],[0,1]]}"#,
+            "P_a is not positive definite",
+        ),
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "samples": 0}"#,
+            "`samples` must be at least 1",
+        ),
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "max_trials": 0}"#,
+            "`max_trials` must be at least 1",
+        ),
+    ] {
+        let err = explore(&request(json)).unwrap_err().to_string();
+        assert!(err.contains(needle), "{err}");
+    }
+    assert!(
+        serde_json::from_str::<ExploreRequest>(r#"{"pa": [[1]], "pb": [[1]], "bogus": 1}"#)
+            .is_err()
+    );
+}
