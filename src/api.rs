@@ -83,7 +83,7 @@ pub struct FuseResponse {
     /// CI: `[ω]`; nmCI: one `ω` per block; absent for `sdp`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub omega: Option<Vec<f64>>,
-    /// nmCI: the independent blocks (0-based state indices).
+    /// nmCI and sdp: the independent blocks (0-based state indices); the SDP is solved per block.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub blocks: Option<Vec<Vec<usize>>>,
     /// `sdp`: number of samples.
@@ -270,6 +270,7 @@ pub(crate) fn sdp_response(
     r.acceptance_rate = Some(opt.acceptance_rate);
     r.lmis = Some(opt.lmis);
     r.worst_sample_margin = Some(opt.worst_sample_margin);
+    r.blocks = Some(opt.blocks.clone());
     Ok((r, opt.fused))
 }
 

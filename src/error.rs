@@ -56,6 +56,26 @@ pub enum InputError {
         /// Its smallest eigenvalue.
         min_eigenvalue: f64,
     },
+    /// A matrix with a non-zero entry outside the blocks it was declared block-diagonal in.
+    #[error("{name} is not block-diagonal in the given blocks: entry ({row}, {col}) is {value}")]
+    NotBlockDiagonal {
+        /// Which input.
+        name: String,
+        /// Row (0-based).
+        row: usize,
+        /// Column (0-based).
+        col: usize,
+        /// The non-zero value.
+        value: f64,
+    },
+    /// Blocks that are not a partition of the states `0..n`.
+    #[error("the blocks are not a partition of the {n} states: {problem}")]
+    InvalidBlocks {
+        /// State dimension.
+        n: usize,
+        /// What is wrong.
+        problem: String,
+    },
     /// An input whose size does not match `P_a`.
     #[error("{name} has size {found}, expected {expected} (the size of P_a)")]
     SizeMismatch {

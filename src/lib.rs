@@ -50,7 +50,9 @@ pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method};
 pub use error::{InputError, RequestError, SampleError, SolveError};
 pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
 pub use fusion::check::{conservativeness_margin, fused_error_covariance, worst_margin};
-pub use fusion::ci::{ci_covariance, covariance_intersection, CiResult};
+pub use fusion::ci::{
+    ci_covariance, covariance_intersection, covariance_intersection_blocks, CiResult,
+};
 pub use fusion::known::known_correlation_fusion;
 pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::sample::{

@@ -168,3 +168,57 @@ fn ci_is_conservative_for_sampled_admissible_cross_covariances() {
         }
     }
 }
+
+#[test]
+fn block_structured_monolithic_ci_equals_dense_ci() {
+    let mut r = rng(19);
+    let groups = vec![vec![0, 4, 5], vec![1, 3], vec![2], vec![6, 7]];
+    let n = 8;
+    for criterion in [Criterion::Trace, Criterion::Logdet] {
+        for _ in 0..4 {
+            let P_a = block_spd(n, &groups, &mut r);
+            let P_b = block_spd(n, &groups, &mut r);
+            let x_a = nalgebra::DVector::from_fn(n, |i, _| i as f64);
+            let x_b = nalgebra::DVector::from_fn(n, |i, _| -(i as f64));
+            let p = FusionProblem::new(x_a, P_a, x_b, P_b, CrossPattern::fully_unknown(n)).unwrap();
+            let dense = covariance_intersection(&p, criterion).unwrap();
+            let blocks = covariance_intersection_blocks(&p, &groups, criterion).unwrap();
+            assert!(
+                (dense.omega - blocks.omega).abs() < 1e-9,
+                "{} vs {}",
+                dense.omega,
+                blocks.omega
+            );
+            assert!((&dense.fused.P - &blocks.fused.P).amax() < 1e-9);
+            assert!((&dense.fused.K_a - &blocks.fused.K_a).amax() < 1e-9);
+            assert!((&dense.fused.x - &blocks.fused.x).amax() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn block_structured_ci_rejects_bad_blocks() {
+    let mut r = rng(20);
+    let groups = vec![vec![0, 2], vec![1]];
+    let P_a = block_spd(3, &groups, &mut r);
+    let p =
+        FusionProblem::from_covariances(P_a.clone(), P_a, CrossPattern::fully_unknown(3)).unwrap();
+    let e = covariance_intersection_blocks(&p, &[vec![0, 2]], Criterion::Trace).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "the blocks are not a partition of the 3 states: state 1 is in no block"
+    );
+    let e = covariance_intersection_blocks(&p, &[vec![0, 2], vec![1, 2]], Criterion::Trace)
+        .unwrap_err();
+    assert!(e.to_string().contains("state 2 is in two blocks"));
+    let e = covariance_intersection_blocks(&p, &[vec![0, 7], vec![1, 2]], Criterion::Trace)
+        .unwrap_err();
+    assert!(e.to_string().contains("state 7 does not exist"));
+    let e =
+        covariance_intersection_blocks(&p, &[vec![0, 1], vec![2]], Criterion::Trace).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("P_a is not block-diagonal in the given blocks: entry (0, 2)"),
+        "{e}"
+    );
+}

@@ -7,6 +7,7 @@ mod common;
 
 use common::*;
 use nmci::*;
+use rand::Rng;
 
 #[test]
 fn paper_example_reaches_diag_1_1() {
@@ -178,4 +179,49 @@ fn invalid_settings_are_rejected() {
         optimal_fusion_for_samples(&p, &empty, &SdpSettings::default()),
         Err(SolveError::InvalidSettings(_))
     ));
+}
+
+#[test]
+fn splitting_into_independent_blocks_is_exact() {
+    let mut r = rng(44);
+    let groups = vec![vec![0, 3], vec![1, 2, 4]];
+    let n = 5;
+    let P_a = block_spd(n, &groups, &mut r);
+    let P_b = block_spd(n, &groups, &mut r);
+    let unknown = nalgebra::DMatrix::from_fn(n, n, |i, j| {
+        groups.iter().any(|g| g.contains(&i) && g.contains(&j)) && (i == j || r.random_bool(0.5))
+    });
+    let p = FusionProblem::from_covariances(P_a, P_b, CrossPattern::from_matrix(unknown).unwrap())
+        .unwrap();
+    let samples = sample_cross_covariances(
+        &p,
+        120,
+        6,
+        SamplerSettings {
+            max_trials: 50_000_000,
+        },
+    )
+    .unwrap();
+    let split = optimal_fusion_for_samples(&p, &samples, &SdpSettings::default()).unwrap();
+    let whole = optimal_fusion_for_samples(
+        &p,
+        &samples,
+        &SdpSettings {
+            split_blocks: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(split.blocks, groups);
+    assert_eq!(whole.blocks.len(), 1);
+    assert!(
+        (split.fused.trace() - whole.fused.trace()).abs() < 1e-6,
+        "{} vs {}",
+        split.fused.trace(),
+        whole.fused.trace()
+    );
+    assert!(split.worst_sample_margin > -1e-7);
+    // Gains between blocks are exactly zero.
+    assert_eq!(split.fused.K_a[(0, 1)], 0.0);
+    assert_eq!(split.fused.P[(3, 4)], 0.0);
 }

@@ -149,6 +149,41 @@ test("a URL hash restores the whole state", async () => {
   await other.close();
 });
 
+test("dragging the P_a major-axis handle rotates and stretches P_a, and the grid follows", async () => {
+  await page.selectOption("#preset", "paper");
+  await settle();
+  const svg = await page.locator("#plot").boundingBox();
+  const unit = svg.width / 520; // viewBox → screen
+  const attr = async (axis, name) => Number(await page.locator(`circle.handle[data-key="pa"][data-axis="${axis}"]`).getAttribute(name));
+  // P_a = diag(3, 1): the major handle sits at (√3, 0), the minor one at (0, 1).
+  const [x0, y0] = [await attr("minor", "cx"), await attr("major", "cy")];
+  const scale = ((await attr("major", "cx")) - x0) / Math.sqrt(3);
+  const screen = (x, y) => [svg.x + x * unit, svg.y + y * unit];
+  const before = await text("#row-ci .trace");
+  await page.mouse.move(...screen(x0 + Math.sqrt(3) * scale, y0));
+  await page.mouse.down();
+  for (let k = 1; k <= 8; k++) {
+    const t = (k / 8) * (Math.PI / 2); // sweep to (0, 2): major axis 2, rotated by 90°
+    const r = Math.sqrt(3) + (k / 8) * (2 - Math.sqrt(3));
+    await page.mouse.move(...screen(x0 + r * Math.cos(t) * scale, y0 - r * Math.sin(t) * scale));
+  }
+  await page.mouse.up();
+  await settle();
+  const v = async (i, j) => Number(await cell("pa", i, j).inputValue());
+  assert.ok(Math.abs((await v(1, 1)) - 1) < 0.02, `P_a[1,1] = ${await v(1, 1)}`);
+  assert.ok(Math.abs((await v(2, 2)) - 4) < 0.05, `P_a[2,2] = ${await v(2, 2)}`);
+  assert.ok(Math.abs(await v(1, 2)) < 0.05 && (await v(1, 2)) === (await v(2, 1)));
+  assert.notEqual(await text("#row-ci .trace"), before);
+  assert.equal(await page.locator("#preset").inputValue(), "custom");
+});
+
+test("the wasm package imports nothing from \"env\"", async () => {
+  const bytes = await readFile(join(www, "pkg", "nmci_bg.wasm"));
+  const imports = WebAssembly.Module.imports(new WebAssembly.Module(bytes));
+  assert.deepEqual(imports.filter((i) => i.module === "env"), []);
+  assert.doesNotMatch(await readFile(join(www, "pkg", "nmci.js"), "utf8"), /from\s+['"]env['"]/);
+});
+
 test("interaction cost: recompute after an edit (n = 2, 200 SDP samples, 300 region samples)", async () => {
   await page.selectOption("#preset", "paper");
   await settle();

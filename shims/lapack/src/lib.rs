@@ -18,7 +18,11 @@
 //! Unsupported arguments set `info` to minus the argument's position, as LAPACK does; they
 //! never panic.
 #![deny(missing_docs)]
-#![allow(clippy::too_many_arguments, clippy::missing_safety_doc, clippy::needless_range_loop)]
+#![allow(
+    clippy::too_many_arguments,
+    clippy::missing_safety_doc,
+    clippy::needless_range_loop
+)]
 
 use nalgebra::{DMatrix, RealField, SymmetricEigen, SVD};
 
