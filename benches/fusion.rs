@@ -1,6 +1,7 @@
 //! Fusion benchmarks (criterion). IDs and targets (issue 2):
 //! `ci/trace/{2,14,112}`, `eigen/symmetric/112` (the cost floor: one nalgebra `SymmetricEigen`
-//! of a 112×112 SPD matrix), `nmci/112x8` (8 blocks of 14), `sdp/paper/{10,100,1000}`.
+//! of a 112×112 SPD matrix), `nmci/112x8` (8 blocks of 14), `ci_blocks/112x8` (monolithic CI
+//! on the same block-diagonal problem), `sdp/paper/{10,100,1000}`.
 //! Targets: `ci/trace/112` ≤ 2× `eigen/symmetric/112`; `sdp/paper/100` ≤ 10 ms,
 //! `sdp/paper/1000` ≤ 150 ms.
 #![allow(non_snake_case)]
@@ -63,6 +64,13 @@ fn benches(c: &mut Bench) {
     .unwrap();
     c.bench_function("nmci/112x8", |b| {
         b.iter(|| non_monolithic_ci(black_box(&p), Criterion::Trace).unwrap())
+    });
+    // Monolithic CI (one ω) on the same block-diagonal problem, exploiting the blocks.
+    let groups: Vec<Vec<usize>> = (0..blocks)
+        .map(|b| (b * size..(b + 1) * size).collect())
+        .collect();
+    c.bench_function("ci_blocks/112x8", |b| {
+        b.iter(|| covariance_intersection_blocks(black_box(&p), &groups, Criterion::Trace).unwrap())
     });
 
     let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
