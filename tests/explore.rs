@@ -111,3 +111,21 @@ fn explore_rejects_bad_input() {
             .is_err()
     );
 }
+
+#[test]
+fn naive_fusion_is_the_independent_blue_and_not_conservative_under_correlation() {
+    let mut r = rng(13);
+    let p = random_problem(3, CrossPattern::fully_unknown(3), &mut r);
+    let naive = naive_fusion(&p);
+    let Pa_inv = p.P_a.clone().try_inverse().unwrap();
+    let Pb_inv = p.P_b.clone().try_inverse().unwrap();
+    let reference = (&Pa_inv + &Pb_inv).try_inverse().unwrap();
+    assert!((&naive.P - &reference).amax() < 1e-10);
+    let x = &reference * (&Pa_inv * &p.x_a + &Pb_inv * &p.x_b);
+    assert!((&naive.x - x).amax() < 1e-10);
+    // Two copies of the same information (correlation 0.9): naive claims half the covariance.
+    let I = DMatrix::<f64>::identity(2, 2);
+    let same = FusionProblem::from_covariances(I.clone(), I.clone(), CrossPattern::fully_unknown(2)).unwrap();
+    let m = conservativeness_margin(&same, &naive_fusion(&same), &(I * 0.9));
+    assert!((m + 0.45).abs() < 1e-12, "margin {m}");
+}

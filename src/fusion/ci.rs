@@ -293,20 +293,14 @@ pub fn covariance_intersection_blocks(
         }
     }
     let subs: Vec<FusionProblem> = blocks.iter().map(|b| problem.restrict(b)).collect();
-    let pencils = subs
-        .iter()
-        .map(|s| Pencil::new(&s.P_a, &s.P_b))
-        .collect::<Result<Vec<_>, _>>()?;
-    let refs: Vec<&Pencil> = pencils.iter().collect();
-    let omega = optimal_omega(&refs, criterion);
+    let (parts, omega) = covariance_intersection_independent(&subs, criterion)?;
     let mut P = DMatrix::zeros(n, n);
     let mut K_a = DMatrix::zeros(n, n);
-    for ((block, sub), pencil) in blocks.iter().zip(&subs).zip(&pencils) {
-        let (Pb, Kab, _) = fuse_at(pencil, &sub.P_a, &sub.P_b, omega);
+    for (block, part) in blocks.iter().zip(&parts) {
         for (bi, &i) in block.iter().enumerate() {
             for (bj, &j) in block.iter().enumerate() {
-                P[(i, j)] = Pb[(bi, bj)];
-                K_a[(i, j)] = Kab[(bi, bj)];
+                P[(i, j)] = part.P[(bi, bj)];
+                K_a[(i, j)] = part.K_a[(bi, bj)];
             }
         }
     }
@@ -316,4 +310,31 @@ pub fn covariance_intersection_blocks(
         fused: Fused { x, P, K_a, K_b },
         omega,
     })
+}
+
+/// Monolithic CI (one `ω`) over independent sub-problems stored separately — the blocks of a
+/// block-diagonal problem kept in block storage (as a tracking filter does). Returns each
+/// block's fused result and the common weight; identical to [`covariance_intersection`] on
+/// the assembled dense problem.
+#[allow(non_snake_case)]
+pub fn covariance_intersection_independent(
+    blocks: &[FusionProblem],
+    criterion: Criterion,
+) -> Result<(Vec<Fused>, f64), InputError> {
+    let pencils = blocks
+        .iter()
+        .map(|s| Pencil::new(&s.P_a, &s.P_b))
+        .collect::<Result<Vec<_>, _>>()?;
+    let refs: Vec<&Pencil> = pencils.iter().collect();
+    let omega = optimal_omega(&refs, criterion);
+    let fused = blocks
+        .iter()
+        .zip(&pencils)
+        .map(|(sub, pencil)| {
+            let (P, K_a, K_b) = fuse_at(pencil, &sub.P_a, &sub.P_b, omega);
+            let x = &K_a * &sub.x_a + &K_b * &sub.x_b;
+            Fused { x, P, K_a, K_b }
+        })
+        .collect();
+    Ok((fused, omega))
 }

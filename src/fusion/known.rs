@@ -45,3 +45,19 @@ pub fn known_correlation_fusion(problem: &FusionProblem, P_ab: &DMatrix<f64>) ->
     let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
     Fused { x, P, K_a, K_b }
 }
+
+/// Naive fusion: the estimates treated as independent (`P_ab = 0`),
+/// `P = (P_a⁻¹ + P_b⁻¹)⁻¹`, `x = P (P_a⁻¹ x_a + P_b⁻¹ x_b)`. **Not conservative** when the
+/// estimates share information: it is what double counting looks like.
+///
+/// ```
+/// use nalgebra::DMatrix;
+/// use nmci::*;
+/// let I = DMatrix::<f64>::identity(2, 2);
+/// let p = FusionProblem::from_covariances(I.clone() * 2.0, I.clone() * 2.0,
+///     CrossPattern::fully_unknown(2)).unwrap();
+/// assert!((naive_fusion(&p).P - I).amax() < 1e-12); // half of either, whatever P_ab really is
+/// ```
+pub fn naive_fusion(problem: &FusionProblem) -> Fused {
+    known_correlation_fusion(problem, &DMatrix::zeros(problem.dim(), problem.dim()))
+}
