@@ -42,6 +42,7 @@ mod error;
 mod explore;
 mod fusion;
 mod linalg;
+pub mod sim;
 mod structure;
 #[cfg(target_arch = "wasm32")]
 pub mod wasm;

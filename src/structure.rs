@@ -41,6 +41,13 @@ impl CrossPattern {
         }
     }
 
+    /// From a function of `(i, j)` (`true` = may be non-zero).
+    pub fn from_fn(n: usize, unknown: impl Fn(usize, usize) -> bool) -> Self {
+        Self {
+            unknown: DMatrix::from_fn(n, n, unknown),
+        }
+    }
+
     /// From a boolean matrix (`true` = may be non-zero).
     pub fn from_matrix(unknown: DMatrix<bool>) -> Result<Self, InputError> {
         if unknown.nrows() != unknown.ncols() {

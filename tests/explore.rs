@@ -125,7 +125,9 @@ fn naive_fusion_is_the_independent_blue_and_not_conservative_under_correlation()
     assert!((&naive.x - x).amax() < 1e-10);
     // Two copies of the same information (correlation 0.9): naive claims half the covariance.
     let I = DMatrix::<f64>::identity(2, 2);
-    let same = FusionProblem::from_covariances(I.clone(), I.clone(), CrossPattern::fully_unknown(2)).unwrap();
+    let same =
+        FusionProblem::from_covariances(I.clone(), I.clone(), CrossPattern::fully_unknown(2))
+            .unwrap();
     let m = conservativeness_margin(&same, &naive_fusion(&same), &(I * 0.9));
     assert!((m + 0.45).abs() < 1e-12, "margin {m}");
 }

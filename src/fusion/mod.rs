@@ -168,6 +168,25 @@ impl FusionProblem {
         })
     }
 
+    /// A problem from matrices the caller guarantees valid (symmetric, positive definite, sizes
+    /// consistent): a filter's own estimates. Skips the eigenvalue check of [`FusionProblem::new`];
+    /// the rules still fail with an [`InputError`] if a factorization breaks down.
+    pub fn new_trusted(
+        x_a: DVector<f64>,
+        P_a: DMatrix<f64>,
+        x_b: DVector<f64>,
+        P_b: DMatrix<f64>,
+        cross_pattern: CrossPattern,
+    ) -> Self {
+        Self {
+            x_a,
+            P_a,
+            x_b,
+            P_b,
+            cross_pattern,
+        }
+    }
+
     /// A problem with zero means (only covariances matter for the bounds).
     pub fn from_covariances(
         P_a: DMatrix<f64>,

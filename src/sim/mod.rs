@@ -1,0 +1,176 @@
+//! The paper's multi-agent tracking study (16 agents, 20 targets, 112 states).
+//!
+//! [`Scenario`] holds the parameters (every value the paper omits is stated there),
+//! [`Model`] the linear-Gaussian model and the independent blocks derived from it, and
+//! [`simulate_run`] one Monte Carlo run of the centralized filter and of the decentralized
+//! agents fusing with CI, nmCI and naive fusion. [`summarize`] averages runs into the study's
+//! headline numbers.
+
+mod model;
+mod scenario;
+mod study;
+
+pub use model::Model;
+pub use scenario::{ScalarMeasurement, Scenario};
+pub use study::{nees_bounds, simulate_run, Rule, RunSpec, RunTrace, Storage, RULES};
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::error::InputError;
+
+/// A study that could not run.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SimError {
+    /// A scenario value out of range.
+    #[error("invalid scenario: {0}")]
+    InvalidScenario(String),
+    /// A fusion received an invalid estimate (e.g. lost positive definiteness).
+    #[error("fusion failed: {0}")]
+    Fusion(#[from] InputError),
+    /// A filter diverged.
+    #[error("the simulation diverged: {0}")]
+    Diverged(String),
+}
+
+impl Scenario {
+    /// Checks every value.
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |m: String| Err(SimError::InvalidScenario(m));
+        if self.groups == 0 || self.agents_per_group == 0 {
+            return bad("groups and agents_per_group must be at least 1".into());
+        }
+        if self.targets_per_group < self.agents_per_group + 1 {
+            return bad(format!(
+                "targets_per_group must be at least agents_per_group + 1 = {} (the k-th agent measures targets k and k+1)",
+                self.agents_per_group + 1
+            ));
+        }
+        for (name, v) in [
+            ("dt", self.dt),
+            ("q", self.q),
+            ("landmark_variance", self.landmark_variance),
+            ("prior_position_variance", self.prior_position_variance),
+            ("prior_velocity_variance", self.prior_velocity_variance),
+            ("prior_bias_variance", self.prior_bias_variance),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return bad(format!("{name} must be positive and finite (got {v})"));
+            }
+        }
+        for &(a, b) in &self.bridges {
+            if a == 0 || b == 0 || a > self.agents() || b > self.agents() || a == b {
+                return bad(format!(
+                    "bridge {a}–{b} must join two different agents among 1..={}",
+                    self.agents()
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Headline numbers of one estimator for the headline agent (means over runs and steps).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EstimatorSummary {
+    /// Mean position RMSE.
+    pub rmse_mean: f64,
+    /// Mean 2σ of the position coordinates.
+    pub two_sigma_mean: f64,
+    /// Mean NEES.
+    pub nees_mean: f64,
+    /// Fraction of steps whose run-averaged NEES is above the upper 95 % bound.
+    pub nees_frac_above_upper: f64,
+}
+
+/// Per-step means over runs and the headline numbers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StudySummary {
+    /// `central`, `ci`, `nmci`, `naive`.
+    pub estimators: Vec<(String, EstimatorSummary)>,
+    /// 95 % bounds of the run-averaged NEES.
+    pub nees_bounds: (f64, f64),
+    /// CI's steady-state ω (mean over the last half of the steps).
+    pub omega_ci: f64,
+    /// nmCI's steady-state ω per block.
+    pub omega_nmci: Vec<f64>,
+    /// Run-averaged NEES per step, same order as `estimators`.
+    pub nees_series: Vec<Vec<f64>>,
+    /// Run-averaged position RMSE per step.
+    pub rmse_series: Vec<Vec<f64>>,
+    /// Run-averaged 2σ per step.
+    pub two_sigma_series: Vec<Vec<f64>>,
+}
+
+/// Averages run traces into the study's numbers (`dof` = state dimension).
+pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
+    let runs = traces.len().max(1) as f64;
+    let series = traces.first().map_or(0, |t| t.nees.len());
+    let steps = traces
+        .first()
+        .map_or(0, |t| t.nees.first().map_or(0, Vec::len));
+    let mean_series = |pick: &dyn Fn(&RunTrace) -> &Vec<Vec<f64>>| -> Vec<Vec<f64>> {
+        (0..series)
+            .map(|s| {
+                (0..steps)
+                    .map(|k| traces.iter().map(|t| pick(t)[s][k]).sum::<f64>() / runs)
+                    .collect()
+            })
+            .collect()
+    };
+    let nees = mean_series(&|t| &t.nees);
+    let rmse = mean_series(&|t| &t.rmse);
+    let two_sigma = mean_series(&|t| &t.two_sigma);
+    let bounds = nees_bounds(traces.len().max(1), dof);
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let names = ["central", "ci", "nmci", "naive"];
+    let estimators = (0..series)
+        .map(|s| {
+            (
+                names.get(s).copied().unwrap_or("other").to_string(),
+                EstimatorSummary {
+                    rmse_mean: mean(&rmse[s]),
+                    two_sigma_mean: mean(&two_sigma[s]),
+                    nees_mean: mean(&nees[s]),
+                    nees_frac_above_upper: nees[s].iter().filter(|v| **v > bounds.1).count() as f64
+                        / steps.max(1) as f64,
+                },
+            )
+        })
+        .collect();
+    let half = steps / 2;
+    let omega_ci = mean(
+        &traces
+            .iter()
+            .flat_map(|t| t.omega_ci.iter().skip(half).copied())
+            .collect::<Vec<_>>(),
+    );
+    let blocks = traces
+        .first()
+        .and_then(|t| t.omega_nmci.first())
+        .map_or(0, Vec::len);
+    let omega_nmci = (0..blocks)
+        .map(|b| {
+            mean(
+                &traces
+                    .iter()
+                    .flat_map(|t| {
+                        t.omega_nmci
+                            .iter()
+                            .skip(half)
+                            .filter_map(move |w| w.get(b).copied())
+                    })
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .collect();
+    StudySummary {
+        estimators,
+        nees_bounds: bounds,
+        omega_ci,
+        omega_nmci,
+        nees_series: nees,
+        rmse_series: rmse,
+        two_sigma_series: two_sigma,
+    }
+}

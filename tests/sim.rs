@@ -1,0 +1,158 @@
+//! The tracking study's core: derived structure, block storage equal to dense storage,
+//! reproducibility, and the qualitative results of a reduced study.
+#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
+
+use nmci::sim::*;
+
+fn spec(steps: usize, seed: u64, run: u64, storage: Storage) -> RunSpec {
+    RunSpec {
+        steps,
+        seed,
+        run,
+        agent: 6,
+        watched: 10,
+        storage,
+    }
+}
+
+#[test]
+fn the_structure_gives_eight_blocks_of_fourteen() {
+    let sc = Scenario::default();
+    sc.validate().unwrap();
+    let model = Model::new(&sc).unwrap();
+    assert_eq!(model.dim(), 112);
+    assert_eq!(model.blocks.len(), 8);
+    assert!(model.blocks.iter().all(|b| b.len() == 14));
+    // Block 0 is group 1, x axis: targets 1–5 (x, ẋ) and the x biases of agents 1–4.
+    let mut g1x: Vec<usize> = (0..5)
+        .flat_map(|t| [sc.target_index(t, 0), sc.target_index(t, 1)])
+        .collect();
+    g1x.extend((0..4).map(|a| sc.bias_index(a, 0)));
+    g1x.sort_unstable();
+    assert_eq!(model.blocks[0], g1x);
+    // Block 1 is group 1, y axis; block 2 group 2, x axis.
+    assert!(model.blocks[1].contains(&sc.target_index(0, 2)));
+    assert!(model.blocks[2].contains(&sc.target_index(5, 0)));
+    // Agent 7's neighbours, ascending: 4 (bridge), 6, 8 (ring), 11 (bridge); 1-based.
+    assert_eq!(sc.neighbours()[6], vec![3, 5, 7, 10]);
+}
+
+#[test]
+fn block_storage_gives_the_dense_numbers() {
+    let model = Model::new(&Scenario::default()).unwrap();
+    let blocks = simulate_run(&model, &spec(3, 5, 0, Storage::Blocks)).unwrap();
+    let dense = simulate_run(&model, &spec(3, 5, 0, Storage::Dense)).unwrap();
+    let close = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs().max(1.0))
+    };
+    for s in 0..4 {
+        assert!(
+            close(&blocks.nees[s], &dense.nees[s]),
+            "NEES {s}: {:?} vs {:?}",
+            blocks.nees[s],
+            dense.nees[s]
+        );
+        assert!(close(&blocks.rmse[s], &dense.rmse[s]));
+        assert!(close(&blocks.two_sigma[s], &dense.two_sigma[s]));
+    }
+    assert!(close(&blocks.omega_ci, &dense.omega_ci));
+    // Dense nmCI finds the same 8 blocks by itself (from the exact zeros and the pattern).
+    for (b, d) in blocks.omega_nmci.iter().zip(&dense.omega_nmci) {
+        assert_eq!(b.len(), 8);
+        assert!(close(b, d), "{b:?} vs {d:?}");
+    }
+}
+
+#[test]
+fn same_seed_same_numbers_other_seed_other_numbers() {
+    let model = Model::new(&Scenario::default()).unwrap();
+    let a = simulate_run(&model, &spec(5, 9, 1, Storage::Blocks)).unwrap();
+    let b = simulate_run(&model, &spec(5, 9, 1, Storage::Blocks)).unwrap();
+    let c = simulate_run(&model, &spec(5, 10, 1, Storage::Blocks)).unwrap();
+    let d = simulate_run(&model, &spec(5, 9, 2, Storage::Blocks)).unwrap();
+    assert_eq!(a, b);
+    assert_ne!(a.rmse, c.rmse);
+    assert_ne!(a.rmse, d.rmse);
+    let sa = serde_json::to_string(&summarize(&[a], 112)).unwrap();
+    let sb = serde_json::to_string(&summarize(&[b], 112)).unwrap();
+    assert_eq!(sa, sb);
+}
+
+#[test]
+fn reduced_study_reproduces_the_qualitative_results() {
+    let model = Model::new(&Scenario::default()).unwrap();
+    let traces: Vec<RunTrace> = (0..2)
+        .map(|r| simulate_run(&model, &spec(60, 1, r, Storage::Blocks)).unwrap())
+        .collect();
+    let s = summarize(&traces, model.dim());
+    let get = |name: &str| &s.estimators.iter().find(|(n, _)| n == name).unwrap().1;
+    let (central, ci, nmci, naive) = (get("central"), get("ci"), get("nmci"), get("naive"));
+    // Centralized filter consistent for most steps; CI and nmCI never above the upper bound;
+    // naive fusion (double counting) above it.
+    let central_inside = s.nees_series[0]
+        .iter()
+        .filter(|v| **v >= s.nees_bounds.0 && **v <= s.nees_bounds.1)
+        .count();
+    assert!(
+        central_inside as f64 >= 0.8 * 60.0,
+        "central NEES inside the band for {central_inside} of 60 steps"
+    );
+    assert_eq!(ci.nees_frac_above_upper, 0.0);
+    assert_eq!(nmci.nees_frac_above_upper, 0.0);
+    assert!(naive.nees_frac_above_upper > 0.5);
+    assert!(central.rmse_mean < nmci.rmse_mean);
+    // nmCI tighter and more accurate than CI.
+    assert!(
+        nmci.rmse_mean < ci.rmse_mean,
+        "{} vs {}",
+        nmci.rmse_mean,
+        ci.rmse_mean
+    );
+    assert!(nmci.two_sigma_mean < ci.two_sigma_mean);
+    // ω(7←11): groups 1–2 (blocks 0–3) take agent 7's own estimate; groups 3–4 do not.
+    assert_eq!(s.omega_nmci.len(), 8);
+    assert!(
+        s.omega_nmci[..4].iter().all(|w| *w >= 0.95),
+        "{:?}",
+        s.omega_nmci
+    );
+    assert!(
+        s.omega_nmci[4..].iter().all(|w| *w < 1.0),
+        "{:?}",
+        s.omega_nmci
+    );
+    assert!(s.omega_ci > 0.0 && s.omega_ci < 1.0);
+}
+
+#[test]
+fn invalid_scenarios_are_rejected() {
+    let bad = [
+        Scenario {
+            targets_per_group: 4,
+            ..Default::default()
+        },
+        Scenario {
+            dt: 0.0,
+            ..Default::default()
+        },
+        Scenario {
+            q: f64::NAN,
+            ..Default::default()
+        },
+        Scenario {
+            bridges: vec![(4, 17)],
+            ..Default::default()
+        },
+        Scenario {
+            groups: 0,
+            ..Default::default()
+        },
+    ];
+    for s in bad {
+        let e = s.validate().unwrap_err();
+        assert!(e.to_string().starts_with("invalid scenario:"), "{e}");
+        assert!(Model::new(&s).is_err());
+    }
+}
