@@ -74,3 +74,99 @@ fn bad_input_exits_nonzero_with_one_line() {
         "{err}"
     );
 }
+
+#[test]
+fn track_writes_the_summary_and_csvs() {
+    let dir = std::env::temp_dir().join(format!("nmci-track-{}", std::process::id()));
+    let (code, out, err) = nmci(
+        &[
+            "track",
+            "--runs",
+            "2",
+            "--steps",
+            "6",
+            "--seed",
+            "3",
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("2 runs × 6 steps"));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    for method in ["central", "ci", "nmci", "naive"] {
+        for key in [
+            "rmse_mean",
+            "two_sigma_mean",
+            "nees_mean",
+            "nees_frac_above_upper",
+        ] {
+            assert!(summary[method][key].is_number(), "{method}.{key}");
+        }
+    }
+    assert_eq!(summary["nees_bounds"].as_array().unwrap().len(), 2);
+    assert!(summary["omega_7_11"]["ci"].is_number());
+    assert_eq!(summary["omega_7_11"]["nmci"].as_array().unwrap().len(), 8);
+    assert_eq!(
+        (
+            summary["steps"].as_u64(),
+            summary["runs"].as_u64(),
+            summary["seed"].as_u64(),
+            summary["agent"].as_u64()
+        ),
+        (Some(6), Some(2), Some(3), Some(7))
+    );
+    let nees = std::fs::read_to_string(dir.join("nees.csv")).unwrap();
+    assert_eq!(nees.lines().count(), 7);
+    assert!(nees.starts_with("step,time,central,ci,nmci,naive"));
+    assert_eq!(
+        std::fs::read_to_string(dir.join("omega.csv"))
+            .unwrap()
+            .lines()
+            .count(),
+        1 + 2 * 6
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn track_rejects_bad_configurations() {
+    let dir = std::env::temp_dir().join(format!("nmci-track-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cfg = dir.join("bad.toml");
+    std::fs::write(&cfg, "steps = 10\nspeed = 3\n").unwrap();
+    let (code, _, err) = nmci(
+        &[
+            "track",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_ne!(code, 0);
+    assert!(err.contains("unknown field `speed`"), "{err}");
+    let (code, _, err) = nmci(
+        &["track", "--runs", "0", "--out", dir.to_str().unwrap()],
+        "",
+    );
+    assert_ne!(code, 0);
+    assert!(err.contains("runs at least 1"), "{err}");
+    std::fs::write(&cfg, "agent = 1\nwatched = 11\n").unwrap();
+    let (code, _, err) = nmci(
+        &[
+            "track",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_ne!(code, 0);
+    assert!(err.contains("agent 1 has no link to agent 11"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -156,3 +156,11 @@ fn invalid_scenarios_are_rejected() {
         assert!(Model::new(&s).is_err());
     }
 }
+
+#[test]
+fn configs_study_toml_lists_the_defaults() {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/study.toml"))
+        .unwrap();
+    let parsed: StudyConfig = toml::from_str(&text).unwrap();
+    assert_eq!(parsed, StudyConfig::default());
+}

@@ -70,6 +70,143 @@ impl Scenario {
     }
 }
 
+/// A whole study: the scenario and how it is run. Every field has a default
+/// (`configs/study.toml` lists them) and can be overridden by a TOML file or the CLI.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StudyConfig {
+    /// Time steps per run.
+    pub steps: usize,
+    /// Monte Carlo runs.
+    pub runs: usize,
+    /// Seed (run `r` uses stream `r`).
+    pub seed: u64,
+    /// Headline agent, 1-based.
+    pub agent: usize,
+    /// Neighbour whose fusion into `agent` is watched for ω, 1-based.
+    pub watched: usize,
+    /// The scenario.
+    pub scenario: Scenario,
+}
+
+impl Default for StudyConfig {
+    fn default() -> Self {
+        Self {
+            steps: 400,
+            runs: 15,
+            seed: 1,
+            agent: 7,
+            watched: 11,
+            scenario: Scenario::default(),
+        }
+    }
+}
+
+impl StudyConfig {
+    /// Checks every value.
+    pub fn validate(&self) -> Result<(), SimError> {
+        self.scenario.validate()?;
+        let agents = self.scenario.agents();
+        if self.steps < 2 || self.runs == 0 {
+            return Err(SimError::InvalidScenario(
+                "steps must be at least 2 and runs at least 1".into(),
+            ));
+        }
+        if self.agent == 0 || self.agent > agents || self.watched == 0 || self.watched > agents {
+            return Err(SimError::InvalidScenario(format!(
+                "agent and watched must be agent ids in 1..={agents}"
+            )));
+        }
+        if !self.scenario.neighbours()[self.agent - 1].contains(&(self.watched - 1)) {
+            return Err(SimError::InvalidScenario(format!(
+                "agent {} has no link to agent {}",
+                self.agent, self.watched
+            )));
+        }
+        Ok(())
+    }
+
+    /// The specification of run `run`.
+    pub fn run_spec(&self, run: u64, storage: Storage) -> RunSpec {
+        RunSpec {
+            steps: self.steps,
+            seed: self.seed,
+            run,
+            agent: self.agent - 1,
+            watched: self.watched - 1,
+            storage,
+        }
+    }
+}
+
+/// `summary.json`: the headline numbers of a study.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StudyReport {
+    /// Centralized Kalman filter.
+    pub central: EstimatorSummary,
+    /// Decentralized, monolithic CI.
+    pub ci: EstimatorSummary,
+    /// Decentralized, nmCI.
+    pub nmci: EstimatorSummary,
+    /// Decentralized, naive fusion.
+    pub naive: EstimatorSummary,
+    /// 95 % bounds of the run-averaged NEES.
+    pub nees_bounds: [f64; 2],
+    /// Steady-state ω of the watched fusion (mean over the last half of the steps).
+    pub omega_7_11: OmegaReport,
+    /// Steps per run.
+    pub steps: usize,
+    /// Runs.
+    pub runs: usize,
+    /// Seed.
+    pub seed: u64,
+    /// Headline agent (1-based).
+    pub agent: usize,
+}
+
+/// Steady-state weights of the watched fusion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OmegaReport {
+    /// CI's one ω.
+    pub ci: f64,
+    /// nmCI's ω per block (G1x, G1y, G2x, G2y, …).
+    pub nmci: Vec<f64>,
+}
+
+impl StudyReport {
+    /// The report of a summary.
+    pub fn new(config: &StudyConfig, summary: &StudySummary) -> Self {
+        let pick = |k: usize| summary.estimators[k].1.clone();
+        Self {
+            central: pick(0),
+            ci: pick(1),
+            nmci: pick(2),
+            naive: pick(3),
+            nees_bounds: [summary.nees_bounds.0, summary.nees_bounds.1],
+            omega_7_11: OmegaReport {
+                ci: summary.omega_ci,
+                nmci: summary.omega_nmci.clone(),
+            },
+            steps: config.steps,
+            runs: config.runs,
+            seed: config.seed,
+            agent: config.agent,
+        }
+    }
+}
+
+/// Runs a whole study sequentially (the CLI runs the same runs in parallel).
+pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), SimError> {
+    config.validate()?;
+    let model = Model::new(&config.scenario)?;
+    let traces = (0..config.runs as u64)
+        .map(|r| simulate_run(&model, &config.run_spec(r, Storage::Blocks)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let summary = summarize(&traces, model.dim());
+    let report = StudyReport::new(config, &summary);
+    Ok((summary, report))
+}
+
 /// Headline numbers of one estimator for the headline agent (means over runs and steps).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EstimatorSummary {
