@@ -177,6 +177,24 @@ test("dragging the P_a major-axis handle rotates and stretches P_a, and the grid
   assert.equal(await page.locator("#preset").inputValue(), "custom");
 });
 
+test("the picture exports as SVG and the numbers as JSON", async () => {
+  await page.selectOption("#preset", "paper");
+  await settle();
+  const [svgDownload] = await Promise.all([page.waitForEvent("download"), page.click("#export-svg")]);
+  const svgPath = join(out, "explorer-paper.svg");
+  await svgDownload.saveAs(svgPath);
+  const svg = await readFile(svgPath, "utf8");
+  assert.match(svg, /^<svg[^>]*xmlns="http:\/\/www.w3.org\/2000\/svg"/);
+  assert.match(svg, /id="layer-nmci"/);
+  assert.doesNotMatch(svg, /class="handle"/, "drag handles are not exported");
+  const [jsonDownload] = await Promise.all([page.waitForEvent("download"), page.click("#export-json")]);
+  const numbers = JSON.parse(await readFile(await jsonDownload.path(), "utf8"));
+  assert.equal(numbers.nmci.trace, 2);
+  assert.deepEqual(numbers.nmci.omega, [0, 1]);
+  assert.equal(numbers.state.n, 2);
+  assert.equal(numbers.region, undefined, "the bulky region is left out of the numbers");
+});
+
 test("the wasm package imports nothing from \"env\"", async () => {
   const bytes = await readFile(join(www, "pkg", "nmci_bg.wasm"));
   const imports = WebAssembly.Module.imports(new WebAssembly.Module(bytes));
