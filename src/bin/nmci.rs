@@ -44,10 +44,110 @@ mod cli {
             /// Seed (overrides the configuration).
             #[arg(long)]
             seed: Option<u64>,
-            /// Output folder: summary.json, nees.csv, rmse.csv, two_sigma.csv, omega.csv.
+            /// Output folder: summary.json, nees/rmse/two_sigma/omega CSVs, nees/rmse/omega SVGs.
             #[arg(long, default_value = "out/track")]
             out: PathBuf,
         },
+    }
+
+    /// One SVG line chart: `series` of `(label, colour, values)` against time, optional
+    /// horizontal bounds.
+    fn line_chart(
+        path: &std::path::Path,
+        title: &str,
+        y_label: &str,
+        dt: f64,
+        series: &[(&str, plotters::style::RGBColor, &[f64])],
+        bounds: Option<(f64, f64)>,
+        log_y: bool,
+    ) -> Result<(), String> {
+        use plotters::prelude::*;
+        let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
+        let steps = series.iter().map(|s| s.2.len()).max().unwrap_or(0).max(1);
+        let t_max = steps as f64 * dt;
+        let finite = series
+            .iter()
+            .flat_map(|s| s.2.iter().copied())
+            .chain(bounds.iter().flat_map(|b| [b.0, b.1]))
+            .filter(|v| v.is_finite() && (!log_y || *v > 0.0));
+        let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+        let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
+        let root = SVGBackend::new(path, (900, 520)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let mut builder = ChartBuilder::on(&root);
+        builder
+            .caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70);
+        let x_range = 0.0..t_max;
+        macro_rules! draw {
+            ($chart:expr) => {{
+                let mut chart = $chart;
+                chart
+                    .configure_mesh()
+                    .x_desc("time [s]")
+                    .y_desc(y_label)
+                    .y_label_formatter(&|v| {
+                        format!("{:.4}", v)
+                            .trim_end_matches('0')
+                            .trim_end_matches('.')
+                            .to_string()
+                    })
+                    .draw()
+                    .map_err(|e| err(&e))?;
+                if let Some((b_lo, b_hi)) = bounds {
+                    for (b, name) in [(b_lo, "95 % lower"), (b_hi, "95 % upper")] {
+                        chart
+                            .draw_series(LineSeries::new(
+                                [(0.0, b), (t_max, b)],
+                                BLACK.mix(0.6).stroke_width(1),
+                            ))
+                            .map_err(|e| err(&e))?
+                            .label(name)
+                            .legend(|(x, y)| {
+                                PathElement::new([(x, y), (x + 18, y)], BLACK.mix(0.6))
+                            });
+                    }
+                }
+                for (label, colour, values) in series {
+                    let colour = *colour;
+                    chart
+                        .draw_series(LineSeries::new(
+                            values
+                                .iter()
+                                .enumerate()
+                                .filter(|(_, v)| v.is_finite() && (!log_y || **v > 0.0))
+                                .map(|(k, v)| ((k + 1) as f64 * dt, *v)),
+                            colour.stroke_width(2),
+                        ))
+                        .map_err(|e| err(&e))?
+                        .label(*label)
+                        .legend(move |(x, y)| {
+                            PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(2))
+                        });
+                }
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(BLACK.mix(0.3))
+                    .draw()
+                    .map_err(|e| err(&e))?;
+            }};
+        }
+        if log_y {
+            draw!(builder
+                .build_cartesian_2d(x_range, (lo * 0.8..hi * 1.25).log_scale())
+                .map_err(|e| err(&e))?);
+        } else {
+            let pad = 0.05 * (hi - lo).max(1e-12);
+            draw!(builder
+                .build_cartesian_2d(x_range, (lo - pad)..(hi + pad))
+                .map_err(|e| err(&e))?);
+        }
+        root.present().map_err(|e| err(&e))
     }
 
     fn track(
@@ -140,8 +240,103 @@ mod cli {
             }
         }
         write("omega.csv", csv)?;
+
+        // Figures (SVG): NEES with the 95 % χ² band, RMSE and 2σ, ω of the watched fusion.
+        use plotters::style::RGBColor;
+        let colours = [
+            RGBColor(0, 0, 0),
+            RGBColor(31, 119, 180),
+            RGBColor(214, 39, 40),
+            RGBColor(150, 150, 150),
+        ];
+        let dt = cfg.scenario.dt;
+        // Naive fusion's NEES grows by orders of magnitude (see nees.csv): left off the chart
+        // so the consistent estimators stay readable against the band.
+        let nees: Vec<_> = (0..3)
+            .map(|s| (names[s], colours[s], summary.nees_series[s].as_slice()))
+            .collect();
+        line_chart(
+            &out.join("nees.svg"),
+            &format!(
+                "NEES of agent {} ({} runs, {} dof; naive fusion is far above, see nees.csv)",
+                cfg.agent,
+                cfg.runs,
+                model.dim()
+            ),
+            "mean NEES",
+            dt,
+            &nees,
+            Some(summary.nees_bounds),
+            false,
+        )?;
+        let labels: Vec<String> = (0..4)
+            .flat_map(|s| [format!("{} RMSE", names[s]), format!("{} 2σ", names[s])])
+            .collect();
+        let mut rmse = Vec::new();
+        for s in 0..3 {
+            rmse.push((
+                labels[2 * s].as_str(),
+                colours[s],
+                summary.rmse_series[s].as_slice(),
+            ));
+            rmse.push((
+                labels[2 * s + 1].as_str(),
+                RGBColor(
+                    colours[s].0 / 2 + 120,
+                    colours[s].1 / 2 + 120,
+                    colours[s].2 / 2 + 120,
+                ),
+                summary.two_sigma_series[s].as_slice(),
+            ));
+        }
+        line_chart(
+            &out.join("rmse.svg"),
+            &format!(
+                "position RMSE and 2σ of agent {} (mean over runs)",
+                cfg.agent
+            ),
+            "metres",
+            dt,
+            &rmse,
+            None,
+            false,
+        )?;
+        let steps_recorded = traces.first().map_or(0, |t| t.omega_ci.len());
+        let mean_over_runs = |f: &dyn Fn(&RunTrace, usize) -> f64| -> Vec<f64> {
+            (0..steps_recorded)
+                .map(|k| traces.iter().map(|t| f(t, k)).sum::<f64>() / traces.len() as f64)
+                .collect()
+        };
+        let omega_ci = mean_over_runs(&|t, k| t.omega_ci[k]);
+        let omega_blocks: Vec<Vec<f64>> = (0..blocks)
+            .map(|b| mean_over_runs(&|t, k| t.omega_nmci[k][b]))
+            .collect();
+        let block_labels: Vec<String> = (0..blocks)
+            .map(|b| format!("nmCI G{}{}", b / 2 + 1, if b % 2 == 0 { "x" } else { "y" }))
+            .collect();
+        let mut omega = vec![("CI", RGBColor(31, 119, 180), omega_ci.as_slice())];
+        for b in 0..blocks {
+            let shade = (40 * b) as u8;
+            omega.push((
+                block_labels[b].as_str(),
+                RGBColor(200, shade, shade / 2),
+                omega_blocks[b].as_slice(),
+            ));
+        }
+        line_chart(
+            &out.join("omega.svg"),
+            &format!(
+                "ω when agent {} fuses agent {} (mean over runs)",
+                cfg.agent, cfg.watched
+            ),
+            "ω",
+            dt,
+            &omega,
+            None,
+            false,
+        )?;
         Ok(format!(
-            "{} runs × {} steps in {:.1} s; wrote {}/summary.json and per-step CSVs\n{}",
+            "{} runs × {} steps in {:.1} s; wrote {}/summary.json, per-step CSVs and SVG figures\n{}",
             cfg.runs,
             cfg.steps,
             started.elapsed().as_secs_f64(),
