@@ -64,6 +64,8 @@ struct Partition {
     Q: Vec<DMatrix<f64>>,
     /// For each agent: `(block, local row, variance)` per scalar measurement.
     measurements: Vec<Vec<LocalMeasurement>>,
+    /// Local indices of the target position coordinates in each block.
+    positions: Vec<Vec<usize>>,
 }
 
 #[allow(non_snake_case)]
@@ -95,7 +97,16 @@ impl Partition {
                     .collect()
             })
             .collect();
+        let sc = &model.scenario;
+        let is_position: Vec<bool> = (0..model.dim())
+            .map(|i| i < 4 * sc.targets() && i % 2 == 0)
+            .collect();
+        let positions = blocks
+            .iter()
+            .map(|b| (0..b.len()).filter(|&k| is_position[b[k]]).collect())
+            .collect();
         Self {
+            positions,
             F: blocks.iter().map(|b| restrict(&model.F, b)).collect(),
             Q: blocks.iter().map(|b| restrict(&model.Q, b)).collect(),
             measurements,
@@ -142,20 +153,6 @@ impl Partition {
         let I_KH = DMatrix::identity(k_len, k_len) - &K * h.transpose();
         let joseph = &I_KH * &*P * I_KH.transpose() + &K * K.transpose() * *r;
         *P = (&joseph + joseph.transpose()) * 0.5;
-    }
-
-    fn to_dense(&self, e: &Estimate, n: usize) -> (DVector<f64>, DMatrix<f64>) {
-        let mut x = DVector::zeros(n);
-        let mut P = DMatrix::zeros(n, n);
-        for (k, block) in self.blocks.iter().enumerate() {
-            for (bi, &i) in block.iter().enumerate() {
-                x[i] = e.x[k][bi];
-                for (bj, &j) in block.iter().enumerate() {
-                    P[(i, j)] = e.P[k][(bi, bj)];
-                }
-            }
-        }
-        (x, P)
     }
 }
 
@@ -352,22 +349,20 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
                 }
             }
         }
-        // Metrics of the headline agent.
+        // Metrics of the headline agent, block by block (the covariance is block-diagonal).
         let estimates = std::iter::once(&central).chain(agents.iter().map(|r| &r[spec.agent]));
         for (s, e) in estimates.enumerate() {
-            let (x, P) = part.to_dense(e, n);
-            let err = &truth - &x;
-            let nees = nees(&P, &err);
-            let (mut se, mut var) = (0.0, 0.0);
-            for t in 0..sc.targets() {
-                for axis in 0..2 {
-                    let i = sc.target_index(t, 2 * axis);
+            let (mut nees_sum, mut se, mut var) = (0.0, 0.0, 0.0);
+            for (k, block) in part.blocks.iter().enumerate() {
+                let err = DVector::from_fn(block.len(), |i, _| truth[block[i]] - e.x[k][i]);
+                nees_sum += nees(&e.P[k], &err);
+                for &i in &part.positions[k] {
                     se += err[i] * err[i];
-                    var += P[(i, i)];
+                    var += e.P[k][(i, i)];
                 }
             }
             let count = (2 * sc.targets()) as f64;
-            trace.nees[s].push(nees);
+            trace.nees[s].push(nees_sum);
             trace.rmse[s].push((se / sc.targets() as f64).sqrt());
             trace.two_sigma[s].push(2.0 * (var / count).sqrt());
         }
