@@ -220,8 +220,8 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
     let problem = request.problem()?;
     let criterion = request.criterion.unwrap_or_default();
     match request.method {
-        Method::Ci => Ok(ci_response(&problem, criterion)?),
-        Method::Nmci => Ok(nmci_response(&problem, criterion)?),
+        Method::Ci => Ok(ci_response(&problem, criterion)?.0),
+        Method::Nmci => Ok(nmci_response(&problem, criterion)?.0),
         Method::Sdp => {
             let defaults = SdpSettings::default();
             let settings = SdpSettings {
@@ -237,25 +237,27 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
     }
 }
 
+/// The CI response and the fused result it was made from.
 pub(crate) fn ci_response(
     problem: &FusionProblem,
     criterion: Criterion,
-) -> Result<FuseResponse, InputError> {
+) -> Result<(FuseResponse, Fused), InputError> {
     let ci = covariance_intersection(problem, criterion)?;
     let mut r = response(Method::Ci, criterion, &ci.fused);
     r.omega = Some(vec![ci.omega]);
-    Ok(r)
+    Ok((r, ci.fused))
 }
 
+/// The nmCI response and the fused result it was made from.
 pub(crate) fn nmci_response(
     problem: &FusionProblem,
     criterion: Criterion,
-) -> Result<FuseResponse, InputError> {
+) -> Result<(FuseResponse, Fused), InputError> {
     let nm = non_monolithic_ci(problem, criterion)?;
     let mut r = response(Method::Nmci, criterion, &nm.fused);
     r.omega = Some(nm.omega);
     r.blocks = Some(nm.blocks);
-    Ok(r)
+    Ok((r, nm.fused))
 }
 
 pub(crate) fn sdp_response(

@@ -8,9 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::api::{ci_response, nmci_response, problem_from_parts, sdp_response, FuseResponse};
 use crate::error::RequestError;
 use crate::fusion::check::worst_margin;
-use crate::fusion::ci::covariance_intersection;
 use crate::fusion::known::known_correlation_fusion;
-use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::sample::{sample_cross_covariances, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::Criterion;
@@ -140,8 +138,8 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
     let seed = request.seed.unwrap_or(0);
     let n = problem.dim();
 
-    let ci = ci_response(&problem, criterion)?;
-    let nmci = nmci_response(&problem, criterion)?;
+    let (ci, ci_fused) = ci_response(&problem, criterion)?;
+    let (nmci, nm_fused) = nmci_response(&problem, criterion)?;
     let settings = SdpSettings {
         samples,
         seed,
@@ -179,8 +177,6 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
                     let best = known_correlation_fusion(&problem, P_ab);
                     region.extend(rows_flat(&best.P));
                 }
-                let ci_fused = covariance_intersection(&problem, criterion)?.fused;
-                let nm_fused = non_monolithic_ci(&problem, criterion)?.fused;
                 margins = Some(Margins {
                     ci: worst_margin(&problem, &ci_fused, &drawn.cross),
                     nmci: worst_margin(&problem, &nm_fused, &drawn.cross),
