@@ -12,11 +12,14 @@
 //! (then `ω` is exactly `0` or `1` and `P` is exactly `P_b` or `P_a`), otherwise the root of
 //! the derivative, found by safeguarded Newton to machine precision.
 
-use nalgebra::{DMatrix, SymmetricEigen};
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
-use super::{Criterion, Fused, FusionProblem};
+use super::{covariance_twins, Criterion, Fused, FusionProblem, Gaussian};
 use crate::error::InputError;
-use crate::linalg::{cholesky, min_eigenvalue, symmetrize};
+use crate::linalg::{
+    cholesky, min_eigenvalue, solve_lower_in_place, solve_lower_rows, symmetrize,
+    symmetrize_in_place,
+};
 
 /// CI result: the fused estimate and the optimal weight `ω` on estimate `a`.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,12 +37,80 @@ fn not_pd(name: &str, m: &DMatrix<f64>) -> InputError {
     }
 }
 
+/// The first half of a pencil: `P_b = L Lᵀ` and `X = L⁻¹ P_a` — what the derivative of the
+/// criterion at `ω = 1` needs.
+#[allow(non_snake_case)]
+struct HalfPencil {
+    L: DMatrix<f64>,
+    /// `Xᵀ` (the row solve's output layout; only `‖X‖_F` and `L⁻¹Xᵀ` are used).
+    Xt: DMatrix<f64>,
+}
+
+#[allow(non_snake_case)]
+impl HalfPencil {
+    fn new(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> Result<Self, InputError> {
+        let L = cholesky(P_b).ok_or_else(|| not_pd("P_b", P_b))?.unpack();
+        // P_a is symmetric, so its storage is also row-major: the row solve leaves X = L⁻¹P_a
+        // in row-major order, i.e. the column-major buffer holds Xᵀ.
+        let mut Xt = P_a.clone();
+        solve_lower_rows(&L, Xt.as_mut_slice());
+        Ok(Self { L, Xt })
+    }
+
+    /// `M = L⁻¹ P_a L⁻ᵀ = L⁻¹ Xᵀ` (symmetrized).
+    fn pencil_matrix(&self) -> DMatrix<f64> {
+        // The column-major transpose of Xᵀ is Xᵀ in row-major order.
+        let mut M = self.Xt.transpose();
+        solve_lower_rows(&self.L, M.as_mut_slice());
+        symmetrize(&M)
+    }
+
+    /// The criterion's derivative at `ω = 1` (where `P = P_a`): `−tr P_a + tr(P_a P_b⁻¹ P_a)`
+    /// for the trace, `−n + tr(P_b⁻¹ P_a)` for log-det. Returns the derivative and the size of
+    /// its terms, as [`derivatives`] does.
+    fn derivative_at_one(&self, P_a: &DMatrix<f64>, criterion: Criterion) -> (f64, f64) {
+        let (plus, minus) = match criterion {
+            Criterion::Trace => (self.Xt.norm_squared(), P_a.trace()),
+            // tr(P_b⁻¹ P_a) = tr(L⁻ᵀ L⁻¹ P_a) = Σ_ij (L⁻¹)_ij X_ij … = tr M
+            Criterion::Logdet => (self.pencil_matrix().trace(), P_a.nrows() as f64),
+        };
+        (plus - minus, plus + minus)
+    }
+
+    /// The criterion's derivative at `ω = 0` (where `P = P_b`): `tr P_b − tr(P_b P_a⁻¹ P_b)`
+    /// for the trace, `n − tr(P_a⁻¹ P_b)` for log-det (one Cholesky factorization of `P_a`).
+    fn derivative_at_zero(
+        &self,
+        P_a: &DMatrix<f64>,
+        P_b: &DMatrix<f64>,
+        criterion: Criterion,
+    ) -> Result<(f64, f64), InputError> {
+        let L_a = cholesky(P_a).ok_or_else(|| not_pd("P_a", P_a))?.unpack();
+        let (plus, minus) = match criterion {
+            Criterion::Trace => {
+                let mut Y = P_b.clone();
+                solve_lower_rows(&L_a, Y.as_mut_slice()); // (L_a⁻¹ P_b)ᵀ: same norm
+                (P_b.trace(), Y.norm_squared())
+            }
+            Criterion::Logdet => {
+                let mut Y = self.L.clone();
+                solve_lower_in_place(&L_a, Y.as_mut_slice());
+                (P_a.nrows() as f64, Y.norm_squared())
+            }
+        };
+        Ok((plus - minus, plus + minus))
+    }
+}
+
 /// The CI family of one problem in its diagonalizing basis.
+#[allow(non_snake_case)]
 struct Pencil {
+    /// Cholesky factor `L` of `P_b`.
+    L: DMatrix<f64>,
+    /// Eigenvectors `V` of `L⁻¹ P_a L⁻ᵀ`.
+    V: DMatrix<f64>,
     /// `W = L V`.
     basis: DMatrix<f64>,
-    /// `W⁻¹ = Vᵀ L⁻¹`.
-    basis_inv: DMatrix<f64>,
     /// `‖wᵢ‖²`.
     weights: Vec<f64>,
     /// `λᵢ − 1`, with `λᵢ = 1/μᵢ` the generalized eigenvalues of `(P_a⁻¹, P_b⁻¹)`.
@@ -49,17 +120,13 @@ struct Pencil {
 #[allow(non_snake_case)]
 impl Pencil {
     fn new(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> Result<Self, InputError> {
-        let n = P_a.nrows();
-        let chol_b = cholesky(P_b).ok_or_else(|| not_pd("P_b", P_b))?;
-        let L = chol_b.l();
-        let L_inv = L
-            .solve_lower_triangular(&DMatrix::identity(n, n))
-            .ok_or_else(|| not_pd("P_b", P_b))?;
-        // M = L⁻¹ P_a L⁻ᵀ
-        let M = &L_inv * P_a * L_inv.transpose();
-        let eig = SymmetricEigen::new(symmetrize(&M));
+        Self::from_half(HalfPencil::new(P_a, P_b)?, P_a)
+    }
+
+    fn from_half(half: HalfPencil, P_a: &DMatrix<f64>) -> Result<Self, InputError> {
+        let eig = SymmetricEigen::new(half.pencil_matrix());
+        let L = half.L;
         let basis = &L * &eig.eigenvectors;
-        let basis_inv = eig.eigenvectors.transpose() * &L_inv;
         let weights = basis.column_iter().map(|c| c.norm_squared()).collect();
         let mut slopes = Vec::with_capacity(eig.eigenvalues.len());
         for &mu in eig.eigenvalues.iter() {
@@ -69,14 +136,22 @@ impl Pencil {
             slopes.push(1.0 / mu - 1.0);
         }
         Ok(Self {
+            L,
+            V: eig.eigenvectors,
             basis,
-            basis_inv,
             weights,
             slopes,
         })
     }
 
-    /// `W diag(f(dᵢ)) W⁻¹`-style products: `W diag(s) R`.
+    /// `W⁻¹ = Vᵀ L⁻¹`.
+    fn basis_inv(&self) -> DMatrix<f64> {
+        let mut Z = self.V.clone();
+        self.L.tr_solve_lower_triangular_mut(&mut Z); // Z = L⁻ᵀ V
+        Z.transpose()
+    }
+
+    /// `W diag(s) R`.
     fn scaled_product(
         &self,
         scales: impl Iterator<Item = f64>,
@@ -89,9 +164,16 @@ impl Pencil {
         scaled * right
     }
 
+    /// `P(ω) = W diag(1/dᵢ) Wᵀ`.
     fn covariance(&self, omega: f64) -> DMatrix<f64> {
-        let inv_d = self.slopes.iter().map(|s| 1.0 / (1.0 + omega * s));
-        symmetrize(&self.scaled_product(inv_d, &self.basis.transpose()))
+        // P = U Uᵀ with U = W diag(1/√dᵢ) (dᵢ > 0 on [0, 1]).
+        let mut U = self.basis.clone();
+        for (mut col, s) in U.column_iter_mut().zip(&self.slopes) {
+            col /= (1.0 + omega * s).sqrt();
+        }
+        let mut P = &U * U.transpose();
+        symmetrize_in_place(&mut P);
+        P
     }
 
     /// `K_b = (1−ω) P P_b⁻¹ = W diag((1−ω)/dᵢ) W⁻¹` (since `P_b⁻¹ = W⁻ᵀ W⁻¹`).
@@ -100,14 +182,52 @@ impl Pencil {
             .slopes
             .iter()
             .map(|s| (1.0 - omega) / (1.0 + omega * s));
-        self.scaled_product(s, &self.basis_inv)
+        self.scaled_product(s, &self.basis_inv())
+    }
+
+    /// The fused mean without the gains: with `P_a⁻¹ = W⁻ᵀ diag(λ) W⁻¹` and
+    /// `P_b⁻¹ = W⁻ᵀ W⁻¹`, `x = P (ω P_a⁻¹ x_a + (1−ω) P_b⁻¹ x_b)
+    /// = W diag(1/dᵢ) (ω λ ∘ W⁻¹x_a + (1−ω) W⁻¹x_b)`.
+    fn fused_mean(&self, x_a: &DVector<f64>, x_b: &DVector<f64>, omega: f64) -> DVector<f64> {
+        let to_basis = |x: &DVector<f64>| {
+            let mut y = x.clone();
+            solve_lower_in_place(&self.L, y.as_mut_slice());
+            self.V.tr_mul(&y)
+        };
+        let (u_a, u_b) = (to_basis(x_a), to_basis(x_b));
+        let coords = DVector::from_fn(u_a.len(), |i, _| {
+            let s = self.slopes[i];
+            (omega * (s + 1.0) * u_a[i] + (1.0 - omega) * u_b[i]) / (1.0 + omega * s)
+        });
+        &self.basis * coords
+    }
+
+    /// Overwrites `a` with the fusion of `a` and `b` at `ω` (exact at the endpoints); `shared`
+    /// is the fused covariance when a twin block already computed it.
+    fn fuse_into(&self, a: &mut Gaussian, b: &Gaussian, omega: f64, shared: Option<DMatrix<f64>>) {
+        if omega == 1.0 {
+            return;
+        }
+        if omega == 0.0 {
+            a.clone_from(b);
+            return;
+        }
+        a.x = self.fused_mean(&a.x, &b.x, omega);
+        a.P = shared.unwrap_or_else(|| self.covariance(omega));
     }
 }
 
+/// Relative size below which a derivative at an endpoint counts as zero (a tie): then the
+/// endpoint is optimal to within rounding, and taking it exactly keeps `ω` reproducible
+/// between mathematically equal computations (identical estimates give `g ≡ 0`, whose sign is
+/// rounding noise).
+const ENDPOINT_TIE: f64 = 1e-9;
+
 /// First and second derivative at `ω` of the criterion summed over several pencils (the
-/// blocks of a block-diagonal problem share one `ω` in monolithic CI).
-fn derivatives(pencils: &[&Pencil], criterion: Criterion, omega: f64) -> (f64, f64) {
-    let (mut d1, mut d2) = (0.0, 0.0);
+/// blocks of a block-diagonal problem share one `ω` in monolithic CI), and the size of the
+/// terms the first derivative sums (its rounding scale).
+fn derivatives(pencils: &[&Pencil], criterion: Criterion, omega: f64) -> (f64, f64, f64) {
+    let (mut d1, mut d2, mut size) = (0.0, 0.0, 0.0);
     for pencil in pencils {
         for (c, s) in pencil.weights.iter().zip(&pencil.slopes) {
             let d = 1.0 + omega * s;
@@ -115,32 +235,36 @@ fn derivatives(pencils: &[&Pencil], criterion: Criterion, omega: f64) -> (f64, f
                 Criterion::Trace => {
                     d1 -= c * s / (d * d);
                     d2 += 2.0 * c * s * s / (d * d * d);
+                    size += c * (1.0 + s.abs()) / (d * d);
                 }
                 Criterion::Logdet => {
                     d1 -= s / d;
                     d2 += s * s / (d * d);
+                    size += (1.0 + s.abs()) / d;
                 }
             }
         }
     }
-    (d1, d2)
+    (d1, d2, size)
 }
 
-/// The minimiser over `[0, 1]` of the (convex) criterion summed over `pencils`.
+/// The minimiser over `[0, 1]` of the (convex) criterion summed over `pencils`. An endpoint is
+/// returned exactly when the derivative there does not point inwards (ties within
+/// [`ENDPOINT_TIE`] go to the endpoint, `ω = 0` first).
 fn optimal_omega(pencils: &[&Pencil], criterion: Criterion) -> f64 {
-    let (g0, _) = derivatives(pencils, criterion, 0.0);
-    if g0 >= 0.0 {
+    let (g0, _, size0) = derivatives(pencils, criterion, 0.0);
+    if g0 >= -ENDPOINT_TIE * size0 {
         return 0.0;
     }
-    let (g1, _) = derivatives(pencils, criterion, 1.0);
-    if g1 <= 0.0 {
+    let (g1, _, size1) = derivatives(pencils, criterion, 1.0);
+    if g1 <= ENDPOINT_TIE * size1 {
         return 1.0;
     }
     // g is increasing (convex criterion), g(lo) < 0 < g(hi).
     let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
     let mut omega = 0.5;
     for _ in 0..200 {
-        let (g, h) = derivatives(pencils, criterion, omega);
+        let (g, h, _) = derivatives(pencils, criterion, omega);
         if g == 0.0 {
             return omega;
         }
@@ -337,4 +461,210 @@ pub fn covariance_intersection_independent(
         })
         .collect();
     Ok((fused, omega))
+}
+
+/// Monolithic CI of block-stored estimates, in place: `a[k] ← CI(a[k], b[k])` with one common
+/// `ω` (the blocks are independent parts of one state). Means and covariances only — no
+/// gains — for filters that keep their estimates in blocks (the tracking study). Same `ω` and
+/// numbers as [`covariance_intersection_independent`] up to rounding. Blocks whose covariances
+/// equal an earlier block's in both estimates ([`covariance_twins`]) share its pencil and fused
+/// covariance.
+pub(crate) fn ci_in_place(
+    a: &mut [Gaussian],
+    b: &[Gaussian],
+    criterion: Criterion,
+) -> Result<f64, InputError> {
+    let twins = covariance_twins(a, b);
+    let mut pencils = Vec::with_capacity(a.len());
+    for (k, twin) in twins.iter().enumerate() {
+        pencils.push(match twin {
+            Some(_) => None,
+            None => Some(Pencil::new(&a[k].P, &b[k].P)?),
+        });
+    }
+    let source = |k: usize| twins[k].unwrap_or(k);
+    // Every block counts in the criterion, twins included.
+    let refs: Vec<&Pencil> = (0..a.len())
+        .filter_map(|k| pencils[source(k)].as_ref())
+        .collect();
+    let omega = optimal_omega(&refs, criterion);
+    for k in 0..a.len() {
+        if let Some(pencil) = &pencils[source(k)] {
+            let interior = omega > 0.0 && omega < 1.0;
+            let shared = twins[k].filter(|_| interior).map(|t| a[t].P.clone());
+            pencil.fuse_into(&mut a[k], &b[k], omega, shared);
+        }
+    }
+    Ok(omega)
+}
+
+/// nmCI of block-stored estimates in place: each block fused by CI with its own `ω`, returned
+/// in block order. The endpoints are tested first from the criterion's derivative at `ω = 1`
+/// and `ω = 0` (one Cholesky factorization each); only an interior optimum needs the
+/// eigendecomposition of the pencil. In a fusion network most blocks of most fusions sit at an
+/// endpoint (one agent knows strictly more about that part of the state), so nmCI in block
+/// storage is mostly factorizations. Twin blocks ([`covariance_twins`]) share the work.
+pub(crate) fn nmci_in_place(
+    a: &mut [Gaussian],
+    b: &[Gaussian],
+    criterion: Criterion,
+) -> Result<Vec<f64>, InputError> {
+    let twins = covariance_twins(a, b);
+    let mut pencils: Vec<Option<Pencil>> = Vec::with_capacity(a.len());
+    let mut omegas: Vec<f64> = Vec::with_capacity(a.len());
+    for (k, twin) in twins.iter().enumerate() {
+        let (omega, pencil) = match *twin {
+            Some(t) => {
+                let omega = omegas[t];
+                match &pencils[t] {
+                    Some(p) => {
+                        let shared = Some(a[t].P.clone()); // p exists only for interior ω
+                        p.fuse_into(&mut a[k], &b[k], omega, shared);
+                    }
+                    None if omega == 0.0 => a[k].clone_from(&b[k]),
+                    None => {} // ω = 1: keep a
+                }
+                (omega, None)
+            }
+            None => ci_block_in_place(&mut a[k], &b[k], criterion)?,
+        };
+        omegas.push(omega);
+        pencils.push(pencil);
+    }
+    Ok(omegas)
+}
+
+/// CI of one block in place (`a ← CI(a, b)`): `ω`, and the pencil when `ω` is interior.
+fn ci_block_in_place(
+    a: &mut Gaussian,
+    b: &Gaussian,
+    criterion: Criterion,
+) -> Result<(f64, Option<Pencil>), InputError> {
+    let half = HalfPencil::new(&a.P, &b.P)?;
+    // g is non-decreasing (convex criterion): a clearly negative g(1) settles ω = 1 without
+    // g(0); otherwise g(0) decides between ω = 0 (ties included, as in `optimal_omega`),
+    // ω = 1 (a tie at 1) and an interior optimum.
+    let (g1, size1) = half.derivative_at_one(&a.P, criterion);
+    if g1 < -ENDPOINT_TIE * size1 {
+        return Ok((1.0, None));
+    }
+    let (g0, size0) = half.derivative_at_zero(&a.P, &b.P, criterion)?;
+    if g0 >= -ENDPOINT_TIE * size0 {
+        a.clone_from(b);
+        return Ok((0.0, None));
+    }
+    if g1 <= ENDPOINT_TIE * size1 {
+        return Ok((1.0, None));
+    }
+    let pencil = Pencil::from_half(half, &a.P)?;
+    let omega = optimal_omega(&[&pencil], criterion);
+    pencil.fuse_into(a, b, omega, None);
+    Ok((omega, Some(pencil)))
+}
+
+#[cfg(test)]
+#[allow(non_snake_case)]
+mod tests {
+    use super::*;
+    use crate::structure::CrossPattern;
+
+    /// A random SPD matrix `A Aᵀ + δI` from a small LCG (no RNG dependency in unit tests).
+    fn spd(n: usize, seed: &mut u64, shift: f64) -> DMatrix<f64> {
+        let mut next = || {
+            *seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        let A = DMatrix::from_fn(n, n, |_, _| next());
+        &A * A.transpose() + DMatrix::identity(n, n) * shift
+    }
+
+    fn gaussian(n: usize, seed: &mut u64, shift: f64) -> Gaussian {
+        let P = spd(n, seed, shift);
+        let x = spd(n, seed, 0.0).column(0).into_owned();
+        Gaussian { x, P }
+    }
+
+    fn problem(a: &Gaussian, b: &Gaussian) -> FusionProblem {
+        FusionProblem::new_trusted(
+            a.x.clone(),
+            a.P.clone(),
+            b.x.clone(),
+            b.P.clone(),
+            CrossPattern::fully_unknown(a.x.len()),
+        )
+    }
+
+    fn close(a: &DMatrix<f64>, b: &DMatrix<f64>) -> bool {
+        (a - b).amax() <= 1e-10 * b.amax().max(1.0)
+    }
+
+    /// Blocks: interior optimum, `b` much better (ω = 0), `a` much better (ω = 1), a twin of
+    /// block 0 (same covariances, other means) and identical estimates (a tie).
+    fn blocks(criterion_seed: u64) -> (Vec<Gaussian>, Vec<Gaussian>) {
+        let mut seed = criterion_seed;
+        let n = 5;
+        let (a0, b0) = (gaussian(n, &mut seed, 0.5), gaussian(n, &mut seed, 0.5));
+        let (a1, b1) = (gaussian(n, &mut seed, 9.0), gaussian(n, &mut seed, 0.01));
+        let (a2, b2) = (gaussian(n, &mut seed, 0.01), gaussian(n, &mut seed, 9.0));
+        let mut a3 = gaussian(n, &mut seed, 1.0);
+        let mut b3 = gaussian(n, &mut seed, 1.0);
+        a3.P = a0.P.clone();
+        b3.P = b0.P.clone();
+        let a4 = gaussian(n, &mut seed, 1.0);
+        let b4 = a4.clone();
+        (vec![a0, a1, a2, a3, a4], vec![b0, b1, b2, b3, b4])
+    }
+
+    #[test]
+    fn block_nmci_in_place_matches_per_block_ci() {
+        for criterion in [Criterion::Trace, Criterion::Logdet] {
+            let (mut a, b) = blocks(7);
+            let reference: Vec<CiResult> = a
+                .iter()
+                .zip(&b)
+                .map(|(a, b)| covariance_intersection(&problem(a, b), criterion).unwrap())
+                .collect();
+            let omegas = nmci_in_place(&mut a, &b, criterion).unwrap();
+            assert_eq!(omegas[1], 0.0);
+            assert_eq!(omegas[2], 1.0);
+            assert_eq!(omegas[3], omegas[0]);
+            assert!(omegas[0] > 0.0 && omegas[0] < 1.0);
+            assert_eq!(omegas[4], 0.0, "a tie goes to ω = 0");
+            for (k, r) in reference.iter().enumerate() {
+                assert!((omegas[k] - r.omega).abs() < 1e-9, "{criterion:?} {k}");
+                assert!(close(&a[k].P, &r.fused.P), "{criterion:?} block {k}");
+                let x = DMatrix::from_column_slice(5, 1, a[k].x.as_slice());
+                let rx = DMatrix::from_column_slice(5, 1, r.fused.x.as_slice());
+                assert!(close(&x, &rx), "{criterion:?} mean {k}");
+            }
+        }
+    }
+
+    #[test]
+    fn block_ci_in_place_matches_independent_ci() {
+        for criterion in [Criterion::Trace, Criterion::Logdet] {
+            let (mut a, b) = blocks(11);
+            let problems: Vec<FusionProblem> =
+                a.iter().zip(&b).map(|(a, b)| problem(a, b)).collect();
+            let (fused, omega_ref) =
+                covariance_intersection_independent(&problems, criterion).unwrap();
+            let omega = ci_in_place(&mut a, &b, criterion).unwrap();
+            assert!((omega - omega_ref).abs() < 1e-12);
+            for (k, f) in fused.iter().enumerate() {
+                assert!(close(&a[k].P, &f.P), "{criterion:?} block {k}");
+                assert!((&a[k].x - &f.x).amax() < 1e-10, "{criterion:?} mean {k}");
+            }
+        }
+    }
+
+    #[test]
+    fn twins_are_exactly_equal_covariances_in_both() {
+        let (a, b) = blocks(3);
+        assert_eq!(
+            covariance_twins(&a, &b),
+            vec![None, None, None, Some(0), None]
+        );
+    }
 }

@@ -8,8 +8,8 @@
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use super::{Fused, FusionProblem};
-use crate::linalg::symmetrize;
+use super::{covariance_twins, Fused, FusionProblem, Gaussian};
+use crate::linalg::{solve_lower_in_place, solve_lower_rows, symmetrize, symmetrize_in_place};
 
 /// The optimal fusion when the cross-covariance is known to be `P_ab`.
 ///
@@ -60,4 +60,106 @@ pub fn known_correlation_fusion(problem: &FusionProblem, P_ab: &DMatrix<f64>) ->
 /// ```
 pub fn naive_fusion(problem: &FusionProblem) -> Fused {
     known_correlation_fusion(problem, &DMatrix::zeros(problem.dim(), problem.dim()))
+}
+
+/// Naive fusion of block-stored estimates in place (`a[k] ← naive(a[k], b[k])`), means and
+/// covariances only: with `S = P_a + P_b = L Lᵀ`, `x = x_b + P_b S⁻¹ (x_a − x_b)` and
+/// `P = P_b − P_b S⁻¹ P_b = P_b − (L⁻¹P_b)ᵀ(L⁻¹P_b)` — [`naive_fusion`]'s formulas without the
+/// gains. Twin blocks ([`covariance_twins`]) share the factorization and the covariance. A
+/// block whose `S` is numerically singular falls back to [`naive_fusion`] (pseudo-inverse).
+#[allow(non_snake_case)]
+pub(crate) fn naive_in_place(a: &mut [Gaussian], b: &[Gaussian]) {
+    let twins = covariance_twins(a, b);
+    let mut factors: Vec<Option<DMatrix<f64>>> = Vec::with_capacity(a.len());
+    for k in 0..a.len() {
+        let shared = twins[k].and_then(|t| factors[t].clone().map(|L| (L, a[t].P.clone())));
+        let (a, b) = (&mut a[k], &b[k]);
+        let (L, P) = match shared {
+            Some(done) => done,
+            None => match nalgebra::Cholesky::new(&a.P + &b.P) {
+                Some(c) => {
+                    let L = c.unpack();
+                    // P_b symmetric: the row solve leaves Z = L⁻¹P_b row-major, i.e. Zᵀ
+                    // column-major; P_b S⁻¹ P_b = Zᵀ Z.
+                    let mut Zt = b.P.clone();
+                    solve_lower_rows(&L, Zt.as_mut_slice());
+                    let Z = Zt.transpose();
+                    let mut P = b.P.clone();
+                    P.gemm_tr(-1.0, &Z, &Z, 1.0);
+                    symmetrize_in_place(&mut P);
+                    (L, P)
+                }
+                None => {
+                    let problem = FusionProblem::new_trusted(
+                        a.x.clone(),
+                        a.P.clone(),
+                        b.x.clone(),
+                        b.P.clone(),
+                        crate::structure::CrossPattern::fully_unknown(a.x.len()),
+                    );
+                    let f = naive_fusion(&problem);
+                    a.x = f.x;
+                    a.P = f.P;
+                    factors.push(None);
+                    continue;
+                }
+            },
+        };
+        // y = S⁻¹ (x_a − x_b) = L⁻ᵀ L⁻¹ (x_a − x_b)
+        let mut y = &a.x - &b.x;
+        solve_lower_in_place(&L, y.as_mut_slice());
+        L.tr_solve_lower_triangular_mut(&mut y);
+        a.x = &b.x + &b.P * y;
+        a.P = P;
+        factors.push(Some(L));
+    }
+}
+
+#[cfg(test)]
+#[allow(non_snake_case)]
+mod tests {
+    use super::*;
+    use crate::structure::CrossPattern;
+    use nalgebra::DVector;
+
+    #[test]
+    fn naive_in_place_matches_naive_fusion_and_shares_twins() {
+        let P_a = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
+        let P_b = DMatrix::from_row_slice(3, 3, &[2.0, -0.3, 0.1, -0.3, 5.0, 1.0, 0.1, 1.0, 1.5]);
+        let mean = |v: [f64; 3]| DVector::from_row_slice(&v);
+        let a = vec![
+            Gaussian {
+                x: mean([1.0, 2.0, 3.0]),
+                P: P_a.clone(),
+            },
+            Gaussian {
+                x: mean([-1.0, 0.5, 0.0]),
+                P: P_a.clone(),
+            },
+        ];
+        let b = vec![
+            Gaussian {
+                x: mean([0.0, 1.0, -2.0]),
+                P: P_b.clone(),
+            },
+            Gaussian {
+                x: mean([2.0, 2.0, 2.0]),
+                P: P_b.clone(),
+            },
+        ];
+        let mut fused = a.clone();
+        naive_in_place(&mut fused, &b);
+        for k in 0..2 {
+            let p = FusionProblem::new_trusted(
+                a[k].x.clone(),
+                a[k].P.clone(),
+                b[k].x.clone(),
+                b[k].P.clone(),
+                CrossPattern::fully_unknown(3),
+            );
+            let r = naive_fusion(&p);
+            assert!((&fused[k].P - &r.P).amax() < 1e-12);
+            assert!((&fused[k].x - &r.x).amax() < 1e-12);
+        }
+    }
 }

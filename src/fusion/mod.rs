@@ -232,6 +232,31 @@ impl FusionProblem {
     }
 }
 
+/// A Gaussian estimate `(x, P)`: one block of a block-stored filter state.
+#[allow(non_snake_case)]
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Gaussian {
+    /// Mean.
+    pub x: DVector<f64>,
+    /// Covariance.
+    pub P: DMatrix<f64>,
+}
+
+/// For each block of two block-stored estimates, the first earlier block whose covariances are
+/// equal to its own in *both* estimates (exactly), or `None`. Covariance recursions do not
+/// depend on the data, so a symmetric model gives bitwise-equal blocks (the study's x and y
+/// blocks of one group: same dynamics, same isotropic noises); twins have the same CI pencil,
+/// the same `ω` and the same fused covariance, and only their means differ.
+pub(crate) fn covariance_twins(a: &[Gaussian], b: &[Gaussian]) -> Vec<Option<usize>> {
+    (0..a.len())
+        .map(|k| {
+            (0..k).find(|&t| {
+                a[t].P.as_slice() == a[k].P.as_slice() && b[t].P.as_slice() == b[k].P.as_slice()
+            })
+        })
+        .collect()
+}
+
 /// The result of a linear fusion rule `x = K_a x_a + K_b x_b` with its covariance bound `P`.
 #[allow(non_snake_case)]
 #[derive(Debug, Clone, PartialEq)]

@@ -16,10 +16,11 @@ use serde::{Deserialize, Serialize};
 
 use super::model::Model;
 use super::SimError;
-use crate::fusion::ci::{covariance_intersection, covariance_intersection_independent};
-use crate::fusion::known::naive_fusion;
+use crate::fusion::ci::{ci_in_place, covariance_intersection, nmci_in_place};
+use crate::fusion::known::{naive_fusion, naive_in_place};
 use crate::fusion::nmci::non_monolithic_ci;
-use crate::fusion::{Criterion, FusionProblem};
+use crate::fusion::{Criterion, FusionProblem, Gaussian};
+use crate::linalg::symmetrize_in_place;
 
 /// The decentralized fusion rules of the study.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -46,12 +47,7 @@ pub enum Storage {
 }
 
 /// An estimate in storage blocks.
-#[allow(non_snake_case)]
-#[derive(Debug, Clone, PartialEq)]
-struct Estimate {
-    x: Vec<DVector<f64>>,
-    P: Vec<DMatrix<f64>>,
-}
+type Estimate = Vec<Gaussian>;
 
 /// One scalar measurement in block coordinates: `(block, local sparse row, noise variance)`.
 type LocalMeasurement = (usize, Vec<(usize, f64)>, f64);
@@ -115,99 +111,71 @@ impl Partition {
     }
 
     fn prior(&self, model: &Model) -> Estimate {
-        Estimate {
-            x: self
-                .blocks
-                .iter()
-                .map(|b| DVector::zeros(b.len()))
-                .collect(),
-            P: self
-                .blocks
-                .iter()
-                .map(|b| DMatrix::from_fn(b.len(), b.len(), |i, j| model.P0[(b[i], b[j])]))
-                .collect(),
-        }
+        self.blocks
+            .iter()
+            .map(|b| Gaussian {
+                x: DVector::zeros(b.len()),
+                P: DMatrix::from_fn(b.len(), b.len(), |i, j| model.P0[(b[i], b[j])]),
+            })
+            .collect()
     }
 
+    /// `x ← F x`, `P ← F P Fᵀ + Q` block by block.
     fn predict(&self, e: &mut Estimate) {
-        for k in 0..self.blocks.len() {
-            e.x[k] = &self.F[k] * &e.x[k];
-            e.P[k] = &self.F[k] * &e.P[k] * self.F[k].transpose() + &self.Q[k];
+        for (k, g) in e.iter_mut().enumerate() {
+            g.x = &self.F[k] * &g.x;
+            g.P = &self.F[k] * &g.P * self.F[k].transpose() + &self.Q[k];
         }
     }
 
-    /// Joseph-form scalar update with agent `a`'s measurement `m` and value `z`.
+    /// Joseph-form scalar update with agent `a`'s measurement `m` and value `z`:
+    /// `P ← (I − K hᵀ) P (I − K hᵀ)ᵀ + r K Kᵀ`, evaluated exactly through its rank-one factors
+    /// (`(I − K hᵀ) P = P − K (P h)ᵀ`, then `Y (I − h Kᵀ) = Y − (Y h) Kᵀ`): O(n²) instead of
+    /// two dense products.
     fn update(&self, e: &mut Estimate, a: usize, m: usize, z: f64) {
         let (b, row, r) = &self.measurements[a][m];
-        let (x, P) = (&mut e.x[*b], &mut e.P[*b]);
-        let k_len = x.len();
-        let mut h = DVector::zeros(k_len);
-        for &(i, c) in row {
-            h[i] = c;
-        }
-        let Ph = &*P * &h;
-        let s = h.dot(&Ph) + r;
-        let K = Ph / s;
-        let innovation = z - h.dot(x);
-        *x += &K * innovation;
-        let I_KH = DMatrix::identity(k_len, k_len) - &K * h.transpose();
-        let joseph = &I_KH * &*P * I_KH.transpose() + &K * K.transpose() * *r;
-        *P = (&joseph + joseph.transpose()) * 0.5;
+        let Gaussian { x, P } = &mut e[*b];
+        let sparse_dot = |v: &DMatrix<f64>, col: usize| -> f64 {
+            row.iter().map(|&(i, c)| c * v[(col, i)]).sum()
+        };
+        let n = x.len();
+        // P h (P symmetric: row `i` of P dotted with h).
+        let Ph = DVector::from_fn(n, |i, _| sparse_dot(P, i));
+        let s = row.iter().map(|&(i, c)| c * Ph[i]).sum::<f64>() + r;
+        let K = Ph.unscale(s);
+        let innovation = z - row.iter().map(|&(i, c)| c * x[i]).sum::<f64>();
+        x.axpy(innovation, &K, 1.0);
+        P.ger(-1.0, &K, &Ph, 1.0); // Y = (I − K hᵀ) P
+        let Yh = DVector::from_fn(n, |i, _| sparse_dot(P, i));
+        P.ger(-1.0, &Yh, &K, 1.0); // Y (I − h Kᵀ)
+        P.ger(*r, &K, &K, 1.0);
+        symmetrize_in_place(P);
     }
 }
 
 /// Fuses `b` into `a` with `rule`; returns the weights used (CI: one; nmCI: one per model block).
 fn fuse(
     model: &Model,
-    part: &Partition,
     storage: Storage,
     rule: Rule,
     a: &mut Estimate,
     b: &Estimate,
 ) -> Result<Vec<f64>, SimError> {
     match storage {
-        Storage::Blocks => {
-            let problems: Vec<FusionProblem> = (0..part.blocks.len())
-                .map(|k| {
-                    let n = part.blocks[k].len();
-                    FusionProblem::new_trusted(
-                        a.x[k].clone(),
-                        a.P[k].clone(),
-                        b.x[k].clone(),
-                        b.P[k].clone(),
-                        crate::structure::CrossPattern::fully_unknown(n),
-                    )
-                })
-                .collect();
-            let (fused, omega) = match rule {
-                Rule::Ci => {
-                    let (f, w) = covariance_intersection_independent(&problems, Criterion::Trace)?;
-                    (f, vec![w])
-                }
-                Rule::Nmci => {
-                    let mut f = Vec::with_capacity(problems.len());
-                    let mut w = Vec::with_capacity(problems.len());
-                    for p in &problems {
-                        let ci = covariance_intersection(p, Criterion::Trace)?;
-                        f.push(ci.fused);
-                        w.push(ci.omega);
-                    }
-                    (f, w)
-                }
-                Rule::Naive => (problems.iter().map(naive_fusion).collect(), vec![]),
-            };
-            for (k, f) in fused.into_iter().enumerate() {
-                a.x[k] = f.x;
-                a.P[k] = f.P;
+        Storage::Blocks => Ok(match rule {
+            Rule::Ci => vec![ci_in_place(a, b, Criterion::Trace)?],
+            Rule::Nmci => nmci_in_place(a, b, Criterion::Trace)?,
+            Rule::Naive => {
+                naive_in_place(a, b);
+                vec![]
             }
-            Ok(omega)
-        }
+        }),
         Storage::Dense => {
             let p = FusionProblem::new_trusted(
-                a.x[0].clone(),
-                a.P[0].clone(),
-                b.x[0].clone(),
-                b.P[0].clone(),
+                a[0].x.clone(),
+                a[0].P.clone(),
+                b[0].x.clone(),
+                b[0].P.clone(),
                 model.cross_pattern.clone(),
             );
             let (fused, omega) = match rule {
@@ -221,8 +189,10 @@ fn fuse(
                 }
                 Rule::Naive => (naive_fusion(&p), vec![]),
             };
-            a.x[0] = fused.x;
-            a.P[0] = fused.P;
+            a[0] = Gaussian {
+                x: fused.x,
+                P: fused.P,
+            };
             Ok(omega)
         }
     }
@@ -284,6 +254,7 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
         .iter()
         .map(|_| (0..sc.agents()).map(|_| part.prior(model)).collect())
         .collect();
+    let mut sent = agents[0].clone();
     let series = RULES.len() + 1;
     let mut trace = RunTrace {
         nees: vec![Vec::with_capacity(spec.steps); series],
@@ -328,17 +299,10 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
                     part.update(&mut agents[r][a], a, m, value);
                 }
             }
-            let sent = agents[r].clone();
+            sent.clone_from(&agents[r]);
             for a in 0..sc.agents() {
                 for &b in &neighbours[a] {
-                    let omega = fuse(
-                        model,
-                        &part,
-                        spec.storage,
-                        *rule,
-                        &mut agents[r][a],
-                        &sent[b],
-                    )?;
+                    let omega = fuse(model, spec.storage, *rule, &mut agents[r][a], &sent[b])?;
                     if a == spec.agent && b == spec.watched {
                         match rule {
                             Rule::Ci => trace.omega_ci.push(omega[0]),
@@ -354,11 +318,11 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
         for (s, e) in estimates.enumerate() {
             let (mut nees_sum, mut se, mut var) = (0.0, 0.0, 0.0);
             for (k, block) in part.blocks.iter().enumerate() {
-                let err = DVector::from_fn(block.len(), |i, _| truth[block[i]] - e.x[k][i]);
-                nees_sum += nees(&e.P[k], &err);
+                let err = DVector::from_fn(block.len(), |i, _| truth[block[i]] - e[k].x[i]);
+                nees_sum += nees(&e[k].P, &err);
                 for &i in &part.positions[k] {
                     se += err[i] * err[i];
-                    var += e.P[k][(i, i)];
+                    var += e[k].P[(i, i)];
                 }
             }
             let count = (2 * sc.targets()) as f64;
