@@ -1,11 +1,12 @@
-//! The wasm-bindgen bindings: a thin layer over [`crate::fuse`] and [`crate::explore`].
-//! No logic lives here.
+//! The wasm-bindgen bindings: a thin layer over [`crate::fuse`], [`crate::explore`] and the
+//! tracking study ([`crate::sim::LiveStudy`]). No logic lives here.
 
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use wasm_bindgen::prelude::*;
 
 use crate::api::FuseRequest;
+use crate::sim::{LiveStudy, StudyConfig};
 use crate::ExploreRequest;
 
 /// A request object, parsed exactly as the CLI parses JSON: through a `serde_json::Value`,
@@ -43,6 +44,48 @@ pub fn explore(request: JsValue) -> Result<JsValue, JsError> {
     js_sys::Reflect::set(&object, &"region".into(), &region)
         .map_err(|_| JsError::new("cannot attach the region to the result"))?;
     Ok(object)
+}
+
+/// The tracking study advanced a few steps at a time (for a Web Worker with live plots).
+#[wasm_bindgen]
+pub struct Study {
+    inner: LiveStudy,
+}
+
+#[wasm_bindgen]
+impl Study {
+    /// A study from a configuration object with the keys of `configs/study.toml` (every key
+    /// optional; unknown keys are rejected); throws on an invalid configuration.
+    #[wasm_bindgen(constructor)]
+    pub fn new(config: JsValue) -> Result<Study, JsError> {
+        let config: StudyConfig = parse(config)?;
+        Ok(Study {
+            inner: LiveStudy::new(config)?,
+        })
+    }
+
+    /// Advances by up to `steps` time steps; returns whether the study is finished.
+    pub fn advance(&mut self, steps: usize) -> Result<bool, JsError> {
+        Ok(self.inner.advance(steps)?)
+    }
+
+    /// The current snapshot ([`crate::sim::StudyView`]); the series cross as `Float64Array`s
+    /// `nees`, `rmse`, `two_sigma` (`4 × series_len`) and `omega` (`(1 + blocks) × series_len`).
+    pub fn view(&self) -> Result<JsValue, JsError> {
+        let view = self.inner.view();
+        let object = to_js(&view)?;
+        for (name, values) in [
+            ("nees", &view.nees),
+            ("rmse", &view.rmse),
+            ("two_sigma", &view.two_sigma),
+            ("omega", &view.omega),
+        ] {
+            let array = js_sys::Float64Array::from(values.as_slice());
+            js_sys::Reflect::set(&object, &name.into(), &array)
+                .map_err(|_| JsError::new("cannot attach a series to the view"))?;
+        }
+        Ok(object)
+    }
 }
 
 /// The crate version.

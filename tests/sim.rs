@@ -164,3 +164,86 @@ fn configs_study_toml_lists_the_defaults() {
     let parsed: StudyConfig = toml::from_str(&text).unwrap();
     assert_eq!(parsed, StudyConfig::default());
 }
+
+#[path = "golden/mod.rs"]
+mod golden;
+
+/// The tiny study of the golden file: 2 runs × 12 steps, seed 3, default scenario.
+fn tiny_config() -> StudyConfig {
+    StudyConfig {
+        runs: 2,
+        steps: 12,
+        seed: 3,
+        ..StudyConfig::default()
+    }
+}
+
+fn golden_of(view: &StudyView, config: &StudyConfig) -> golden::GoldenStudy {
+    golden::GoldenStudy {
+        config: config.clone(),
+        report: view.report.clone(),
+        nees: view.nees.clone(),
+        rmse: view.rmse.clone(),
+        two_sigma: view.two_sigma.clone(),
+        omega: view.omega.clone(),
+    }
+}
+
+#[test]
+fn live_study_equals_the_batch_study_and_the_golden_file() {
+    let config = tiny_config();
+    let mut live = LiveStudy::new(config.clone()).unwrap();
+    let start = live.view();
+    assert_eq!((start.runs_done, start.step, start.series_len), (0, 0, 0));
+    let mut chunks = 0;
+    while !live.advance(5).unwrap() {
+        chunks += 1;
+        let v = live.view();
+        assert!(!v.finished && v.series_len <= config.steps);
+        assert_eq!(v.nees.len(), 4 * v.series_len);
+        assert_eq!(v.omega.len(), 9 * v.series_len);
+    }
+    assert_eq!(chunks, 4, "24 steps in chunks of 5");
+    let view = live.view();
+    assert!(view.finished);
+    assert_eq!((view.runs_done, view.step, view.series_len), (2, 12, 12));
+    // The live study is the batch study, bit for bit.
+    let (summary, report) = run_study(&config).unwrap();
+    assert_eq!(view.report, report);
+    assert_eq!(view.nees, summary.nees_series.concat());
+    // Golden data (shared with the wasm test).
+    let ours = golden_of(&view, &config);
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny_study.json");
+    if std::env::var_os("NMCI_BLESS").is_some() {
+        std::fs::write(path, serde_json::to_string_pretty(&ours).unwrap() + "\n").unwrap();
+    }
+    let stored: golden::GoldenStudy = serde_json::from_str(golden::TINY_STUDY).unwrap();
+    assert_eq!(stored.config, config);
+    golden::within_1e9(
+        &golden::headline(&ours.report),
+        &golden::headline(&stored.report),
+    )
+    .unwrap();
+    for (a, b) in [
+        (&ours.nees, &stored.nees),
+        (&ours.rmse, &stored.rmse),
+        (&ours.two_sigma, &stored.two_sigma),
+        (&ours.omega, &stored.omega),
+    ] {
+        golden::within_1e9(a, b).unwrap();
+    }
+}
+
+#[test]
+fn live_study_rejects_an_invalid_configuration() {
+    let config = StudyConfig {
+        agent: 7,
+        watched: 1,
+        ..tiny_config()
+    };
+    let e = LiveStudy::new(config).err().unwrap();
+    assert_eq!(
+        e.to_string(),
+        "invalid scenario: agent 7 has no link to agent 1"
+    );
+}

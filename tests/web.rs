@@ -130,3 +130,57 @@ fn explore_hands_the_region_over_as_a_typed_array() {
         .unwrap();
     assert!(abs.abs() < 1e-6, "gap {abs}");
 }
+
+#[path = "golden/mod.rs"]
+mod golden;
+
+/// A `Float64Array` property of a view as a `Vec`.
+fn series(view: &JsValue, name: &str) -> Vec<f64> {
+    let value = Reflect::get(view, &name.into()).unwrap();
+    assert!(
+        value.is_instance_of::<js_sys::Float64Array>(),
+        "{name} is a Float64Array"
+    );
+    js_sys::Float64Array::from(value).to_vec()
+}
+
+#[wasm_bindgen_test]
+fn tiny_study_matches_the_native_golden_numbers() {
+    let stored: golden::GoldenStudy = serde_json::from_str(golden::TINY_STUDY).unwrap();
+    let config = JSON::parse(&serde_json::to_string(&stored.config).unwrap()).unwrap();
+    let mut study = nmci::wasm::Study::new(config).unwrap();
+    while !study.advance(7).unwrap() {}
+    let view = study.view().unwrap();
+    let report: nmci::sim::StudyReport =
+        serde_wasm_bindgen::from_value(Reflect::get(&view, &"report".into()).unwrap()).unwrap();
+    golden::within_1e9(
+        &golden::headline(&report),
+        &golden::headline(&stored.report),
+    )
+    .unwrap();
+    golden::within_1e9(&series(&view, "nees"), &stored.nees).unwrap();
+    golden::within_1e9(&series(&view, "rmse"), &stored.rmse).unwrap();
+    golden::within_1e9(&series(&view, "two_sigma"), &stored.two_sigma).unwrap();
+    golden::within_1e9(&series(&view, "omega"), &stored.omega).unwrap();
+}
+
+#[wasm_bindgen_test]
+fn invalid_study_configuration_throws_its_message() {
+    let config = JSON::parse(r#"{"runs": 0}"#).unwrap();
+    let e = JsValue::from(nmci::wasm::Study::new(config).err().unwrap());
+    let message = Reflect::get(&e, &"message".into())
+        .unwrap()
+        .as_string()
+        .unwrap();
+    assert_eq!(
+        message,
+        "invalid scenario: steps must be at least 2 and runs at least 1"
+    );
+    let unknown = JSON::parse(r#"{"stepz": 3}"#).unwrap();
+    let e = JsValue::from(nmci::wasm::Study::new(unknown).err().unwrap());
+    let message = Reflect::get(&e, &"message".into())
+        .unwrap()
+        .as_string()
+        .unwrap();
+    assert!(message.contains("unknown field `stepz`"), "{message}");
+}

@@ -159,7 +159,6 @@ mod cli {
     ) -> Result<String, String> {
         use indicatif::{ProgressBar, ProgressStyle};
         use nmci::sim::*;
-        use rayon::prelude::*;
 
         let mut cfg: StudyConfig = match config {
             Some(path) => {
@@ -175,21 +174,14 @@ mod cli {
         cfg.steps = steps.unwrap_or(cfg.steps);
         cfg.seed = seed.unwrap_or(cfg.seed);
         cfg.validate().map_err(|e| e.to_string())?;
-        let model = Model::new(&cfg.scenario).map_err(|e| e.to_string())?;
         let bar = ProgressBar::new(cfg.runs as u64).with_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} (eta {eta})")
                 .map_err(|e| e.to_string())?,
         );
         let started = std::time::Instant::now();
-        let traces = (0..cfg.runs as u64)
-            .into_par_iter()
-            .map(|r| {
-                let t = simulate_run(&model, &cfg.run_spec(r, Storage::Blocks));
-                bar.inc(1);
-                t
-            })
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| e.to_string())?;
+        let model = Model::new(&cfg.scenario).map_err(|e| e.to_string())?;
+        let traces =
+            simulate_runs_parallel(&cfg, &model, || bar.inc(1)).map_err(|e| e.to_string())?;
         bar.finish_and_clear();
         let summary = summarize(&traces, model.dim());
         let report = StudyReport::new(&cfg, &summary);
@@ -301,16 +293,8 @@ mod cli {
             None,
             false,
         )?;
-        let steps_recorded = traces.first().map_or(0, |t| t.omega_ci.len());
-        let mean_over_runs = |f: &dyn Fn(&RunTrace, usize) -> f64| -> Vec<f64> {
-            (0..steps_recorded)
-                .map(|k| traces.iter().map(|t| f(t, k)).sum::<f64>() / traces.len() as f64)
-                .collect()
-        };
-        let omega_ci = mean_over_runs(&|t, k| t.omega_ci[k]);
-        let omega_blocks: Vec<Vec<f64>> = (0..blocks)
-            .map(|b| mean_over_runs(&|t, k| t.omega_nmci[k][b]))
-            .collect();
+        let omega_ci = &summary.omega_ci_series;
+        let omega_blocks = &summary.omega_nmci_series;
         let block_labels: Vec<String> = (0..blocks)
             .map(|b| format!("nmCI G{}{}", b / 2 + 1, if b % 2 == 0 { "x" } else { "y" }))
             .collect();

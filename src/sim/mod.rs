@@ -6,13 +6,15 @@
 //! agents fusing with CI, nmCI and naive fusion. [`summarize`] averages runs into the study's
 //! headline numbers.
 
+mod live;
 mod model;
 mod scenario;
 mod study;
 
+pub use live::{LiveStudy, StudyView};
 pub use model::Model;
 pub use scenario::{ScalarMeasurement, Scenario};
-pub use study::{nees_bounds, simulate_run, Rule, RunSpec, RunTrace, Storage, RULES};
+pub use study::{nees_bounds, simulate_run, Rule, RunSpec, RunState, RunTrace, Storage, RULES};
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -176,7 +178,14 @@ pub struct OmegaReport {
 impl StudyReport {
     /// The report of a summary.
     pub fn new(config: &StudyConfig, summary: &StudySummary) -> Self {
-        let pick = |k: usize| summary.estimators[k].1.clone();
+        // Absent before any step has run (a live study's first view): zeros.
+        let pick = |k: usize| {
+            summary
+                .estimators
+                .get(k)
+                .map(|e| e.1.clone())
+                .unwrap_or_default()
+        };
         Self {
             central: pick(0),
             ci: pick(1),
@@ -195,6 +204,27 @@ impl StudyReport {
     }
 }
 
+/// The runs of a study, in parallel (rayon), calling `on_run` after each run (a progress
+/// bar). Run `r` is `simulate_run(model, &config.run_spec(r, Storage::Blocks))` whatever the
+/// thread, so the numbers do not depend on the number of threads.
+#[cfg(not(target_arch = "wasm32"))]
+pub fn simulate_runs_parallel(
+    config: &StudyConfig,
+    model: &Model,
+    on_run: impl Fn() + Sync,
+) -> Result<Vec<RunTrace>, SimError> {
+    use rayon::prelude::*;
+    config.validate()?;
+    (0..config.runs as u64)
+        .into_par_iter()
+        .map(|r| {
+            let trace = simulate_run(model, &config.run_spec(r, Storage::Blocks));
+            on_run();
+            trace
+        })
+        .collect()
+}
+
 /// Runs a whole study sequentially (the CLI runs the same runs in parallel).
 pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), SimError> {
     config.validate()?;
@@ -208,7 +238,7 @@ pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), Si
 }
 
 /// Headline numbers of one estimator for the headline agent (means over runs and steps).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct EstimatorSummary {
     /// Mean position RMSE.
     pub rmse_mean: f64,
@@ -237,20 +267,28 @@ pub struct StudySummary {
     pub rmse_series: Vec<Vec<f64>>,
     /// Run-averaged 2σ per step.
     pub two_sigma_series: Vec<Vec<f64>>,
+    /// CI's ω of the watched fusion per step, averaged over runs.
+    pub omega_ci_series: Vec<f64>,
+    /// nmCI's ω per block (outer) and step (inner), averaged over runs.
+    pub omega_nmci_series: Vec<Vec<f64>>,
 }
 
-/// Averages run traces into the study's numbers (`dof` = state dimension).
+/// Averages run traces into the study's numbers (`dof` = state dimension). Traces may be of
+/// different lengths (runs in progress, for live plots): step `k` averages the traces that
+/// reached it; the NEES bounds are those of `traces.len()` runs.
 pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
-    let runs = traces.len().max(1) as f64;
     let series = traces.first().map_or(0, |t| t.nees.len());
-    let steps = traces
-        .first()
-        .map_or(0, |t| t.nees.first().map_or(0, Vec::len));
+    let len = |t: &RunTrace| t.nees.first().map_or(0, Vec::len);
+    let steps = traces.iter().map(len).max().unwrap_or(0);
     let mean_series = |pick: &dyn Fn(&RunTrace) -> &Vec<Vec<f64>>| -> Vec<Vec<f64>> {
         (0..series)
             .map(|s| {
                 (0..steps)
-                    .map(|k| traces.iter().map(|t| pick(t)[s][k]).sum::<f64>() / runs)
+                    .map(|k| {
+                        let values = traces.iter().filter_map(|t| pick(t)[s].get(k));
+                        let count = traces.iter().filter(|t| len(t) > k).count().max(1);
+                        values.sum::<f64>() / count as f64
+                    })
                     .collect()
             })
             .collect()
@@ -301,11 +339,22 @@ pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
             )
         })
         .collect();
+    let step_mean = |f: &dyn Fn(&RunTrace, usize) -> Option<f64>| -> Vec<f64> {
+        (0..steps)
+            .map(|k| mean(&traces.iter().filter_map(|t| f(t, k)).collect::<Vec<_>>()))
+            .collect()
+    };
+    let omega_ci_series = step_mean(&|t, k| t.omega_ci.get(k).copied());
+    let omega_nmci_series = (0..blocks)
+        .map(|b| step_mean(&|t, k| t.omega_nmci.get(k).and_then(|w| w.get(b)).copied()))
+        .collect();
     StudySummary {
         estimators,
         nees_bounds: bounds,
         omega_ci,
         omega_nmci,
+        omega_ci_series,
+        omega_nmci_series,
         nees_series: nees,
         rmse_series: rmse,
         two_sigma_series: two_sigma,

@@ -231,41 +231,113 @@ pub struct RunSpec {
 }
 
 /// Simulates one Monte Carlo run.
-#[allow(non_snake_case)]
 pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError> {
-    let sc = &model.scenario;
-    let n = model.dim();
-    let part = Partition::new(model, spec.storage);
-    let neighbours = sc.neighbours();
-    let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
-    rng.set_stream(spec.run);
-    let mut normal = || -> f64 { StandardNormal.sample(&mut rng) };
+    let mut run = RunState::new(model, spec);
+    while !run.finished() {
+        run.step(model)?;
+    }
+    Ok(run.into_trace())
+}
 
-    // Truth from the common prior (diagonal P0).
-    let mut truth = DVector::from_fn(n, |i, _| model.P0[(i, i)].sqrt() * normal());
-    let (dt, q) = (sc.dt, sc.q);
-    // Cholesky of one axis' process noise [[q dt³/3, q dt²/2], [q dt²/2, q dt]].
-    let l11 = (q * dt.powi(3) / 3.0).sqrt();
-    let l21 = q * dt.powi(2) / 2.0 / l11;
-    let l22 = (q * dt - l21 * l21).sqrt();
+/// One Monte Carlo run in progress, advanced a step at a time ([`RunState::step`]) — what a
+/// page needs to plot a run live. [`simulate_run`] is `new` + `step` until `finished`.
+#[allow(non_snake_case)]
+pub struct RunState {
+    spec: RunSpec,
+    part: Partition,
+    neighbours: Vec<Vec<usize>>,
+    rng: ChaCha8Rng,
+    truth: DVector<f64>,
+    /// Cholesky factor `[[l11, 0], [l21, l22]]` of one axis' process noise.
+    noise_factor: (f64, f64, f64),
+    central: Estimate,
+    /// `agents[rule][agent]`.
+    agents: Vec<Vec<Estimate>>,
+    /// What the agents sent this step (a reused buffer).
+    sent: Vec<Estimate>,
+    trace: RunTrace,
+    done: usize,
+}
 
-    let mut central = part.prior(model);
-    let mut agents: Vec<Vec<Estimate>> = RULES
-        .iter()
-        .map(|_| (0..sc.agents()).map(|_| part.prior(model)).collect())
-        .collect();
-    let mut sent = agents[0].clone();
-    let series = RULES.len() + 1;
-    let mut trace = RunTrace {
-        nees: vec![Vec::with_capacity(spec.steps); series],
-        rmse: vec![Vec::with_capacity(spec.steps); series],
-        two_sigma: vec![Vec::with_capacity(spec.steps); series],
-        omega_ci: Vec::with_capacity(spec.steps),
-        omega_nmci: Vec::with_capacity(spec.steps),
-    };
-    for _ in 0..spec.steps {
+#[allow(non_snake_case)]
+impl RunState {
+    /// Draws the truth from the common prior and starts every filter at it.
+    pub fn new(model: &Model, spec: &RunSpec) -> Self {
+        let sc = &model.scenario;
+        let part = Partition::new(model, spec.storage);
+        let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+        rng.set_stream(spec.run);
+        // Truth from the common prior (diagonal P0).
+        let truth = DVector::from_fn(model.dim(), |i, _| {
+            let u: f64 = StandardNormal.sample(&mut rng);
+            model.P0[(i, i)].sqrt() * u
+        });
+        let (dt, q) = (sc.dt, sc.q);
+        // Cholesky of one axis' process noise [[q dt³/3, q dt²/2], [q dt²/2, q dt]].
+        let l11 = (q * dt.powi(3) / 3.0).sqrt();
+        let l21 = q * dt.powi(2) / 2.0 / l11;
+        let l22 = (q * dt - l21 * l21).sqrt();
+        let central = part.prior(model);
+        let agents: Vec<Vec<Estimate>> = RULES
+            .iter()
+            .map(|_| (0..sc.agents()).map(|_| part.prior(model)).collect())
+            .collect();
+        let sent = agents[0].clone();
+        let series = RULES.len() + 1;
+        let trace = RunTrace {
+            nees: vec![Vec::with_capacity(spec.steps); series],
+            rmse: vec![Vec::with_capacity(spec.steps); series],
+            two_sigma: vec![Vec::with_capacity(spec.steps); series],
+            omega_ci: Vec::with_capacity(spec.steps),
+            omega_nmci: Vec::with_capacity(spec.steps),
+        };
+        Self {
+            spec: *spec,
+            neighbours: sc.neighbours(),
+            part,
+            rng,
+            truth,
+            noise_factor: (l11, l21, l22),
+            central,
+            agents,
+            sent,
+            trace,
+            done: 0,
+        }
+    }
+
+    /// Steps done so far.
+    pub fn steps_done(&self) -> usize {
+        self.done
+    }
+
+    /// Whether all `spec.steps` steps are done.
+    pub fn finished(&self) -> bool {
+        self.done >= self.spec.steps
+    }
+
+    /// The per-step results so far.
+    pub fn trace(&self) -> &RunTrace {
+        &self.trace
+    }
+
+    /// The per-step results.
+    pub fn into_trace(self) -> RunTrace {
+        self.trace
+    }
+
+    /// One time step: truth, measurements, every filter's prediction and update, the
+    /// exchange and fusion of every rule, and the headline agent's metrics. `model` must be the
+    /// one the run was created with.
+    pub fn step(&mut self, model: &Model) -> Result<(), SimError> {
+        let sc = &model.scenario;
+        let spec = self.spec;
+        let part = &self.part;
+        let rng = &mut self.rng;
+        let mut normal = || -> f64 { StandardNormal.sample(&mut *rng) };
+        let (l11, l21, l22) = self.noise_factor;
         // Truth.
-        truth = &model.F * &truth;
+        let mut truth = &model.F * &self.truth;
         for t in 0..sc.targets() {
             for axis in 0..2 {
                 let (u, v) = (normal(), normal());
@@ -273,6 +345,8 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
                 truth[sc.target_index(t, 2 * axis + 1)] += l21 * u + l22 * v;
             }
         }
+        self.truth = truth;
+        let truth = &self.truth;
         // Measurements (the same realisations for every filter).
         let z: Vec<Vec<f64>> = model
             .measurements
@@ -286,23 +360,25 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
                     .collect()
             })
             .collect();
-        part.predict(&mut central);
+        part.predict(&mut self.central);
         for (a, za) in z.iter().enumerate() {
             for (m, &value) in za.iter().enumerate() {
-                part.update(&mut central, a, m, value);
+                part.update(&mut self.central, a, m, value);
             }
         }
+        let trace = &mut self.trace;
         for (r, rule) in RULES.iter().enumerate() {
+            let agents = &mut self.agents[r];
             for (a, za) in z.iter().enumerate() {
-                part.predict(&mut agents[r][a]);
+                part.predict(&mut agents[a]);
                 for (m, &value) in za.iter().enumerate() {
-                    part.update(&mut agents[r][a], a, m, value);
+                    part.update(&mut agents[a], a, m, value);
                 }
             }
-            sent.clone_from(&agents[r]);
+            self.sent.clone_from(agents);
             for a in 0..sc.agents() {
-                for &b in &neighbours[a] {
-                    let omega = fuse(model, spec.storage, *rule, &mut agents[r][a], &sent[b])?;
+                for &b in &self.neighbours[a] {
+                    let omega = fuse(model, spec.storage, *rule, &mut agents[a], &self.sent[b])?;
                     if a == spec.agent && b == spec.watched {
                         match rule {
                             Rule::Ci => trace.omega_ci.push(omega[0]),
@@ -314,7 +390,8 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
             }
         }
         // Metrics of the headline agent, block by block (the covariance is block-diagonal).
-        let estimates = std::iter::once(&central).chain(agents.iter().map(|r| &r[spec.agent]));
+        let estimates =
+            std::iter::once(&self.central).chain(self.agents.iter().map(|r| &r[spec.agent]));
         for (s, e) in estimates.enumerate() {
             let (mut nees_sum, mut se, mut var) = (0.0, 0.0, 0.0);
             for (k, block) in part.blocks.iter().enumerate() {
@@ -330,8 +407,9 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
             trace.rmse[s].push((se / sc.targets() as f64).sqrt());
             trace.two_sigma[s].push(2.0 * (var / count).sqrt());
         }
+        self.done += 1;
+        Ok(())
     }
-    Ok(trace)
 }
 
 /// `eᵀ P⁻¹ e`. Naive fusion double counts until its covariance is numerically singular (the

@@ -1,0 +1,53 @@
+//! `cargo bench --bench study`: the full default tracking study (15 runs × 400 steps, the
+//! centralized filter and CI, nmCI and naive agents), in parallel over runs as `nmci track`
+//! runs it, and one run alone. A plain timing harness: criterion's minimum of 10 samples
+//! would take minutes for a 20 s workload. `NMCI_STUDY_REPEATS` (default 3) sets the
+//! repetitions; the minimum and the median are reported.
+
+use std::time::Instant;
+
+use nmci::sim::{simulate_run, simulate_runs_parallel, Model, Storage, StudyConfig};
+
+fn report(name: &str, mut seconds: Vec<f64>) {
+    seconds.sort_by(f64::total_cmp);
+    let median = seconds[seconds.len() / 2];
+    println!(
+        "{name:<24} min {:>7.2} s   median {:>7.2} s   ({} repeats)",
+        seconds[0],
+        median,
+        seconds.len()
+    );
+}
+
+fn main() {
+    let repeats: usize = std::env::var("NMCI_STUDY_REPEATS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(3)
+        .max(1);
+    let config = StudyConfig::default();
+    let model = Model::new(&config.scenario).expect("the default scenario is valid");
+    println!(
+        "tracking study: {} runs × {} steps, {} states, {} threads",
+        config.runs,
+        config.steps,
+        model.dim(),
+        rayon::current_num_threads()
+    );
+    let one_run: Vec<f64> = (0..repeats)
+        .map(|_| {
+            let started = Instant::now();
+            simulate_run(&model, &config.run_spec(0, Storage::Blocks)).expect("run");
+            started.elapsed().as_secs_f64()
+        })
+        .collect();
+    report("study/one_run", one_run);
+    let full: Vec<f64> = (0..repeats)
+        .map(|_| {
+            let started = Instant::now();
+            simulate_runs_parallel(&config, &model, || {}).expect("study");
+            started.elapsed().as_secs_f64()
+        })
+        .collect();
+    report("study/full_default", full);
+}

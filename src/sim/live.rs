@@ -1,0 +1,129 @@
+//! A study advanced a few steps at a time, for live plots (the page's Study tab runs it in a
+//! Web Worker through the wasm bindings).
+
+use serde::Serialize;
+
+use super::{summarize, Model, RunState, RunTrace, SimError, Storage, StudyConfig, StudyReport};
+
+/// The runs of a study, run one after the other and advanced in chunks of steps. The numbers
+/// are those of [`super::simulate_run`] for each run (same seeds and streams), so a finished
+/// live study equals the CLI's.
+pub struct LiveStudy {
+    config: StudyConfig,
+    model: Model,
+    done: Vec<RunTrace>,
+    current: Option<RunState>,
+}
+
+/// A snapshot of a [`LiveStudy`]: progress, the headline numbers over the runs so far (a run in
+/// progress counts for the steps it reached) and the run-averaged series.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StudyView {
+    /// Finished runs.
+    pub runs_done: usize,
+    /// Runs in the study.
+    pub runs: usize,
+    /// Steps done in the run in progress (`steps` once finished).
+    pub step: usize,
+    /// Steps per run.
+    pub steps: usize,
+    /// Whether every run is done.
+    pub finished: bool,
+    /// Headline numbers so far; `report.runs` counts the runs they average.
+    pub report: StudyReport,
+    /// Length of every series below (steps reached by the furthest run).
+    pub series_len: usize,
+    /// nmCI blocks of the watched fusion.
+    pub blocks: usize,
+    /// Run-averaged NEES, `4 × series_len` row-major (`central`, `ci`, `nmci`, `naive`).
+    #[serde(skip)]
+    pub nees: Vec<f64>,
+    /// Run-averaged position RMSE, same layout.
+    #[serde(skip)]
+    pub rmse: Vec<f64>,
+    /// Run-averaged 2σ, same layout.
+    #[serde(skip)]
+    pub two_sigma: Vec<f64>,
+    /// Run-averaged ω of the watched fusion, `(1 + blocks) × series_len` row-major: CI's,
+    /// then nmCI's per block.
+    #[serde(skip)]
+    pub omega: Vec<f64>,
+}
+
+impl LiveStudy {
+    /// Validates the configuration and builds the model.
+    pub fn new(config: StudyConfig) -> Result<Self, SimError> {
+        config.validate()?;
+        let model = Model::new(&config.scenario)?;
+        Ok(Self {
+            config,
+            model,
+            done: Vec::new(),
+            current: None,
+        })
+    }
+
+    /// Whether every run is done.
+    pub fn finished(&self) -> bool {
+        self.done.len() >= self.config.runs
+    }
+
+    /// Advances by up to `steps` time steps, across run boundaries; returns whether the study
+    /// is finished.
+    pub fn advance(&mut self, steps: usize) -> Result<bool, SimError> {
+        for _ in 0..steps {
+            if self.finished() {
+                break;
+            }
+            let run = match &mut self.current {
+                Some(run) => run,
+                None => {
+                    let spec = self
+                        .config
+                        .run_spec(self.done.len() as u64, Storage::Blocks);
+                    self.current.insert(RunState::new(&self.model, &spec))
+                }
+            };
+            run.step(&self.model)?;
+            if run.finished() {
+                if let Some(run) = self.current.take() {
+                    self.done.push(run.into_trace());
+                }
+            }
+        }
+        Ok(self.finished())
+    }
+
+    /// The current snapshot.
+    pub fn view(&self) -> StudyView {
+        let mut traces = self.done.clone();
+        if let Some(run) = &self.current {
+            traces.push(run.trace().clone());
+        }
+        let summary = summarize(&traces, self.model.dim());
+        let mut report = StudyReport::new(&self.config, &summary);
+        report.runs = traces.len();
+        let series_len = summary.nees_series.first().map_or(0, Vec::len);
+        let flat = |series: &[Vec<f64>]| series.concat();
+        let mut omega = summary.omega_ci_series.clone();
+        omega.extend(flat(&summary.omega_nmci_series));
+        StudyView {
+            runs_done: self.done.len(),
+            runs: self.config.runs,
+            step: match &self.current {
+                Some(run) => run.steps_done(),
+                None if self.finished() => self.config.steps,
+                None => 0,
+            },
+            steps: self.config.steps,
+            finished: self.finished(),
+            report,
+            series_len,
+            blocks: summary.omega_nmci_series.len(),
+            nees: flat(&summary.nees_series),
+            rmse: flat(&summary.rmse_series),
+            two_sigma: flat(&summary.two_sigma_series),
+            omega,
+        }
+    }
+}

@@ -1,0 +1,53 @@
+// The tracking study off the main thread: the wasm `Study` advanced a chunk of steps at a
+// time; after each chunk the current view (headline numbers and run-averaged series as
+// Float64Arrays) goes back to the page. A "stop" message is seen between chunks.
+import init, { Study } from "./pkg/nmci.js";
+
+const ready = init();
+let stopped = false;
+const CHUNK = 20; // steps per message: about 0.1–0.2 s of work
+
+self.onmessage = async (event) => {
+  const { type, config } = event.data;
+  if (type === "stop") {
+    stopped = true;
+    return;
+  }
+  if (type !== "start") return;
+  stopped = false;
+  let study;
+  try {
+    await ready;
+    study = new Study(config);
+  } catch (err) {
+    self.postMessage({ type: "error", error: String(err && err.message ? err.message : err) });
+    return;
+  }
+  const t0 = performance.now();
+  let runStarted = t0;
+  const runTimes = [];
+  try {
+    let finished = false;
+    let runsDone = 0;
+    while (!finished && !stopped) {
+      finished = study.advance(CHUNK);
+      const view = study.view();
+      if (view.runs_done > runsDone) {
+        const now = performance.now();
+        runTimes.push((now - runStarted) / (view.runs_done - runsDone));
+        runStarted = now;
+        runsDone = view.runs_done;
+      }
+      view.elapsed_ms = performance.now() - t0;
+      view.run_ms = runTimes.slice();
+      self.postMessage({ type: "view", view }, [view.nees.buffer, view.rmse.buffer, view.two_sigma.buffer, view.omega.buffer]);
+      // Yield so that a "stop" message can arrive.
+      await new Promise((resolve) => setTimeout(resolve, 0));
+    }
+    self.postMessage({ type: stopped ? "stopped" : "done" });
+  } catch (err) {
+    self.postMessage({ type: "error", error: String(err && err.message ? err.message : err) });
+  } finally {
+    study.free();
+  }
+};

@@ -1,0 +1,136 @@
+// The "Tracking study" tab: runs the paper's 16-agent study in a Web Worker (wasm `Study`)
+// and redraws the headline table and three charts after every chunk of steps.
+import { lineChart } from "./chart.js";
+
+const $ = (s) => document.querySelector(s);
+const NAMES = ["central", "ci", "nmci", "naive"];
+const LABELS = { central: "centralized KF", ci: "CI", nmci: "nmCI", naive: "naive (not conservative)" };
+const COLORS = { central: "#1d1f21", ci: "#1f77b4", nmci: "#d62728", naive: "#999999" };
+const DT = 0.1; // the scenario's default time step (the study tab uses the default scenario)
+
+// Tabs.
+function showTab(name) {
+  for (const [tab, panel] of [["explorer", $("#explorer")], ["study", $("#study")]]) {
+    const on = tab === name;
+    $(`#tab-${tab}`).setAttribute("aria-selected", String(on));
+    panel.hidden = !on;
+  }
+}
+$("#tab-explorer").addEventListener("click", () => showTab("explorer"));
+$("#tab-study").addEventListener("click", () => showTab("study"));
+
+let worker = null;
+let running = false;
+
+function readConfig() {
+  const fields = [["runs", 1, 100], ["steps", 2, 2000], ["seed", 0, Number.MAX_SAFE_INTEGER]];
+  const config = {};
+  for (const [key, min, max] of fields) {
+    const input = $(`#study-${key}`);
+    const raw = input.value.trim();
+    const v = Number(raw);
+    if (raw === "" || !Number.isInteger(v) || v < min || v > max) {
+      input.classList.add("bad");
+      throw new Error(`${key} must be a whole number in ${min}…${max === Number.MAX_SAFE_INTEGER ? "2⁵³" : max} (got "${raw}")`);
+    }
+    input.classList.remove("bad");
+    config[key] = v;
+  }
+  return config;
+}
+
+function setRunning(on) {
+  running = on;
+  $("#study-start").disabled = on;
+  $("#study-stop").disabled = !on;
+}
+
+const fmt = (v) => (!Number.isFinite(v) ? "—" : Math.abs(v) >= 1e5 ? v.toExponential(2) : v.toFixed(3));
+
+function render(view) {
+  const n = view.series_len;
+  const row = (arr, s) => arr.subarray(s * n, (s + 1) * n);
+  const total = view.runs * view.steps;
+  const done = view.runs_done * view.steps + (view.finished ? 0 : view.step);
+  $("#study-bar").style.width = `${(100 * done) / total}%`;
+  const runSeconds = view.run_ms.length ? ` · ${(view.run_ms.reduce((a, b) => a + b, 0) / view.run_ms.length / 1000).toFixed(2)} s per run` : "";
+  $("#study-progress").textContent = view.finished
+    ? `done: ${view.runs} runs × ${view.steps} steps in ${(view.elapsed_ms / 1000).toFixed(1)} s${runSeconds}`
+    : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps} · ${(view.elapsed_ms / 1000).toFixed(1)} s${runSeconds}`;
+  const body = $("#study-table tbody");
+  body.replaceChildren();
+  for (const name of NAMES) {
+    const e = view.report[name];
+    const tr = document.createElement("tr");
+    tr.dataset.estimator = name;
+    const cells = [LABELS[name], fmt(e.rmse_mean), fmt(e.two_sigma_mean), fmt(e.nees_mean), `${(100 * e.nees_frac_above_upper).toFixed(0)}%`];
+    for (const c of cells) {
+      const td = document.createElement("td");
+      td.textContent = c;
+      tr.append(td);
+    }
+    body.append(tr);
+  }
+  const w = view.report.omega_7_11;
+  const gain = (a, b) => `${(100 * (a / b - 1)).toFixed(0)}%`;
+  $("#study-omega").textContent =
+    `nmCI vs CI: RMSE ${gain(view.report.nmci.rmse_mean, view.report.ci.rmse_mean)}, 2σ ${gain(view.report.nmci.two_sigma_mean, view.report.ci.two_sigma_mean)}. ` +
+    `Steady ω (7←11): CI ${fmt(w.ci)}; nmCI ${w.nmci.map((v) => v.toFixed(2)).join(", ")} (G1x … G4y).`;
+  const [lo, hi] = view.report.nees_bounds;
+  lineChart($("#study-nees"), {
+    dt: DT, steps: view.steps, band: [lo, hi], yLabel: "NEES",
+    yRange: [0, Math.max(2 * hi, 10)],
+    series: ["central", "ci", "nmci"].map((name) => ({ label: LABELS[name], color: COLORS[name], values: row(view.nees, NAMES.indexOf(name)) })),
+  });
+  lineChart($("#study-rmse"), {
+    dt: DT, steps: view.steps, yLabel: "m",
+    series: ["central", "ci", "nmci"].flatMap((name) => [
+      { label: `${LABELS[name]} RMSE`, color: COLORS[name], values: row(view.rmse, NAMES.indexOf(name)) },
+      { label: "2σ", color: COLORS[name], dash: true, values: row(view.two_sigma, NAMES.indexOf(name)) },
+    ]),
+  });
+  const omega = [{ label: "CI", color: COLORS.ci, values: row(view.omega, 0) }];
+  for (let b = 0; b < view.blocks; b++) {
+    const shade = Math.round((200 * b) / Math.max(view.blocks - 1, 1));
+    omega.push({ label: b === 0 ? "nmCI blocks" : "", color: `rgb(214, ${shade}, ${Math.round(shade / 2)})`, dash: b % 2 === 1, values: row(view.omega, b + 1) });
+  }
+  lineChart($("#study-omega-plot"), { dt: DT, steps: view.steps, yRange: [-0.05, 1.05], yLabel: "ω", series: omega });
+}
+
+function start() {
+  $("#err-study").textContent = "";
+  let config;
+  try {
+    config = readConfig();
+  } catch (err) {
+    $("#err-study").textContent = err.message;
+    return;
+  }
+  if (!worker) {
+    worker = new Worker(new URL("./study-worker.js", import.meta.url), { type: "module" });
+    worker.onmessage = (event) => {
+      const msg = event.data;
+      if (msg.type === "view") render(msg.view);
+      else if (msg.type === "error") {
+        $("#err-study").textContent = msg.error;
+        setRunning(false);
+      } else if (msg.type === "done" || msg.type === "stopped") {
+        setRunning(false);
+        document.body.dataset.study = msg.type;
+      }
+    };
+    worker.onerror = (event) => {
+      $("#err-study").textContent = `the study worker failed: ${event.message || "unknown error"}`;
+      setRunning(false);
+    };
+  }
+  document.body.dataset.study = "running";
+  setRunning(true);
+  worker.postMessage({ type: "start", config });
+}
+
+$("#study-start").addEventListener("click", start);
+$("#study-stop").addEventListener("click", () => worker && worker.postMessage({ type: "stop" }));
+for (const key of ["runs", "steps", "seed"]) {
+  $(`#study-${key}`).addEventListener("keydown", (e) => { if (e.key === "Enter" && !running) start(); });
+}
