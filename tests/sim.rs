@@ -247,3 +247,24 @@ fn live_study_rejects_an_invalid_configuration() {
         "invalid scenario: agent 7 has no link to agent 1"
     );
 }
+
+#[test]
+fn the_parallel_study_split_by_rule_is_the_sequential_study_bit_for_bit() {
+    let config = StudyConfig {
+        runs: 3,
+        steps: 9,
+        seed: 8,
+        ..StudyConfig::default()
+    };
+    let model = Model::new(&config.scenario).unwrap();
+    let pieces = std::sync::atomic::AtomicUsize::new(0);
+    let parallel = simulate_runs_parallel(&config, &model, || {
+        pieces.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    })
+    .unwrap();
+    assert_eq!(pieces.into_inner(), 3 * RULES.len());
+    for (r, trace) in parallel.iter().enumerate() {
+        let sequential = simulate_run(&model, &config.run_spec(r as u64, Storage::Blocks)).unwrap();
+        assert_eq!(trace, &sequential, "run {r}");
+    }
+}

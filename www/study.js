@@ -92,7 +92,7 @@ function render(view) {
   const omega = [{ label: "CI", color: COLORS.ci, values: row(view.omega, 0) }];
   for (let b = 0; b < view.blocks; b++) {
     const shade = Math.round((200 * b) / Math.max(view.blocks - 1, 1));
-    omega.push({ label: b === 0 ? "nmCI blocks" : "", color: `rgb(214, ${shade}, ${Math.round(shade / 2)})`, dash: b % 2 === 1, values: row(view.omega, b + 1) });
+    omega.push({ label: `G${Math.floor(b / 2) + 1}${b % 2 ? "y" : "x"}`, color: `rgb(214, ${shade}, ${Math.round(shade / 2)})`, dash: b % 2 === 1, values: row(view.omega, b + 1) });
   }
   lineChart($("#study-omega-plot"), { dt: DT, steps: view.steps, yRange: [-0.05, 1.05], yLabel: "ω", series: omega });
 }

@@ -174,9 +174,11 @@ mod cli {
         cfg.steps = steps.unwrap_or(cfg.steps);
         cfg.seed = seed.unwrap_or(cfg.seed);
         cfg.validate().map_err(|e| e.to_string())?;
-        let bar = ProgressBar::new(cfg.runs as u64).with_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} (eta {eta})")
-                .map_err(|e| e.to_string())?,
+        let bar = ProgressBar::new((cfg.runs * RULES.len()) as u64).with_style(
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} runs × rules, {elapsed} (eta {eta})",
+            )
+            .map_err(|e| e.to_string())?,
         );
         let started = std::time::Instant::now();
         let model = Model::new(&cfg.scenario).map_err(|e| e.to_string())?;

@@ -14,7 +14,10 @@ mod study;
 pub use live::{LiveStudy, StudyView};
 pub use model::Model;
 pub use scenario::{ScalarMeasurement, Scenario};
-pub use study::{nees_bounds, simulate_run, Rule, RunSpec, RunState, RunTrace, Storage, RULES};
+pub use study::{
+    merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, Rule, RunSpec, RunState,
+    RunTrace, Storage, RULES,
+};
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -204,25 +207,33 @@ impl StudyReport {
     }
 }
 
-/// The runs of a study, in parallel (rayon), calling `on_run` after each run (a progress
-/// bar). Run `r` is `simulate_run(model, &config.run_spec(r, Storage::Blocks))` whatever the
-/// thread, so the numbers do not depend on the number of threads.
+/// The runs of a study, in parallel (rayon) over runs × rules ([`simulate_run_for_rule`]:
+/// 45 pieces of unequal size balance two cores better than 15 runs), calling `on_piece` after
+/// each piece (a progress bar of `runs × RULES.len()`). The traces are bit for bit those of
+/// [`simulate_run`] whatever the number of threads.
 #[cfg(not(target_arch = "wasm32"))]
 pub fn simulate_runs_parallel(
     config: &StudyConfig,
     model: &Model,
-    on_run: impl Fn() + Sync,
+    on_piece: impl Fn() + Sync,
 ) -> Result<Vec<RunTrace>, SimError> {
     use rayon::prelude::*;
     config.validate()?;
-    (0..config.runs as u64)
-        .into_par_iter()
-        .map(|r| {
-            let trace = simulate_run(model, &config.run_spec(r, Storage::Blocks));
-            on_run();
+    let pieces: Vec<(u64, Rule)> = (0..config.runs as u64)
+        .flat_map(|r| RULES.iter().map(move |&rule| (r, rule)))
+        .collect();
+    let mut traces = pieces
+        .par_iter()
+        .map(|&(r, rule)| {
+            let trace = simulate_run_for_rule(model, &config.run_spec(r, Storage::Blocks), rule);
+            on_piece();
             trace
         })
-        .collect()
+        .collect::<Result<Vec<_>, _>>()?
+        .into_iter();
+    Ok((0..config.runs)
+        .map(|_| merge_rule_traces(traces.by_ref().take(RULES.len()).collect()))
+        .collect())
 }
 
 /// Runs a whole study sequentially (the CLI runs the same runs in parallel).

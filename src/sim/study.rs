@@ -56,7 +56,10 @@ type LocalMeasurement = (usize, Vec<(usize, f64)>, f64);
 #[allow(non_snake_case)]
 struct Partition {
     blocks: Vec<Vec<usize>>,
-    F: Vec<DMatrix<f64>>,
+    /// The non-zeros of each block's transition matrix, row by row: `F[k][i] = [(j, F_ij)]`
+    /// (at most two per row for nearly-constant-velocity targets and constant biases, so the
+    /// prediction `F P Fᵀ` is O(n²) instead of two dense products).
+    F: Vec<Vec<Vec<(usize, f64)>>>,
     Q: Vec<DMatrix<f64>>,
     /// For each agent: `(block, local row, variance)` per scalar measurement.
     measurements: Vec<Vec<LocalMeasurement>>,
@@ -103,7 +106,20 @@ impl Partition {
             .collect();
         Self {
             positions,
-            F: blocks.iter().map(|b| restrict(&model.F, b)).collect(),
+            F: blocks
+                .iter()
+                .map(|b| {
+                    let f = restrict(&model.F, b);
+                    (0..b.len())
+                        .map(|i| {
+                            (0..b.len())
+                                .filter(|&j| f[(i, j)] != 0.0)
+                                .map(|j| (j, f[(i, j)]))
+                                .collect()
+                        })
+                        .collect()
+                })
+                .collect(),
             Q: blocks.iter().map(|b| restrict(&model.Q, b)).collect(),
             measurements,
             blocks,
@@ -120,11 +136,33 @@ impl Partition {
             .collect()
     }
 
-    /// `x ← F x`, `P ← F P Fᵀ + Q` block by block.
+    /// `x ← F x`, `P ← F P Fᵀ + Q` block by block, with the sparse rows of `F`.
     fn predict(&self, e: &mut Estimate) {
         for (k, g) in e.iter_mut().enumerate() {
-            g.x = &self.F[k] * &g.x;
-            g.P = &self.F[k] * &g.P * self.F[k].transpose() + &self.Q[k];
+            let F = &self.F[k];
+            let n = g.x.len();
+            let x = DVector::from_fn(n, |i, _| F[i].iter().map(|&(j, f)| f * g.x[j]).sum());
+            // FP = F P (row i of FP combines the rows of P that row i of F names) …
+            let mut FP = DMatrix::<f64>::zeros(n, n);
+            for (i, row) in F.iter().enumerate() {
+                for &(l, f) in row {
+                    for j in 0..n {
+                        FP[(i, j)] += f * g.P[(l, j)];
+                    }
+                }
+            }
+            // … then P = FP Fᵀ + Q (column j of the result combines the columns of FP that row
+            // j of F names).
+            let mut P = self.Q[k].clone();
+            for (j, row) in F.iter().enumerate() {
+                for &(l, f) in row {
+                    for i in 0..n {
+                        P[(i, j)] += f * FP[(i, l)];
+                    }
+                }
+            }
+            g.x = x;
+            g.P = P;
         }
     }
 
@@ -239,6 +277,52 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
     Ok(run.into_trace())
 }
 
+/// Simulates one run for one rule only: the truth, the measurements and the centralized
+/// filter are those of [`simulate_run`] (the random stream does not depend on the rules), and
+/// so are the rule's agents — the rules never interact. The trace has two series,
+/// `central` and the rule's; [`merge_rule_traces`] puts the rules back together, bit for bit
+/// equal to [`simulate_run`]. Lets a parallel study balance its work in smaller pieces.
+pub fn simulate_run_for_rule(
+    model: &Model,
+    spec: &RunSpec,
+    rule: Rule,
+) -> Result<RunTrace, SimError> {
+    let mut run = RunState::with_rules(model, spec, &[rule]);
+    while !run.finished() {
+        run.step(model)?;
+    }
+    Ok(run.into_trace())
+}
+
+/// Assembles the per-rule traces of one run (from [`simulate_run_for_rule`], in [`RULES`]
+/// order) into the trace [`simulate_run`] gives.
+pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
+    let mut merged = RunTrace {
+        nees: Vec::with_capacity(RULES.len() + 1),
+        rmse: Vec::with_capacity(RULES.len() + 1),
+        two_sigma: Vec::with_capacity(RULES.len() + 1),
+        omega_ci: Vec::new(),
+        omega_nmci: Vec::new(),
+    };
+    for (k, part) in parts.into_iter().enumerate() {
+        let RunTrace {
+            nees,
+            rmse,
+            two_sigma,
+            omega_ci,
+            omega_nmci,
+        } = part;
+        // Series 0 is the centralized filter (the same in every part); series 1 the rule's.
+        let skip = if k == 0 { 0 } else { 1 };
+        merged.nees.extend(nees.into_iter().skip(skip));
+        merged.rmse.extend(rmse.into_iter().skip(skip));
+        merged.two_sigma.extend(two_sigma.into_iter().skip(skip));
+        merged.omega_ci.extend(omega_ci);
+        merged.omega_nmci.extend(omega_nmci);
+    }
+    merged
+}
+
 /// One Monte Carlo run in progress, advanced a step at a time ([`RunState::step`]) — what a
 /// page needs to plot a run live. [`simulate_run`] is `new` + `step` until `finished`.
 #[allow(non_snake_case)]
@@ -251,7 +335,9 @@ pub struct RunState {
     /// Cholesky factor `[[l11, 0], [l21, l22]]` of one axis' process noise.
     noise_factor: (f64, f64, f64),
     central: Estimate,
-    /// `agents[rule][agent]`.
+    /// The rules simulated (all of [`RULES`] unless built by [`RunState::with_rules`]).
+    rules: Vec<Rule>,
+    /// `agents[rule][agent]`, rules as in `rules`.
     agents: Vec<Vec<Estimate>>,
     /// What the agents sent this step (a reused buffer).
     sent: Vec<Estimate>,
@@ -263,6 +349,12 @@ pub struct RunState {
 impl RunState {
     /// Draws the truth from the common prior and starts every filter at it.
     pub fn new(model: &Model, spec: &RunSpec) -> Self {
+        Self::with_rules(model, spec, &RULES)
+    }
+
+    /// As [`RunState::new`] for the agents of `rules` only (the trace has `central` and one
+    /// series per rule, in the order given).
+    pub fn with_rules(model: &Model, spec: &RunSpec, rules: &[Rule]) -> Self {
         let sc = &model.scenario;
         let part = Partition::new(model, spec.storage);
         let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
@@ -278,12 +370,12 @@ impl RunState {
         let l21 = q * dt.powi(2) / 2.0 / l11;
         let l22 = (q * dt - l21 * l21).sqrt();
         let central = part.prior(model);
-        let agents: Vec<Vec<Estimate>> = RULES
+        let agents: Vec<Vec<Estimate>> = rules
             .iter()
             .map(|_| (0..sc.agents()).map(|_| part.prior(model)).collect())
             .collect();
-        let sent = agents[0].clone();
-        let series = RULES.len() + 1;
+        let sent = (0..sc.agents()).map(|_| part.prior(model)).collect();
+        let series = rules.len() + 1;
         let trace = RunTrace {
             nees: vec![Vec::with_capacity(spec.steps); series],
             rmse: vec![Vec::with_capacity(spec.steps); series],
@@ -299,6 +391,7 @@ impl RunState {
             truth,
             noise_factor: (l11, l21, l22),
             central,
+            rules: rules.to_vec(),
             agents,
             sent,
             trace,
@@ -367,7 +460,7 @@ impl RunState {
             }
         }
         let trace = &mut self.trace;
-        for (r, rule) in RULES.iter().enumerate() {
+        for (r, rule) in self.rules.iter().enumerate() {
             let agents = &mut self.agents[r];
             for (a, za) in z.iter().enumerate() {
                 part.predict(&mut agents[a]);

@@ -4,46 +4,21 @@
 // the measured interaction cost to test-output/e2e/.
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
-import { createServer } from "node:http";
-import { readFile, mkdir, writeFile, mkdtemp, rm } from "node:fs/promises";
-import { existsSync } from "node:fs";
-import { join, extname, resolve, dirname } from "node:path";
-import { tmpdir } from "node:os";
-import { fileURLToPath } from "node:url";
-import { chromium } from "playwright-core";
+import { readFile, mkdir, writeFile } from "node:fs/promises";
+import { join } from "node:path";
+import { root, www, serveWww, launchChromium } from "./harness.mjs";
 
-const root = resolve(dirname(fileURLToPath(import.meta.url)), "../..");
-const www = join(root, "www");
 const out = join(root, "test-output", "e2e");
-const TYPES = { ".html": "text/html", ".js": "text/javascript", ".mjs": "text/javascript", ".css": "text/css", ".wasm": "application/wasm", ".json": "application/json", ".svg": "image/svg+xml" };
 
-let server, base, browser, profile, page;
+let server, base, browser, chromium, page;
 const problems = [];
 
 before(async () => {
-  assert.ok(existsSync(join(www, "pkg", "nmci.js")), "www/pkg is missing: run scripts/wasm.sh build first");
   await mkdir(out, { recursive: true });
-  server = createServer(async (req, res) => {
-    const path = decodeURIComponent(new URL(req.url, "http://x").pathname);
-    const file = join(www, path.endsWith("/") ? path + "index.html" : path);
-    if (!file.startsWith(www)) return res.writeHead(403).end();
-    try {
-      const body = await readFile(file);
-      res.writeHead(200, { "content-type": TYPES[extname(file)] ?? "application/octet-stream" }).end(body);
-    } catch {
-      res.writeHead(404).end("not found");
-    }
-  });
-  await new Promise((ok) => server.listen(0, "127.0.0.1", ok));
-  base = `http://127.0.0.1:${server.address().port}/`;
-  profile = await mkdtemp(join(tmpdir(), "nmci-chromium-"));
-  browser = await chromium.launchPersistentContext(profile, {
-    executablePath: process.env.CHROMIUM ?? "/usr/bin/chromium",
-    headless: true,
-    viewport: { width: 1400, height: 900 },
-    args: ["--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync", "--disable-quic"],
-  });
-  page = browser.pages()[0] ?? (await browser.newPage());
+  server = await serveWww();
+  base = server.base;
+  chromium = await launchChromium();
+  ({ browser, page } = chromium);
   page.on("pageerror", (e) => problems.push(`page error: ${e.message}`));
   page.on("console", (m) => m.type() === "error" && problems.push(`console error: ${m.text()}`));
   await page.goto(base);
@@ -51,9 +26,8 @@ before(async () => {
 });
 
 after(async () => {
-  await browser?.close();
+  await chromium?.close();
   server?.close();
-  if (profile) await rm(profile, { recursive: true, force: true });
 });
 
 async function settle() {
@@ -215,6 +189,52 @@ test("interaction cost: recompute after an edit (n = 2, 200 SDP samples, 300 reg
   assert.ok(Number.isFinite(stats.median));
   await writeFile(join(out, "interaction.json"), JSON.stringify({ ...stats, what: "edit → all rules + SDP (200 samples) + region (300) → rendered, headless Chromium" }, null, 2));
   console.log(`interaction cost: median ${stats.median.toFixed(1)} ms over ${stats.count} edits`);
+});
+
+test("the study tab runs a short study live and shows nmCI tighter than CI", async () => {
+  await page.click("#tab-study");
+  assert.equal(await page.locator("#explorer").isVisible(), false);
+  assert.equal(await page.locator("#study").isVisible(), true);
+  await page.fill("#study-runs", "2");
+  await page.fill("#study-steps", "80");
+  await page.fill("#study-seed", "4");
+  await page.click("#study-start");
+  // Live: a view arrives before the end (progress text shows a step of the first run).
+  await page.waitForFunction(() => /run 1 of 2, step \d+/.test(document.querySelector("#study-progress").textContent), null, { timeout: 60_000 });
+  await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 120_000 });
+  assert.match(await text("#study-progress"), /^done: 2 runs × 80 steps/);
+  const rows = await page.evaluate(() => Object.fromEntries([...document.querySelectorAll("#study-table tbody tr")].map((tr) => [tr.dataset.estimator, [...tr.children].map((td) => td.textContent)])));
+  assert.deepEqual(Object.keys(rows), ["central", "ci", "nmci", "naive"]);
+  assert.match(rows.naive[0], /not conservative/);
+  const rmse = (k) => Number(rows[k][1]);
+  const twoSigma = (k) => Number(rows[k][2]);
+  assert.ok(rmse("nmci") < rmse("ci"), `nmCI RMSE ${rmse("nmci")} vs CI ${rmse("ci")}`);
+  assert.ok(twoSigma("nmci") < twoSigma("ci"));
+  assert.ok(rmse("central") < rmse("nmci"));
+  assert.match(await text("#study-omega"), /nmCI vs CI: RMSE -\d+%/);
+  // Three charts, each with its series drawn over the whole run.
+  for (const id of ["#study-nees", "#study-rmse", "#study-omega-plot"]) {
+    const lengths = await page.locator(`${id} path[data-label]`).evaluateAll((ps) => ps.map((p) => p.getAttribute("d").split("L").length));
+    assert.ok(lengths.length >= 3 && lengths.every((n) => n === 80), `${id}: ${lengths}`);
+  }
+  await page.screenshot({ path: join(out, "study.png"), fullPage: true });
+});
+
+test("the study tab rejects bad settings inline and can be stopped", async () => {
+  await page.fill("#study-runs", "0");
+  await page.click("#study-start");
+  assert.match(await text("#err-study"), /runs must be a whole number in 1…100 \(got "0"\)/);
+  assert.equal(await page.locator("#study-runs.bad").count(), 1);
+  await page.fill("#study-runs", "3");
+  await page.fill("#study-steps", "400");
+  await page.click("#study-start");
+  assert.equal(await text("#err-study"), "");
+  await page.waitForFunction(() => /run 1 of 3, step \d+/.test(document.querySelector("#study-progress").textContent), null, { timeout: 60_000 });
+  await page.click("#study-stop");
+  await page.waitForFunction(() => document.body.dataset.study === "stopped", null, { timeout: 60_000 });
+  assert.equal(await page.locator("#study-start").isEnabled(), true);
+  await page.click("#tab-explorer");
+  assert.equal(await page.locator("#explorer").isVisible(), true);
 });
 
 test("no page errors or console errors along the way", () => {
