@@ -6,7 +6,6 @@ const $ = (s) => document.querySelector(s);
 const NAMES = ["central", "ci", "nmci", "naive"];
 const LABELS = { central: "centralized KF", ci: "CI", nmci: "nmCI", naive: "naive (not conservative)" };
 const COLORS = { central: "#1d1f21", ci: "#1f77b4", nmci: "#d62728", naive: "#999999" };
-const DT = 0.1; // the scenario's default time step (the study tab uses the default scenario)
 
 // Tabs.
 function showTab(name) {
@@ -78,12 +77,12 @@ function render(view) {
     `Steady ω (7←11): CI ${fmt(w.ci)}; nmCI ${w.nmci.map((v) => v.toFixed(2)).join(", ")} (G1x … G4y).`;
   const [lo, hi] = view.report.nees_bounds;
   lineChart($("#study-nees"), {
-    dt: DT, steps: view.steps, band: [lo, hi], yLabel: "NEES",
+    dt: view.dt, steps: view.steps, band: [lo, hi], yLabel: "NEES",
     yRange: [0, Math.max(2 * hi, 10)],
     series: ["central", "ci", "nmci"].map((name) => ({ label: LABELS[name], color: COLORS[name], values: row(view.nees, NAMES.indexOf(name)) })),
   });
   lineChart($("#study-rmse"), {
-    dt: DT, steps: view.steps, yLabel: "m",
+    dt: view.dt, steps: view.steps, yLabel: "m",
     series: ["central", "ci", "nmci"].flatMap((name) => [
       { label: `${LABELS[name]} RMSE`, color: COLORS[name], values: row(view.rmse, NAMES.indexOf(name)) },
       { label: "2σ", color: COLORS[name], dash: true, values: row(view.two_sigma, NAMES.indexOf(name)) },
@@ -94,7 +93,7 @@ function render(view) {
     const shade = Math.round((200 * b) / Math.max(view.blocks - 1, 1));
     omega.push({ label: `G${Math.floor(b / 2) + 1}${b % 2 ? "y" : "x"}`, color: `rgb(214, ${shade}, ${Math.round(shade / 2)})`, dash: b % 2 === 1, values: row(view.omega, b + 1) });
   }
-  lineChart($("#study-omega-plot"), { dt: DT, steps: view.steps, yRange: [-0.05, 1.05], yLabel: "ω", series: omega });
+  lineChart($("#study-omega-plot"), { dt: view.dt, steps: view.steps, yRange: [-0.05, 1.05], yLabel: "ω", series: omega });
 }
 
 function start() {

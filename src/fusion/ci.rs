@@ -9,8 +9,15 @@
 //!
 //! so `tr P(ω) = Σ ‖wᵢ‖²/dᵢ(ω)` and `log det P(ω) = log det WWᵀ − Σ ln dᵢ(ω)`. Both are convex
 //! in `ω`; the optimum is an endpoint when the derivative does not change sign on `[0, 1]`
-//! (then `ω` is exactly `0` or `1` and `P` is exactly `P_b` or `P_a`), otherwise the root of
-//! the derivative, found by safeguarded Newton to machine precision.
+//! (then `ω` is exactly `0` or `1` and `P` is exactly `P_b` or `P_a`; a derivative within
+//! `1e-9` of the size of its terms counts as zero, so rounding noise on a flat criterion does
+//! not decide), otherwise the root of the derivative, found by safeguarded Newton to machine
+//! precision.
+//!
+//! Filters that keep their estimates in blocks (the tracking study) use the in-place forms
+//! `ci_in_place` / `nmci_in_place`: means and covariances only, endpoints decided from the
+//! derivative at `ω = 0` and `1` before any eigenproblem, and blocks with equal covariances
+//! in both estimates sharing one pencil.
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
@@ -71,7 +78,7 @@ impl HalfPencil {
     fn derivative_at_one(&self, P_a: &DMatrix<f64>, criterion: Criterion) -> (f64, f64) {
         let (plus, minus) = match criterion {
             Criterion::Trace => (self.Xt.norm_squared(), P_a.trace()),
-            // tr(P_b⁻¹ P_a) = tr(L⁻ᵀ L⁻¹ P_a) = Σ_ij (L⁻¹)_ij X_ij … = tr M
+            // tr(P_b⁻¹ P_a) = tr(L⁻ᵀ L⁻¹ P_a) = tr(L⁻¹ P_a L⁻ᵀ) = tr M
             Criterion::Logdet => (self.pencil_matrix().trace(), P_a.nrows() as f64),
         };
         (plus - minus, plus + minus)

@@ -27,6 +27,8 @@ pub struct StudyView {
     pub step: usize,
     /// Steps per run.
     pub steps: usize,
+    /// Time step of the scenario (s): step `k` (0-based) is at `(k + 1)·dt`.
+    pub dt: f64,
     /// Whether every run is done.
     pub finished: bool,
     /// Headline numbers so far; `report.runs` counts the runs they average.
@@ -116,6 +118,7 @@ impl LiveStudy {
                 None => 0,
             },
             steps: self.config.steps,
+            dt: self.config.scenario.dt,
             finished: self.finished(),
             report,
             series_len,

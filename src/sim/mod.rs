@@ -4,7 +4,8 @@
 //! [`Model`] the linear-Gaussian model and the independent blocks derived from it, and
 //! [`simulate_run`] one Monte Carlo run of the centralized filter and of the decentralized
 //! agents fusing with CI, nmCI and naive fusion. [`summarize`] averages runs into the study's
-//! headline numbers.
+//! headline numbers; [`LiveStudy`] advances a study a few steps at a time (the page's live
+//! Study tab) and [`simulate_runs_parallel`] runs it on every core (the CLI).
 
 mod live;
 mod model;

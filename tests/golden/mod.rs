@@ -27,7 +27,8 @@ pub fn within_1e9(a: &[f64], b: &[f64]) -> Result<(), String> {
         return Err(format!("lengths {} vs {}", a.len(), b.len()));
     }
     for (i, (x, y)) in a.iter().zip(b).enumerate() {
-        if !((x - y).abs() <= 1e-9 * y.abs().max(1.0)) {
+        let close = (x - y).abs() <= 1e-9 * y.abs().max(1.0); // false for NaN
+        if !close {
             return Err(format!("index {i}: {x} vs {y}"));
         }
     }
