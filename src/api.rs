@@ -104,6 +104,26 @@ pub struct FuseResponse {
     /// `sdp`: smallest `λ_min(P̄ − K P'_i Kᵀ)` over the samples.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub worst_sample_margin: Option<f64>,
+    /// `sdp`: a lower bound on the robust optimum of `tr P̄` — Clarabel's dual objective of the
+    /// sampled program (summed over blocks). Weak duality makes any dual-feasible value a lower
+    /// bound on the sampled optimum, which is itself below the robust optimum (fewer
+    /// constraints); it does not rely on the primal solution being accurate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lower_bound: Option<f64>,
+    /// `sdp`: an upper bound on the robust optimum — `tr P` of the best certified conservative
+    /// rule (CI or nmCI, each conservative for every admissible `P_ab` by construction).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub upper_bound: Option<f64>,
+    /// `sdp`: which rule gives `upper_bound` (`ci` or `nmci`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub upper_bound_rule: Option<Method>,
+    /// `sdp`: `upper_bound − lower_bound` (absolute; never clamped: a value below zero, at
+    /// solver-tolerance level, would be reported as it is).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap: Option<f64>,
+    /// `sdp`: `gap / upper_bound`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap_relative: Option<f64>,
 }
 
 fn matrix(name: &str, rows: &[Vec<f64>]) -> Result<DMatrix<f64>, InputError> {
@@ -202,6 +222,11 @@ pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> F
         acceptance_rate: None,
         lmis: None,
         worst_sample_margin: None,
+        lower_bound: None,
+        upper_bound: None,
+        upper_bound_rule: None,
+        gap: None,
+        gap_relative: None,
     }
 }
 
@@ -273,6 +298,22 @@ pub(crate) fn sdp_response(
     r.lmis = Some(opt.lmis);
     r.worst_sample_margin = Some(opt.worst_sample_margin);
     r.blocks = Some(opt.blocks.clone());
+    // The certified bracket [lower, upper] on the robust optimum of tr P̄.
+    let ci = covariance_intersection(problem, Criterion::Trace)?
+        .fused
+        .trace();
+    let nmci = non_monolithic_ci(problem, Criterion::Trace)?.fused.trace();
+    let (upper, rule) = if nmci <= ci {
+        (nmci, Method::Nmci)
+    } else {
+        (ci, Method::Ci)
+    };
+    let lower = opt.dual_objective;
+    r.lower_bound = Some(lower);
+    r.upper_bound = Some(upper);
+    r.upper_bound_rule = Some(rule);
+    r.gap = Some(upper - lower);
+    r.gap_relative = Some((upper - lower) / upper);
     Ok((r, opt.fused))
 }
 

@@ -138,6 +138,9 @@ pub enum SolveError {
     /// Drawing the sample set failed.
     #[error(transparent)]
     Sample(#[from] SampleError),
+    /// A conservative rule needed for the certified upper bound failed on the problem.
+    #[error(transparent)]
+    Input(#[from] InputError),
 }
 
 /// Any failure of a [`crate::FuseRequest`]: the one error type of the JSON contract shared

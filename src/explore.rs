@@ -47,13 +47,16 @@ pub struct ExploreRequest {
     pub max_trials: Option<u64>,
 }
 
-/// Bounds on the robust optimum of `tr P̄`: the SDP's optimum below, nmCI above.
+/// Certified bounds on the robust optimum of `tr P̄`: the sampled SDP's dual objective below,
+/// the best conservative rule above (the `lower_bound` / `upper_bound` of the SDP response).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Gap {
-    /// Sampled-SDP optimum (lower bound on the robust optimum).
+    /// Sampled-SDP dual objective (a lower bound on the robust optimum).
     pub lower: f64,
-    /// nmCI trace (a certified conservative bound, hence an upper bound).
+    /// `tr P` of the best certified conservative rule (an upper bound).
     pub upper: f64,
+    /// Which rule gives `upper` (`ci` or `nmci`).
+    pub upper_rule: crate::api::Method,
     /// `upper − lower`.
     pub absolute: f64,
     /// `(upper − lower) / upper`.
@@ -150,14 +153,14 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         Ok((r, f)) => (Some(r), Some(f), None),
         Err(e) => (None, None, Some(e.to_string())),
     };
-    let gap = sdp.as_ref().map(|s| {
-        let (lower, upper) = (s.trace, nmci.trace);
-        Gap {
-            lower,
-            upper,
-            absolute: upper - lower,
-            relative: (upper - lower) / upper,
-        }
+    let gap = sdp.as_ref().and_then(|s| {
+        Some(Gap {
+            lower: s.lower_bound?,
+            upper: s.upper_bound?,
+            upper_rule: s.upper_bound_rule?,
+            absolute: s.gap?,
+            relative: s.gap_relative?,
+        })
     });
 
     let region_samples = request.region_samples.unwrap_or(300);

@@ -225,3 +225,83 @@ fn splitting_into_independent_blocks_is_exact() {
     assert_eq!(split.fused.K_a[(0, 1)], 0.0);
     assert_eq!(split.fused.P[(3, 4)], 0.0);
 }
+
+/// The certified bracket of the fuse response: the SDP's dual objective below, the best of CI
+/// and nmCI above; `lower ≤ upper` always (to solver tolerance), and on the paper's example
+/// the bracket closes on the robust optimum 2 by 100 samples.
+#[test]
+fn certified_gap_brackets_the_robust_optimum() {
+    let request = |pattern: &str, samples: usize, seed: u64| {
+        serde_json::from_str::<FuseRequest>(&format!(
+            r#"{{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": {pattern},
+                "method": "sdp", "samples": {samples}, "seed": {seed}}}"#
+        ))
+        .unwrap()
+    };
+    let diagonal = "[[true, false], [false, true]]";
+    let full = "[[true, true], [true, true]]";
+    for samples in [100, 300] {
+        let r = fuse(&request(diagonal, samples, 4)).unwrap();
+        let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
+        assert_eq!(
+            upper, 2.0,
+            "nmCI's diag(1, 1) is the best conservative rule"
+        );
+        assert_eq!(r.upper_bound_rule, Some(Method::Nmci));
+        assert!(lower <= upper + 1e-9, "{lower} > {upper}");
+        assert!(r.gap.unwrap() <= 1e-6, "gap {:?}", r.gap);
+        assert!((r.gap.unwrap() - (upper - lower)).abs() < 1e-15);
+        assert!((r.gap_relative.unwrap() - (upper - lower) / upper).abs() < 1e-15);
+    }
+    // Fully unknown P_ab: CI is optimal (and nmCI is CI); the bracket holds.
+    let r = fuse(&request(full, 100, 5)).unwrap();
+    let fully_unknown = FusionProblem::from_covariances(
+        diag(&[3.0, 1.0]),
+        diag(&[1.0, 4.0]),
+        CrossPattern::fully_unknown(2),
+    )
+    .unwrap();
+    let ci = covariance_intersection(&fully_unknown, Criterion::Trace).unwrap();
+    assert!((r.upper_bound.unwrap() - ci.fused.trace()).abs() < 1e-12);
+    assert!(r.lower_bound.unwrap() <= r.upper_bound.unwrap() + 1e-9);
+    // Random problems and patterns: never lower > upper; the response serializes the keys.
+    let mut rng = rng(77);
+    for (n, prob) in [(2usize, 0.5), (3, 0.4), (3, 1.0), (4, 0.3)] {
+        let p = random_problem(n, random_pattern(n, prob, &mut rng), &mut rng);
+        let rows = |m: &nalgebra::DMatrix<f64>| {
+            (0..n)
+                .map(|i| (0..n).map(|j| m[(i, j)]).collect::<Vec<_>>())
+                .collect::<Vec<_>>()
+        };
+        let req = FuseRequest {
+            pa: rows(&p.P_a),
+            pb: rows(&p.P_b),
+            xa: None,
+            xb: None,
+            pab_unknown: Some(
+                (0..n)
+                    .map(|i| (0..n).map(|j| p.cross_pattern.is_unknown(i, j)).collect())
+                    .collect(),
+            ),
+            method: Method::Sdp,
+            criterion: None,
+            samples: Some(100),
+            seed: Some(1),
+            max_trials: None,
+        };
+        let r = fuse(&req).unwrap();
+        let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
+        assert!(lower <= upper + 1e-7 * upper, "n={n}: {lower} > {upper}");
+        assert!(lower <= r.trace + 1e-7 * r.trace, "dual above primal");
+        let json = serde_json::to_value(&r).unwrap();
+        for key in [
+            "lower_bound",
+            "upper_bound",
+            "upper_bound_rule",
+            "gap",
+            "gap_relative",
+        ] {
+            assert!(json.get(key).is_some(), "{key}");
+        }
+    }
+}

@@ -428,7 +428,7 @@ function renderNumbers() {
     parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${a.sdp.status}</b>, ${a.sdp.iterations} iterations, ${a.sdp.lmis} LMIs in the final working set of ${a.sdp.samples} samples, sampler acceptance ${(a.sdp.acceptance_rate * 100).toPrecision(3)} %</div>`);
   }
   if (a.gap) {
-    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(SDP lower bound, nmCI upper bound): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative</span></div>`);
+    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(certified: SDP dual objective below, ${a.gap.upper_rule === "nmci" ? "nmCI" : "CI"} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative</span></div>`);
   }
   if (a.region_error) {
     parts.push(`<div class="err" id="region-status">region: ${a.region_error}</div>`);
