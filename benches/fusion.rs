@@ -88,6 +88,22 @@ fn benches(c: &mut Bench) {
         });
     }
     group.finish();
+
+    // Hit-and-run at n = 14 with a fully unknown P_ab (the rejection sampler accepts none in
+    // 2·10⁶ trials there): 1000 samples, one sweep over the 196 free entries each, after the
+    // default 50 burn-in sweeps. Target ≥ 1000 samples per second, i.e. ≤ 1 s here.
+    let p14 = FusionProblem::from_covariances(
+        random_spd(14, &mut rng),
+        random_spd(14, &mut rng),
+        CrossPattern::fully_unknown(14),
+    )
+    .unwrap();
+    c.bench_function("sample/hit_and_run/14x1000", |b| {
+        b.iter(|| {
+            sample_cross_covariances(black_box(&p14), 1000, 1, SamplerSettings::hit_and_run())
+                .unwrap()
+        })
+    });
 }
 
 criterion_group! {

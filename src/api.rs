@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{InputError, RequestError, SolveError};
 use crate::fusion::ci::covariance_intersection;
 use crate::fusion::nmci::non_monolithic_ci;
-use crate::fusion::sample::SamplerSettings;
+use crate::fusion::sample::{SamplerKind, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion, SdpSettings};
 use crate::fusion::{Criterion, Fused, FusionProblem};
 use crate::linalg::{matrix_from_rows, matrix_to_rows};
@@ -59,6 +59,9 @@ pub struct FuseRequest {
     /// `sdp`: rejection-sampler trial budget (default 2 000 000).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_trials: Option<u64>,
+    /// `sdp`: `rejection` (the paper's, default) or `hit_and_run` (any dimension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampler: Option<SamplerKind>,
 }
 
 /// A fusion response.
@@ -253,7 +256,9 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                 samples: request.samples.unwrap_or(defaults.samples),
                 seed: request.seed.unwrap_or(defaults.seed),
                 sampler: SamplerSettings {
+                    kind: request.sampler.unwrap_or_default(),
                     max_trials: request.max_trials.unwrap_or(defaults.sampler.max_trials),
+                    ..defaults.sampler
                 },
                 ..defaults
             };

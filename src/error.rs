@@ -106,6 +106,9 @@ pub enum SampleError {
     /// A settings value out of range.
     #[error("invalid sampler setting: {0}")]
     InvalidSettings(String),
+    /// The hit-and-run chain met a numerically singular point.
+    #[error("the hit-and-run sampler broke down: {0}")]
+    NumericalBreakdown(String),
 }
 
 /// The sampled semidefinite program did not produce a usable bound.

@@ -9,7 +9,7 @@ use crate::api::{ci_response, nmci_response, problem_from_parts, sdp_response, F
 use crate::error::RequestError;
 use crate::fusion::check::worst_margin;
 use crate::fusion::known::known_correlation_fusion;
-use crate::fusion::sample::{sample_cross_covariances, SamplerSettings};
+use crate::fusion::sample::{sample_cross_covariances, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::Criterion;
 
@@ -45,6 +45,10 @@ pub struct ExploreRequest {
     /// Rejection-sampler budget per sample set (default 200 000: interactive use).
     #[serde(default)]
     pub max_trials: Option<u64>,
+    /// `rejection` (the paper's sampler, default) or `hit_and_run` (any dimension), for the
+    /// SDP's samples and the region's.
+    #[serde(default)]
+    pub sampler: Option<SamplerKind>,
 }
 
 /// Certified bounds on the robust optimum of `tr P̄`: the sampled SDP's dual objective below,
@@ -140,13 +144,17 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
     }
     let seed = request.seed.unwrap_or(0);
     let n = problem.dim();
+    let sampler = SamplerSettings {
+        kind: request.sampler.unwrap_or_default(),
+        ..SamplerSettings::rejection(max_trials)
+    };
 
     let (ci, ci_fused) = ci_response(&problem, criterion)?;
     let (nmci, nm_fused) = nmci_response(&problem, criterion)?;
     let settings = SdpSettings {
         samples,
         seed,
-        sampler: SamplerSettings { max_trials },
+        sampler,
         ..SdpSettings::default()
     };
     let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings) {
@@ -168,12 +176,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
     let (mut region_count, mut region_acceptance_rate, mut region_error, mut margins) =
         (0, None, None, None);
     if region_samples > 0 {
-        match sample_cross_covariances(
-            &problem,
-            region_samples,
-            region_seed(seed),
-            SamplerSettings { max_trials },
-        ) {
+        match sample_cross_covariances(&problem, region_samples, region_seed(seed), sampler) {
             Ok(drawn) => {
                 region.reserve(drawn.len() * n * n);
                 for P_ab in &drawn.cross {

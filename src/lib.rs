@@ -57,7 +57,8 @@ pub use fusion::ci::{
 pub use fusion::known::{known_correlation_fusion, naive_fusion};
 pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::sample::{
-    sample_cross_covariances, sample_cross_covariances_with, CrossSamples, SamplerSettings,
+    sample_cross_covariances, sample_cross_covariances_with, CrossSamples, SamplerKind,
+    SamplerSettings,
 };
 pub use fusion::sdp::{
     optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings, SdpStatus,

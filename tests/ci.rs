@@ -151,15 +151,8 @@ fn ci_is_conservative_for_sampled_admissible_cross_covariances() {
     for (n, pattern_p) in [(2usize, 1.0), (3, 0.6), (3, 1.0), (4, 0.3)] {
         let pattern = random_pattern(n, pattern_p, &mut r);
         let p = random_problem(n, pattern, &mut r);
-        let samples = sample_cross_covariances(
-            &p,
-            1000,
-            17,
-            SamplerSettings {
-                max_trials: 50_000_000,
-            },
-        )
-        .unwrap();
+        let samples =
+            sample_cross_covariances(&p, 1000, 17, SamplerSettings::rejection(50_000_000)).unwrap();
         assert_eq!(samples.len(), 1000);
         for criterion in [Criterion::Trace, Criterion::Logdet] {
             let ci = covariance_intersection(&p, criterion).unwrap();

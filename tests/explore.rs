@@ -13,15 +13,8 @@ fn known_correlation_fusion_is_the_blue() {
     let mut r = rng(12);
     for n in [2, 3, 5] {
         let p = random_problem(n, random_pattern(n, 0.5, &mut r), &mut r);
-        let s = sample_cross_covariances(
-            &p,
-            20,
-            2,
-            SamplerSettings {
-                max_trials: 10_000_000,
-            },
-        )
-        .unwrap();
+        let s =
+            sample_cross_covariances(&p, 20, 2, SamplerSettings::rejection(10_000_000)).unwrap();
         let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
         for P_ab in &s.cross {
             let best = known_correlation_fusion(&p, P_ab);

@@ -118,15 +118,9 @@ fn nmci_is_conservative_for_sampled_admissible_cross_covariances() {
             let pattern = random_pattern(n, prob, &mut r);
             let p = random_problem(n, pattern, &mut r);
             let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap();
-            let samples = sample_cross_covariances(
-                &p,
-                1000,
-                9,
-                SamplerSettings {
-                    max_trials: 50_000_000,
-                },
-            )
-            .unwrap();
+            let samples =
+                sample_cross_covariances(&p, 1000, 9, SamplerSettings::rejection(50_000_000))
+                    .unwrap();
             let m = worst_margin(&p, &nm.fused, &samples.cross);
             assert!(m >= -1e-10, "nmCI not conservative: {m}");
         }

@@ -41,7 +41,7 @@ proptest! {
                 return Ok(());
             }
         };
-        let samples = match sample_cross_covariances(&p, 200, seed, SamplerSettings { max_trials: 200_000 }) {
+        let samples = match sample_cross_covariances(&p, 200, seed, SamplerSettings::rejection(200_000)) {
             Ok(s) => s,
             Err(SampleError::BudgetExhausted { .. }) => return Ok(()),
             Err(e) => return Err(TestCaseError::fail(e.to_string())),
@@ -72,6 +72,7 @@ proptest! {
             pa: rows(&raw_a), pb: rows(&raw_b), xa: None, xb: None, pab_unknown: None,
             method: if method == "ci" { Method::Ci } else { Method::Nmci },
             criterion: None, samples: None, seed: None, max_trials: None,
+            sampler: None,
         };
         // Either a result or a typed error; never a panic.
         match fuse(&req) {

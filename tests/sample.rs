@@ -66,8 +66,7 @@ fn acceptance_collapses_with_dimension_and_the_budget_stops_it() {
     let s = sample_cross_covariances(&p, 20, 1, SamplerSettings::default()).unwrap();
     let rate = s.acceptance_rate();
     assert!(rate > 1e-4 && rate < 2e-3, "acceptance {rate}");
-    let err =
-        sample_cross_covariances(&p, 20, 1, SamplerSettings { max_trials: 1000 }).unwrap_err();
+    let err = sample_cross_covariances(&p, 20, 1, SamplerSettings::rejection(1000)).unwrap_err();
     match &err {
         SampleError::BudgetExhausted {
             requested, trials, ..
@@ -78,7 +77,7 @@ fn acceptance_collapses_with_dimension_and_the_budget_stops_it() {
     }
     assert!(err.to_string().contains("raise max_trials"));
     assert!(matches!(
-        sample_cross_covariances(&p, 1, 1, SamplerSettings { max_trials: 0 }),
+        sample_cross_covariances(&p, 1, 1, SamplerSettings::rejection(0)),
         Err(SampleError::InvalidSettings(_))
     ));
 }
@@ -92,5 +91,118 @@ fn independent_estimates_give_zero_cross_terms() {
     )
     .unwrap();
     let s = sample_cross_covariances(&p, 5, 0, SamplerSettings::default()).unwrap();
+    assert!(s.cross.iter().all(|c| c.iter().all(|v| *v == 0.0)));
+}
+
+/// Correlation of a cross-covariance sample: `C_ij = P_ab[i,j] / √(P_a[i,i] P_b[j,j])`.
+fn correlation(p: &FusionProblem, s: &nalgebra::DMatrix<f64>, i: usize, j: usize) -> f64 {
+    s[(i, j)] / (p.P_a[(i, i)] * p.P_b[(j, j)]).sqrt()
+}
+
+fn admissible(p: &FusionProblem, s: &nalgebra::DMatrix<f64>) -> bool {
+    let n = p.dim();
+    let zeros =
+        (0..n).all(|i| (0..n).all(|j| p.cross_pattern.is_unknown(i, j) || s[(i, j)] == 0.0));
+    zeros && nalgebra::Cholesky::new(p.joint_covariance(s)).is_some()
+}
+
+#[test]
+fn hit_and_run_samples_are_admissible_at_n_14_where_rejection_gets_none() {
+    let mut r = rng(14);
+    let p = random_problem(14, CrossPattern::fully_unknown(14), &mut r);
+    let rejection = sample_cross_covariances(&p, 1, 1, SamplerSettings::rejection(200_000));
+    assert!(matches!(
+        rejection,
+        Err(SampleError::BudgetExhausted { accepted: 0, .. })
+    ));
+    let s = sample_cross_covariances(&p, 300, 1, SamplerSettings::hit_and_run()).unwrap();
+    assert_eq!(s.len(), 300);
+    assert!(s.cross.iter().all(|c| admissible(&p, c)));
+    // Steps = (burn-in + samples) sweeps over the 196 free entries.
+    assert_eq!(s.trials, (50 + 300) * 196);
+    // Not stuck near the start: the correlations spread over the set.
+    let spread = s
+        .cross
+        .iter()
+        .map(|c| correlation(&p, c, 3, 5))
+        .fold(0.0_f64, |m, v| m.max(v.abs()));
+    assert!(spread > 0.05, "max |C_35| = {spread}");
+    // Patterns with known zeros: zeros respected, every sample admissible.
+    for prob in [0.2, 0.5] {
+        let p = random_problem(8, random_pattern(8, prob, &mut r), &mut r);
+        let s = sample_cross_covariances(&p, 100, 2, SamplerSettings::hit_and_run()).unwrap();
+        assert!(s.cross.iter().all(|c| admissible(&p, c)));
+    }
+}
+
+#[test]
+fn hit_and_run_and_rejection_cover_the_same_set_in_2d() {
+    let mut r = rng(2);
+    let p = random_problem(2, CrossPattern::fully_unknown(2), &mut r);
+    let count = 20_000;
+    let rejection = sample_cross_covariances(&p, count, 5, SamplerSettings::default()).unwrap();
+    let chain = sample_cross_covariances(
+        &p,
+        count,
+        5,
+        SamplerSettings {
+            sweeps_per_sample: 2,
+            ..SamplerSettings::hit_and_run()
+        },
+    )
+    .unwrap();
+    // Histograms of each correlation entry over 10 bins of [−1, 1]: the same law.
+    for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+        let histogram = |s: &CrossSamples| {
+            let mut h = [0.0; 10];
+            for c in &s.cross {
+                let v = correlation(&p, c, i, j);
+                h[(((v + 1.0) / 0.2) as usize).min(9)] += 1.0 / count as f64;
+            }
+            h
+        };
+        let (a, b) = (histogram(&rejection), histogram(&chain));
+        for k in 0..10 {
+            assert!(
+                (a[k] - b[k]).abs() < 0.015,
+                "C_{i}{j} bin {k}: rejection {:.4} vs hit-and-run {:.4}",
+                a[k],
+                b[k]
+            );
+        }
+    }
+    // And a joint feature: how often two correlations share a sign.
+    let same_sign = |s: &CrossSamples| {
+        s.cross
+            .iter()
+            .filter(|c| correlation(&p, c, 0, 0) * correlation(&p, c, 1, 1) > 0.0)
+            .count() as f64
+            / count as f64
+    };
+    assert!((same_sign(&rejection) - same_sign(&chain)).abs() < 0.02);
+}
+
+#[test]
+fn hit_and_run_is_reproducible_and_validated() {
+    let mut r = rng(3);
+    let p = random_problem(4, CrossPattern::fully_unknown(4), &mut r);
+    let a = sample_cross_covariances(&p, 20, 9, SamplerSettings::hit_and_run()).unwrap();
+    let b = sample_cross_covariances(&p, 20, 9, SamplerSettings::hit_and_run()).unwrap();
+    let c = sample_cross_covariances(&p, 20, 10, SamplerSettings::hit_and_run()).unwrap();
+    assert_eq!(a, b);
+    assert_ne!(a.cross, c.cross);
+    let bad = SamplerSettings {
+        sweeps_per_sample: 0,
+        ..SamplerSettings::hit_and_run()
+    };
+    assert_eq!(
+        sample_cross_covariances(&p, 1, 1, bad)
+            .unwrap_err()
+            .to_string(),
+        "invalid sampler setting: sweeps_per_sample must be at least 1"
+    );
+    // No free entry: the admissible set is P_ab = 0.
+    let none = random_problem(3, CrossPattern::independent(3), &mut r);
+    let s = sample_cross_covariances(&none, 4, 1, SamplerSettings::hit_and_run()).unwrap();
     assert!(s.cross.iter().all(|c| c.iter().all(|v| *v == 0.0)));
 }

@@ -68,15 +68,8 @@ fn working_set_equals_the_full_program() {
     let mut r = rng(7);
     for (n, prob) in [(2usize, 1.0), (3, 0.5)] {
         let p = random_problem(n, random_pattern(n, prob, &mut r), &mut r);
-        let samples = sample_cross_covariances(
-            &p,
-            150,
-            1,
-            SamplerSettings {
-                max_trials: 50_000_000,
-            },
-        )
-        .unwrap();
+        let samples =
+            sample_cross_covariances(&p, 150, 1, SamplerSettings::rejection(50_000_000)).unwrap();
         let ws = optimal_fusion_for_samples(&p, &samples, &SdpSettings::default()).unwrap();
         let full = optimal_fusion_for_samples(
             &p,
@@ -193,15 +186,8 @@ fn splitting_into_independent_blocks_is_exact() {
     });
     let p = FusionProblem::from_covariances(P_a, P_b, CrossPattern::from_matrix(unknown).unwrap())
         .unwrap();
-    let samples = sample_cross_covariances(
-        &p,
-        120,
-        6,
-        SamplerSettings {
-            max_trials: 50_000_000,
-        },
-    )
-    .unwrap();
+    let samples =
+        sample_cross_covariances(&p, 120, 6, SamplerSettings::rejection(50_000_000)).unwrap();
     let split = optimal_fusion_for_samples(&p, &samples, &SdpSettings::default()).unwrap();
     let whole = optimal_fusion_for_samples(
         &p,
@@ -288,6 +274,7 @@ fn certified_gap_brackets_the_robust_optimum() {
             samples: Some(100),
             seed: Some(1),
             max_trials: None,
+            sampler: None,
         };
         let r = fuse(&req).unwrap();
         let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());

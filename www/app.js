@@ -36,7 +36,7 @@ let queued = null;
 function request(s) {
   return {
     pa: s.pa, pb: s.pb, pab_unknown: s.pattern, criterion: s.criterion,
-    samples: s.samples, seed: s.seed, region_samples: s.region,
+    samples: s.samples, seed: s.seed, region_samples: s.region, sampler: s.sampler,
   };
 }
 
@@ -231,6 +231,7 @@ function syncControls() {
   $("preset").value = PRESETS.includes(state.preset) ? state.preset : "custom";
   $("dim").value = state.n;
   $("criterion").value = state.criterion;
+  $("sampler").value = state.sampler;
   $("samples").value = state.samples;
   $("seed").value = state.seed;
   $("region").value = state.region;
@@ -425,7 +426,7 @@ function renderNumbers() {
   const parts = [];
   parts.push(`<div id="blocks"><span class="k">nmCI blocks (${a.nmci.blocks.length}):</span> ${blocks}</div>`);
   if (a.sdp) {
-    parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${a.sdp.status}</b>, ${a.sdp.iterations} iterations, ${a.sdp.lmis} LMIs in the final working set of ${a.sdp.samples} samples, sampler acceptance ${(a.sdp.acceptance_rate * 100).toPrecision(3)} %</div>`);
+    parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${a.sdp.status}</b>, ${a.sdp.iterations} iterations, ${a.sdp.lmis} LMIs in the final working set of ${a.sdp.samples} samples, ${state.sampler === "hit_and_run" ? "hit-and-run sampler (no rejections)" : `sampler acceptance ${(a.sdp.acceptance_rate * 100).toPrecision(3)} %`}</div>`);
   }
   if (a.gap) {
     parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(certified: SDP dual objective below, ${a.gap.upper_rule === "nmci" ? "nmCI" : "CI"} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative</span></div>`);
@@ -433,7 +434,7 @@ function renderNumbers() {
   if (a.region_error) {
     parts.push(`<div class="err" id="region-status">region: ${a.region_error}</div>`);
   } else if (a.region_count) {
-    parts.push(`<div id="region-status"><span class="k">region and worst λ<sub>min</sub>:</span> ${a.region_count} admissible P<sub>ab</sub> drawn (acceptance ${(a.region_acceptance_rate * 100).toPrecision(3)} %), independent of the SDP's samples</div>`);
+    parts.push(`<div id="region-status"><span class="k">region and worst λ<sub>min</sub>:</span> ${a.region_count} admissible P<sub>ab</sub> drawn (${state.sampler === "hit_and_run" ? "hit-and-run" : `acceptance ${(a.region_acceptance_rate * 100).toPrecision(3)} %`}), independent of the SDP's samples</div>`);
   }
   d.innerHTML = parts.join("");
 }
@@ -477,6 +478,10 @@ function init() {
   $("dim").addEventListener("change", (e) => load(resize(state, Number(e.target.value))));
   $("criterion").addEventListener("change", (e) => {
     state.criterion = e.target.value;
+    changed();
+  });
+  $("sampler").addEventListener("change", (e) => {
+    state.sampler = e.target.value;
     changed();
   });
   settingInput("samples", "samples", 1, 5000);

@@ -43,7 +43,7 @@ function components(n, linked) {
 }
 
 export function preset(name) {
-  const base = { samples: 200, seed: 0, region: 300, criterion: "trace", view: [0, 1], layers: Object.fromEntries(LAYERS.map((l) => [l, true])), preset: name };
+  const base = { samples: 200, seed: 0, region: 300, criterion: "trace", sampler: "rejection", view: [0, 1], layers: Object.fromEntries(LAYERS.map((l) => [l, true])), preset: name };
   switch (name) {
     case "paper":
       return { ...base, n: 2, pa: diag([3, 1]), pb: diag([1, 4]), pattern: [[true, false], [false, true]] };
@@ -78,7 +78,7 @@ export function encodeHash(state) {
     n: state.n, pa: state.pa, pb: state.pb,
     pattern: state.pattern.map((r) => r.map((b) => (b ? 1 : 0)).join("")),
     samples: state.samples, seed: state.seed, region: state.region, criterion: state.criterion,
-    view: state.view, layers: LAYERS.filter((l) => state.layers[l]), preset: state.preset,
+    sampler: state.sampler, view: state.view, layers: LAYERS.filter((l) => state.layers[l]), preset: state.preset,
   };
   return "#" + encodeURIComponent(JSON.stringify(compact));
 }
@@ -107,6 +107,7 @@ export function decodeHash(hash) {
       pattern: c.pattern.map((r) => [...r].map((ch) => ch === "1")),
       samples: int(c.samples, 200, 1, 5000), seed: int(c.seed, 0, 0, Number.MAX_SAFE_INTEGER), region: int(c.region, 300, 0, 5000),
       criterion: c.criterion === "logdet" ? "logdet" : "trace", view,
+      sampler: c.sampler === "hit_and_run" ? "hit_and_run" : "rejection",
       layers: Array.isArray(c.layers) ? Object.fromEntries(LAYERS.map((l) => [l, c.layers.includes(l)])) : base.layers,
       preset: typeof c.preset === "string" ? c.preset : "custom",
     },

@@ -10,36 +10,92 @@
 //! has positive density. Acceptance collapses with the number of free entries (≈ 4·10⁻⁴ at
 //! `n = 4` with a fully unknown `P_ab`), so the sampler stops with a clear error after a trial
 //! budget instead of looping forever.
+//!
+//! [`SamplerKind::HitAndRun`] targets the same distribution — uniform on the admissible set in
+//! the correlation coordinates `C` — without rejections, for any dimension: a coordinate
+//! hit-and-run (Gibbs) chain. From an admissible `C` (the chain starts at `C = 0`), each step
+//! picks the next free entry `(i, j)` and moves it to a uniform point of the chord of the
+//! admissible set through `C` along that entry. With the joint correlation matrix `J ≻ 0`,
+//! `J + t (e_i e_{n+j}ᵀ + e_{n+j} e_iᵀ) ≻ 0` exactly for `t ∈ (−1/λ₊, −1/λ₋)`, where
+//! `λ± = G_{i,n+j} ± √(G_ii G_{n+j,n+j})` and `G = J⁻¹` (the rank-two update has these two
+//! non-zero eigenvalues relative to `J`), so every step is O(n²) with `J⁻¹` kept by the
+//! Woodbury identity and refreshed from a Cholesky factorization after every sweep over the
+//! free entries. The uniform distribution on an open convex set is the chain's stationary
+//! law and every admissible `C` is reachable, so the support is the whole admissible set;
+//! samples are taken every `sweeps_per_sample` sweeps after `burn_in_sweeps`.
 
 use nalgebra::{DMatrix, DVector};
 use rand::Rng;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use serde::{Deserialize, Serialize};
+
 use super::FusionProblem;
 use crate::error::SampleError;
 
-/// Settings of the rejection sampler.
+/// Which sampler draws the admissible cross-covariances.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SamplerKind {
+    /// The paper's rejection sampler (independent samples; dies with dimension).
+    #[default]
+    Rejection,
+    /// Coordinate hit-and-run on the admissible set (no rejections; correlated samples).
+    HitAndRun,
+}
+
+/// Settings of the samplers.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SamplerSettings {
-    /// Total proposals allowed before giving up (default `2·10⁶`).
+    /// Which sampler (default: the paper's rejection sampler).
+    pub kind: SamplerKind,
+    /// Rejection: total proposals allowed before giving up (default `2·10⁶`).
     pub max_trials: u64,
+    /// Hit-and-run: sweeps over the free entries between two samples (default 1).
+    pub sweeps_per_sample: usize,
+    /// Hit-and-run: sweeps discarded before the first sample (default 50).
+    pub burn_in_sweeps: usize,
 }
 
 impl Default for SamplerSettings {
     fn default() -> Self {
         Self {
+            kind: SamplerKind::Rejection,
             max_trials: 2_000_000,
+            sweeps_per_sample: 1,
+            burn_in_sweeps: 50,
         }
     }
 }
 
 impl SamplerSettings {
+    /// The default rejection sampler with a trial budget.
+    pub fn rejection(max_trials: u64) -> Self {
+        Self {
+            max_trials,
+            ..Self::default()
+        }
+    }
+
+    /// The default hit-and-run sampler.
+    pub fn hit_and_run() -> Self {
+        Self {
+            kind: SamplerKind::HitAndRun,
+            ..Self::default()
+        }
+    }
+
     /// Checks the settings.
     pub fn validate(&self) -> Result<(), SampleError> {
         if self.max_trials == 0 {
             return Err(SampleError::InvalidSettings(
                 "max_trials must be at least 1".into(),
+            ));
+        }
+        if self.sweeps_per_sample == 0 {
+            return Err(SampleError::InvalidSettings(
+                "sweeps_per_sample must be at least 1".into(),
             ));
         }
         Ok(())
@@ -52,12 +108,14 @@ impl SamplerSettings {
 pub struct CrossSamples {
     /// The accepted cross-covariances `P_ab'` (each `n × n`).
     pub cross: Vec<DMatrix<f64>>,
-    /// Proposals drawn to get them.
+    /// Rejection: proposals drawn to get them. Hit-and-run: chain steps (burn-in included;
+    /// every step is accepted).
     pub trials: u64,
 }
 
 impl CrossSamples {
-    /// Accepted / proposed.
+    /// Samples / trials: the rejection sampler's acceptance rate, or the hit-and-run chain's
+    /// samples per step.
     pub fn acceptance_rate(&self) -> f64 {
         if self.trials == 0 {
             1.0
@@ -108,6 +166,9 @@ pub fn sample_cross_covariances_with<R: Rng>(
     settings: SamplerSettings,
 ) -> Result<CrossSamples, SampleError> {
     settings.validate()?;
+    if settings.kind == SamplerKind::HitAndRun {
+        return hit_and_run(problem, count, rng, settings);
+    }
     let n = problem.dim();
     let d_a = DVector::from_iterator(n, problem.P_a.diagonal().iter().map(|v| v.sqrt()));
     let d_b = DVector::from_iterator(n, problem.P_b.diagonal().iter().map(|v| v.sqrt()));
@@ -142,6 +203,114 @@ pub fn sample_cross_covariances_with<R: Rng>(
         if nalgebra::Cholesky::new(joint.clone()).is_some() {
             let P_ab = DMatrix::from_fn(n, n, |i, j| joint[(i, n + j)] * d_a[i] * d_b[j]);
             cross.push(P_ab);
+        }
+    }
+    Ok(CrossSamples { cross, trials })
+}
+
+/// The joint correlation matrix `[[R_a, 0], [0, R_b]]`, the scales `D_a`, `D_b` and the free
+/// entries `(i, j)` of `C`.
+#[allow(clippy::type_complexity)]
+fn correlation_frame(
+    problem: &FusionProblem,
+) -> (
+    DMatrix<f64>,
+    DVector<f64>,
+    DVector<f64>,
+    Vec<(usize, usize)>,
+) {
+    let n = problem.dim();
+    let d_a = DVector::from_iterator(n, problem.P_a.diagonal().iter().map(|v| v.sqrt()));
+    let d_b = DVector::from_iterator(n, problem.P_b.diagonal().iter().map(|v| v.sqrt()));
+    let mut joint = DMatrix::<f64>::zeros(2 * n, 2 * n);
+    for i in 0..n {
+        for j in 0..n {
+            joint[(i, j)] = problem.P_a[(i, j)] / (d_a[i] * d_a[j]);
+            joint[(n + i, n + j)] = problem.P_b[(i, j)] / (d_b[i] * d_b[j]);
+        }
+    }
+    let free = (0..n)
+        .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .filter(|&(i, j)| problem.cross_pattern.is_unknown(i, j))
+        .collect();
+    (joint, d_a, d_b, free)
+}
+
+/// `J⁻¹` of a positive definite joint correlation matrix.
+fn inverse(joint: &DMatrix<f64>) -> Result<DMatrix<f64>, SampleError> {
+    nalgebra::Cholesky::new(joint.clone())
+        .map(|c| c.inverse())
+        .ok_or_else(|| {
+            SampleError::NumericalBreakdown(
+                "the hit-and-run chain left the positive definite set (rounding at the boundary)"
+                    .into(),
+            )
+        })
+}
+
+/// Coordinate hit-and-run on the admissible correlation cross terms (see the module docs).
+#[allow(non_snake_case)]
+fn hit_and_run<R: Rng>(
+    problem: &FusionProblem,
+    count: usize,
+    rng: &mut R,
+    settings: SamplerSettings,
+) -> Result<CrossSamples, SampleError> {
+    let n = problem.dim();
+    let (mut J, d_a, d_b, free) = correlation_frame(problem);
+    let sample = |J: &DMatrix<f64>| DMatrix::from_fn(n, n, |i, j| J[(i, n + j)] * d_a[i] * d_b[j]);
+    if free.is_empty() {
+        // The admissible set is the single point P_ab = 0.
+        return Ok(CrossSamples {
+            cross: vec![DMatrix::zeros(n, n); count],
+            trials: 0,
+        });
+    }
+    let mut G = inverse(&J)?;
+    let mut cross = Vec::with_capacity(count);
+    let mut trials = 0_u64;
+    let mut sweep = 0_usize;
+    let m = 2 * n;
+    while cross.len() < count {
+        for &(i, j) in &free {
+            let (p, q) = (i, n + j);
+            let (g_pp, g_qq, g_pq) = (G[(p, p)], G[(q, q)], G[(p, q)]);
+            let root = (g_pp * g_qq).sqrt();
+            // Chord: 1 + t λ > 0 for λ± = g_pq ± √(g_pp g_qq) (λ₊ > 0 > λ₋).
+            let (lo, hi) = (-1.0 / (g_pq + root), -1.0 / (g_pq - root));
+            trials += 1;
+            if !(lo < 0.0 && hi > 0.0 && lo.is_finite() && hi.is_finite()) {
+                return Err(SampleError::NumericalBreakdown(format!(
+                    "degenerate chord ({lo}, {hi}) for entry ({i}, {j})"
+                )));
+            }
+            let t: f64 = rng.random_range(lo..hi);
+            if t == lo || t == 0.0 {
+                continue; // measure zero: stay (the chord endpoint itself is not admissible)
+            }
+            J[(p, q)] += t;
+            J[(q, p)] += t;
+            // Woodbury: (J + U T Uᵀ)⁻¹ = G − G U (T⁻¹ + Uᵀ G U)⁻¹ Uᵀ G with U = [e_p e_q],
+            // T = t [[0, 1], [1, 0]], T⁻¹ = [[0, 1], [1, 0]] / t.
+            let (a, b, d) = (g_pp, g_pq + 1.0 / t, g_qq);
+            let det = a * d - b * b;
+            let (s11, s12, s22) = (d / det, -b / det, a / det); // (T⁻¹ + UᵀGU)⁻¹
+            let gp: Vec<f64> = (0..m).map(|k| G[(k, p)]).collect();
+            let gq: Vec<f64> = (0..m).map(|k| G[(k, q)]).collect();
+            for c in 0..m {
+                let (wp, wq) = (s11 * gp[c] + s12 * gq[c], s12 * gp[c] + s22 * gq[c]);
+                for r in 0..m {
+                    G[(r, c)] -= gp[r] * wp + gq[r] * wq;
+                }
+            }
+        }
+        // Refresh J⁻¹ exactly once per sweep (no drift of the rank-two updates).
+        G = inverse(&J)?;
+        sweep += 1;
+        if sweep > settings.burn_in_sweeps
+            && (sweep - settings.burn_in_sweeps) % settings.sweeps_per_sample == 0
+        {
+            cross.push(sample(&J));
         }
     }
     Ok(CrossSamples { cross, trials })

@@ -105,6 +105,24 @@ test("toggling a pattern cell changes the detected blocks", async () => {
   await page.screenshot({ path: join(out, "explorer-not-separable.png"), fullPage: true });
 });
 
+test("a fully unknown 4-D P_ab defeats the rejection sampler; hit-and-run gives the SDP and its certified gap", async () => {
+  await page.selectOption("#preset", "twoblock");
+  await settle();
+  await page.click('button[data-pattern="full"]');
+  await settle();
+  assert.match(await text("#row-sdp"), /not available: the rejection sampler accepted only \d+ of 200/);
+  await page.selectOption("#sampler", "hit_and_run");
+  await settle();
+  assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved).*hit-and-run sampler/);
+  assert.match(await text("#gap"), /certified: SDP dual objective below, (nmCI|CI) above/);
+  assert.match(await text("#region-status"), /300 admissible P\s*ab drawn \(hit-and-run\)/);
+  // The sampler is part of the shareable state.
+  assert.match(decodeURIComponent(await page.evaluate(() => location.hash)), /"sampler":"hit_and_run"/);
+  await page.screenshot({ path: join(out, "explorer-hit-and-run.png"), fullPage: true });
+  await page.selectOption("#sampler", "rejection");
+  await settle();
+});
+
 test("a URL hash restores the whole state", async () => {
   await page.selectOption("#preset", "twoblock");
   await settle();
