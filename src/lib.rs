@@ -40,6 +40,7 @@
 mod api;
 mod error;
 mod explore;
+mod fig2;
 mod fusion;
 mod linalg;
 pub mod sim;
@@ -50,6 +51,7 @@ pub mod wasm;
 pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method};
 pub use error::{InputError, RequestError, SampleError, SolveError};
 pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
+pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
 pub use fusion::check::{conservativeness_margin, fused_error_covariance, worst_margin};
 pub use fusion::ci::{
     ci_covariance, covariance_intersection, covariance_intersection_blocks, CiResult,

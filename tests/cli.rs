@@ -170,3 +170,28 @@ fn track_rejects_bad_configurations() {
     assert!(err.contains("agent 1 has no link to agent 11"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn fig2_writes_the_csv_and_the_figure_and_rejects_bad_sizes() {
+    let out = std::env::temp_dir().join(format!("nmci-fig2-{}", std::process::id()));
+    let dir = out.to_str().unwrap();
+    let (code, stdout, stderr) = nmci(
+        &["fig2", "--runs", "4", "--sizes", "1,10", "--out", dir],
+        "",
+    );
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("4 runs × 2 sizes"), "{stdout}");
+    let csv = std::fs::read_to_string(out.join("fig2.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 3);
+    assert!(csv.lines().nth(1).unwrap().starts_with("1,"));
+    let svg = std::fs::read_to_string(out.join("fig2.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("samples N"));
+    std::fs::remove_dir_all(&out).ok();
+    let (code, _, stderr) = nmci(&["fig2", "--runs", "2", "--sizes", "0", "--out", dir], "");
+    assert_eq!(code, 1);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("nmci: invalid request: fig2 needs"),
+        "{stderr}"
+    );
+}

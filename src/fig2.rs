@@ -1,0 +1,208 @@
+//! The paper's fig. 2 study: how the sampled-SDP bound approaches nmCI on the 2-D example as
+//! the sample set grows, and when it is non-conservative.
+//!
+//! `P_a = diag(3, 1)`, `P_b = diag(1, 4)`, diagonal `P_ab`. For each run, a "true" `P_ab` is
+//! drawn with the sampler; for each sample-set size `N`, a sample set is drawn and the sampled
+//! SDP (paper eq. (sampled_sdp), solved exactly with the working set) gives `P_opt`, `K_opt`.
+//! Recorded: `‖P_nmCI − P_opt‖₂`, and for each rule `λ_min(P − K P_true Kᵀ)` (negative =
+//! not conservative for the true cross-covariance). Runs are independent (run `r` uses seeds
+//! derived from `(seed, r)`), so any subset of runs can be computed anywhere, in any order.
+
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use serde::{Deserialize, Serialize};
+
+use crate::error::RequestError;
+use crate::fusion::check::conservativeness_margin;
+use crate::fusion::nmci::non_monolithic_ci;
+use crate::fusion::sample::{sample_cross_covariances, SamplerSettings};
+use crate::fusion::sdp::{optimal_fusion_for_samples, SdpSettings};
+use crate::fusion::{Criterion, FusionProblem};
+use crate::structure::CrossPattern;
+
+/// The study's settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fig2Config {
+    /// Monte Carlo runs (default 1000).
+    pub runs: usize,
+    /// Sample-set sizes (default 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000).
+    pub sizes: Vec<usize>,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for Fig2Config {
+    fn default() -> Self {
+        Self {
+            runs: 1000,
+            sizes: vec![1, 2, 5, 10, 20, 50, 100, 200, 500, 1000],
+            seed: 0,
+        }
+    }
+}
+
+impl Fig2Config {
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), RequestError> {
+        if self.runs == 0 || self.sizes.is_empty() || self.sizes.contains(&0) {
+            return Err(RequestError::Invalid(
+                "fig2 needs at least one run and sample-set sizes of at least 1".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One run at one sample-set size: `None` fields when the SDP failed (counted, not dropped).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fig2Record {
+    /// Sample-set size `N`.
+    pub samples: usize,
+    /// `‖P_nmCI − P_opt‖₂` (spectral norm).
+    pub deviation: Option<f64>,
+    /// `λ_min(P_nmCI − K_nmCI P_true K_nmCIᵀ)`.
+    pub eig_nmci: f64,
+    /// `λ_min(P_opt − K_opt P_true K_optᵀ)`.
+    pub eig_opt: Option<f64>,
+    /// The solver's message when the SDP failed.
+    pub failure: Option<String>,
+}
+
+/// The paper's example.
+pub fn fig2_problem() -> FusionProblem {
+    let d = |v: [f64; 2]| DMatrix::from_diagonal(&DVector::from_row_slice(&v));
+    FusionProblem::new_trusted(
+        DVector::zeros(2),
+        d([3.0, 1.0]),
+        DVector::zeros(2),
+        d([1.0, 4.0]),
+        CrossPattern::diagonal(2),
+    )
+}
+
+/// Seeds of run `r`: one for the true `P_ab`, one per size for the sample set.
+fn run_seed(seed: u64, run: usize, slot: usize) -> u64 {
+    // SplitMix64 of (seed, run, slot): independent, reproducible streams.
+    let mut z = seed
+        .wrapping_add((run as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+        .wrapping_add((slot as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Run `run` of the study: one record per size.
+#[allow(non_snake_case)]
+pub fn fig2_run(config: &Fig2Config, run: usize) -> Result<Vec<Fig2Record>, RequestError> {
+    config.validate()?;
+    let problem = fig2_problem();
+    let sampler = SamplerSettings::default();
+    let truth = sample_cross_covariances(&problem, 1, run_seed(config.seed, run, 0), sampler)?;
+    let P_true = &truth.cross[0];
+    let nm = non_monolithic_ci(&problem, Criterion::Trace)?;
+    let eig_nmci = conservativeness_margin(&problem, &nm.fused, P_true);
+    let mut records = Vec::with_capacity(config.sizes.len());
+    for (k, &samples) in config.sizes.iter().enumerate() {
+        let set = sample_cross_covariances(
+            &problem,
+            samples,
+            run_seed(config.seed, run, k + 1),
+            sampler,
+        )?;
+        let settings = SdpSettings {
+            samples,
+            ..SdpSettings::default()
+        };
+        let record = match optimal_fusion_for_samples(&problem, &set, &settings) {
+            Ok(opt) => Fig2Record {
+                samples,
+                deviation: Some(spectral_norm(&(&nm.fused.P - &opt.fused.P))),
+                eig_nmci,
+                eig_opt: Some(conservativeness_margin(&problem, &opt.fused, P_true)),
+                failure: None,
+            },
+            Err(e) => Fig2Record {
+                samples,
+                deviation: None,
+                eig_nmci,
+                eig_opt: None,
+                failure: Some(e.to_string()),
+            },
+        };
+        records.push(record);
+    }
+    Ok(records)
+}
+
+/// `‖A‖₂` of a symmetric matrix (largest absolute eigenvalue).
+fn spectral_norm(a: &DMatrix<f64>) -> f64 {
+    let sym = (a + a.transpose()) * 0.5;
+    SymmetricEigen::new(sym).eigenvalues.amax()
+}
+
+/// One row of `fig2.csv`: the distribution over runs at one sample-set size.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fig2Row {
+    /// Sample-set size `N`.
+    pub samples: usize,
+    /// Median, minimum and maximum of `‖P_nmCI − P_opt‖₂` over the runs that solved.
+    pub dev: [f64; 3],
+    /// The same for `λ_min(P_nmCI − K P_true Kᵀ)`.
+    pub eig_nmci: [f64; 3],
+    /// The same for `λ_min(P_opt − K P_true Kᵀ)`.
+    pub eig_opt: [f64; 3],
+    /// Runs whose SDP failed.
+    pub failures: usize,
+}
+
+/// Median, minimum, maximum (NaN for no values).
+fn median_min_max(mut v: Vec<f64>) -> [f64; 3] {
+    if v.is_empty() {
+        return [f64::NAN; 3];
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len();
+    let median = if m % 2 == 1 {
+        v[m / 2]
+    } else {
+        0.5 * (v[m / 2 - 1] + v[m / 2])
+    };
+    [median, v[0], v[m - 1]]
+}
+
+/// Aggregates runs (each the records of [`fig2_run`]) into one row per size.
+pub fn fig2_summary(config: &Fig2Config, runs: &[Vec<Fig2Record>]) -> Vec<Fig2Row> {
+    config
+        .sizes
+        .iter()
+        .enumerate()
+        .map(|(k, &samples)| {
+            let at: Vec<&Fig2Record> = runs.iter().filter_map(|r| r.get(k)).collect();
+            Fig2Row {
+                samples,
+                dev: median_min_max(at.iter().filter_map(|r| r.deviation).collect()),
+                eig_nmci: median_min_max(at.iter().map(|r| r.eig_nmci).collect()),
+                eig_opt: median_min_max(at.iter().filter_map(|r| r.eig_opt).collect()),
+                failures: at.iter().filter(|r| r.failure.is_some()).count(),
+            }
+        })
+        .collect()
+}
+
+/// `fig2.csv`: `samples, dev_median, dev_min, dev_max, eig_nmci_median, …, failures`.
+pub fn fig2_csv(rows: &[Fig2Row]) -> String {
+    let mut csv = String::from(
+        "samples,dev_median,dev_min,dev_max,eig_nmci_median,eig_nmci_min,eig_nmci_max,eig_opt_median,eig_opt_min,eig_opt_max,failures\n",
+    );
+    for r in rows {
+        let f = |v: &[f64; 3]| format!("{:e},{:e},{:e}", v[0], v[1], v[2]);
+        csv += &format!(
+            "{},{},{},{},{}\n",
+            r.samples,
+            f(&r.dev),
+            f(&r.eig_nmci),
+            f(&r.eig_opt),
+            r.failures
+        );
+    }
+    csv
+}

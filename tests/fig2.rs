@@ -1,0 +1,63 @@
+//! The paper's fig. 2 study: the sampled SDP approaches nmCI's diag(1, 1) as the sample set
+//! grows, is non-conservative for tiny sets, and nmCI never is.
+#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
+
+use nmci::*;
+
+#[test]
+fn small_fig2_run_reproduces_the_papers_evidence() {
+    let config = Fig2Config {
+        runs: 30,
+        sizes: vec![1, 10, 100],
+        seed: 3,
+    };
+    let runs: Vec<Vec<Fig2Record>> = (0..config.runs)
+        .map(|r| fig2_run(&config, r).unwrap())
+        .collect();
+    let rows = fig2_summary(&config, &runs);
+    assert_eq!(
+        rows.iter().map(|r| r.samples).collect::<Vec<_>>(),
+        vec![1, 10, 100]
+    );
+    assert!(rows.iter().all(|r| r.failures == 0));
+    // N = 1: some run's SDP bound is not conservative for the true P_ab.
+    assert!(rows[0].eig_opt[1] < -1e-3, "{:?}", rows[0].eig_opt);
+    assert!(
+        rows[0].dev[0] > 1e-3,
+        "one sample cannot pin the bound down"
+    );
+    // N = 100: the bound is nmCI's to solver tolerance and conservative to −1e-6.
+    assert!(rows[2].dev[0] <= 1e-5, "{:?}", rows[2].dev);
+    assert!(rows[2].eig_opt[1] >= -1e-6, "{:?}", rows[2].eig_opt);
+    // nmCI is never non-conservative (here it is exactly tight: K P_true Kᵀ = diag(1, 1)).
+    assert!(rows.iter().all(|r| r.eig_nmci[1] >= -1e-12));
+    // Reproducible: the same run gives the same records.
+    assert_eq!(fig2_run(&config, 7).unwrap(), runs[7]);
+    // The CSV has the columns.
+    let csv = fig2_csv(&rows);
+    assert!(csv.starts_with(
+        "samples,dev_median,dev_min,dev_max,eig_nmci_median,eig_nmci_min,eig_nmci_max,eig_opt_median,eig_opt_min,eig_opt_max,failures\n"
+    ));
+    assert_eq!(csv.lines().count(), 4);
+}
+
+#[test]
+fn invalid_fig2_settings_are_rejected() {
+    for config in [
+        Fig2Config {
+            runs: 0,
+            ..Fig2Config::default()
+        },
+        Fig2Config {
+            sizes: vec![],
+            ..Fig2Config::default()
+        },
+        Fig2Config {
+            sizes: vec![5, 0],
+            ..Fig2Config::default()
+        },
+    ] {
+        let e = fig2_run(&config, 0).unwrap_err();
+        assert!(e.to_string().contains("fig2 needs at least one run"), "{e}");
+    }
+}
