@@ -170,19 +170,7 @@ pub fn sample_cross_covariances_with<R: Rng>(
         return hit_and_run(problem, count, rng, settings);
     }
     let n = problem.dim();
-    let d_a = DVector::from_iterator(n, problem.P_a.diagonal().iter().map(|v| v.sqrt()));
-    let d_b = DVector::from_iterator(n, problem.P_b.diagonal().iter().map(|v| v.sqrt()));
-    let mut joint = DMatrix::<f64>::zeros(2 * n, 2 * n);
-    for i in 0..n {
-        for j in 0..n {
-            joint[(i, j)] = problem.P_a[(i, j)] / (d_a[i] * d_a[j]);
-            joint[(n + i, n + j)] = problem.P_b[(i, j)] / (d_b[i] * d_b[j]);
-        }
-    }
-    let free: Vec<(usize, usize)> = (0..n)
-        .flat_map(|i| (0..n).map(move |j| (i, j)))
-        .filter(|&(i, j)| problem.cross_pattern.is_unknown(i, j))
-        .collect();
+    let (mut joint, d_a, d_b, free) = correlation_frame(problem);
     let mut cross = Vec::with_capacity(count);
     let mut trials = 0_u64;
     while cross.len() < count {
