@@ -56,6 +56,7 @@ pub use fusion::check::{conservativeness_margin, fused_error_covariance, worst_m
 pub use fusion::ci::{
     ci_covariance, covariance_intersection, covariance_intersection_blocks, CiResult,
 };
+pub use fusion::cuts::{optimal_fusion_cuts, CutsResult, CutsSettings};
 pub use fusion::known::{known_correlation_fusion, naive_fusion};
 pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::sample::{

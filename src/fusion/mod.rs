@@ -2,6 +2,7 @@
 
 pub(crate) mod check;
 pub(crate) mod ci;
+pub(crate) mod cuts;
 pub(crate) mod known;
 pub(crate) mod nmci;
 pub(crate) mod sample;

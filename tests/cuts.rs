@@ -1,0 +1,74 @@
+//! Cutting planes (`sdp_cuts`): the paper's example to diag(1, 1), and conservative on
+//! random non-separable cases against fresh samples, with few constraints.
+#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
+
+mod common;
+
+use common::*;
+use nmci::*;
+
+#[test]
+fn paper_example_reaches_diag_1_1_with_few_constraints() {
+    let cuts = optimal_fusion_cuts(&paper_example(), &CutsSettings::default()).unwrap();
+    assert!(cuts.converged, "violation {}", cuts.violation);
+    assert!(
+        (cuts.fused.trace() - 2.0).abs() < 1e-6,
+        "trace {}",
+        cuts.fused.trace()
+    );
+    assert!((&cuts.fused.P - diag(&[1.0, 1.0])).amax() < 1e-6);
+    assert!(cuts.constraints <= 20, "{} constraints", cuts.constraints);
+    assert!(cuts.dual_objective <= cuts.fused.trace() + 1e-7);
+}
+
+#[test]
+fn conservative_on_random_non_separable_cases_against_fresh_samples() {
+    let mut r = rng(55);
+    for (n, prob) in [(2usize, 1.0), (3, 1.0)] {
+        let p = random_problem(n, random_pattern(n, prob, &mut r), &mut r);
+        let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+        assert!(cuts.converged, "n={n}: violation {}", cuts.violation);
+        let fresh =
+            sample_cross_covariances(&p, 10_000, 99, SamplerSettings::hit_and_run()).unwrap();
+        let margin = worst_margin(&p, &cuts.fused, &fresh.cross);
+        assert!(
+            margin >= -1e-6 * cuts.fused.trace().max(1.0),
+            "n={n}: margin {margin}"
+        );
+        // Never above a certified conservative rule (CI is conservative for every P_ab).
+        let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+        assert!(cuts.fused.trace() <= ci.fused.trace() + 1e-6, "n={n}");
+        assert!(
+            cuts.constraints <= 20,
+            "n={n}: {} constraints",
+            cuts.constraints
+        );
+    }
+}
+
+#[test]
+fn an_unconverged_loop_says_so() {
+    let mut r = rng(55);
+    let _ = random_problem(2, random_pattern(2, 1.0, &mut r), &mut r);
+    let p = random_problem(3, random_pattern(3, 0.6, &mut r), &mut r);
+    let settings = CutsSettings {
+        max_iterations: 2,
+        ..CutsSettings::default()
+    };
+    let cuts = optimal_fusion_cuts(&p, &settings).unwrap();
+    assert_eq!(cuts.iterations, 2);
+    assert!(
+        !cuts.converged && cuts.violation > 0.0,
+        "{}",
+        cuts.violation
+    );
+    assert_eq!(cuts.constraints, 4 + 1);
+    let bad = CutsSettings {
+        restarts: 0,
+        ..CutsSettings::default()
+    };
+    assert!(optimal_fusion_cuts(&p, &bad)
+        .unwrap_err()
+        .to_string()
+        .contains("at least 1"));
+}
