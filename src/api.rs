@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{InputError, RequestError, SolveError};
 use crate::fusion::ci::covariance_intersection;
+use crate::fusion::cuts::{optimal_fusion_cuts, CutsSettings};
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::sample::{SamplerKind, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion, SdpSettings};
@@ -26,6 +27,9 @@ pub enum Method {
     Nmci,
     /// Sampled-SDP approximation of the optimal bound.
     Sdp,
+    /// The robust SDP by cutting planes: worst-case cross-covariances as constraints.
+    #[serde(rename = "sdp_cuts")]
+    SdpCuts,
 }
 
 /// A fusion request (see the README for the JSON form).
@@ -92,23 +96,23 @@ pub struct FuseResponse {
     /// `sdp`: number of samples.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub samples: Option<usize>,
-    /// `sdp`: Clarabel's status, `Solved` or `AlmostSolved`.
+    /// `sdp`, `sdp_cuts`: Clarabel's status, `Solved` or `AlmostSolved`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub status: Option<String>,
-    /// `sdp`: interior-point iterations (all working-set rounds).
+    /// `sdp`: interior-point iterations (all working-set rounds); `sdp_cuts`: outer iterations.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iterations: Option<u32>,
     /// `sdp`: rejection-sampler acceptance rate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub acceptance_rate: Option<f64>,
-    /// `sdp`: LMIs in the final working set.
+    /// `sdp`: LMIs in the final working set; `sdp_cuts`: constraints (starting samples and cuts).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lmis: Option<usize>,
     /// `sdp`: smallest `λ_min(P̄ − K P'_i Kᵀ)` over the samples.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub worst_sample_margin: Option<f64>,
-    /// `sdp`: a lower bound on the robust optimum of `tr P̄` — Clarabel's dual objective of the
-    /// sampled program (summed over blocks). Weak duality makes any dual-feasible value a lower
+    /// `sdp`, `sdp_cuts`: a lower bound on the robust optimum of `tr P̄` — Clarabel's dual
+    /// objective of the sampled (or cut) program (summed over blocks). Weak duality makes any dual-feasible value a lower
     /// bound on the sampled optimum, which is itself below the robust optimum (fewer
     /// constraints); it does not rely on the primal solution being accurate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -127,6 +131,13 @@ pub struct FuseResponse {
     /// `sdp`: `gap / upper_bound`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gap_relative: Option<f64>,
+    /// `sdp_cuts`: the worst `λ_max(K P' Kᵀ − P̄)` the last worst-case search found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub violation: Option<f64>,
+    /// `sdp_cuts`: whether that violation is below the tolerance (otherwise the iteration limit
+    /// stopped the loop).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub converged: Option<bool>,
 }
 
 fn matrix(name: &str, rows: &[Vec<f64>]) -> Result<DMatrix<f64>, InputError> {
@@ -179,8 +190,8 @@ impl FuseRequest {
         if self.method != Method::Sdp {
             for (name, set) in [
                 ("samples", self.samples.is_some()),
-                ("seed", self.seed.is_some()),
                 ("max_trials", self.max_trials.is_some()),
+                ("sampler", self.sampler.is_some()),
             ] {
                 if set {
                     return Err(RequestError::Invalid(format!(
@@ -189,9 +200,16 @@ impl FuseRequest {
                 }
             }
         }
-        if self.method == Method::Sdp && self.criterion == Some(Criterion::Logdet) {
+        if !matches!(self.method, Method::Sdp | Method::SdpCuts) && self.seed.is_some() {
             return Err(RequestError::Invalid(
-                "method \"sdp\" minimises the trace; criterion \"logdet\" is not available for it"
+                "`seed` applies to methods \"sdp\" and \"sdp_cuts\" only".into(),
+            ));
+        }
+        if matches!(self.method, Method::Sdp | Method::SdpCuts)
+            && self.criterion == Some(Criterion::Logdet)
+        {
+            return Err(RequestError::Invalid(
+                "methods \"sdp\" and \"sdp_cuts\" minimise the trace; criterion \"logdet\" is not available for them"
                     .into(),
             ));
         }
@@ -230,6 +248,8 @@ pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> F
         upper_bound_rule: None,
         gap: None,
         gap_relative: None,
+        violation: None,
+        converged: None,
     }
 }
 
@@ -264,7 +284,46 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             };
             Ok(sdp_response(&problem, &settings)?.0)
         }
+        Method::SdpCuts => {
+            let settings = CutsSettings {
+                seed: request.seed.unwrap_or(0),
+                ..CutsSettings::default()
+            };
+            let cuts = optimal_fusion_cuts(&problem, &settings)?;
+            let mut r = response(Method::SdpCuts, Criterion::Trace, &cuts.fused);
+            r.status = Some(cuts.status.as_str().into());
+            r.iterations = Some(cuts.iterations as u32);
+            r.lmis = Some(cuts.constraints);
+            r.violation = Some(cuts.violation);
+            r.converged = Some(cuts.converged);
+            certified_bracket(&problem, cuts.dual_objective, &mut r)?;
+            Ok(r)
+        }
     }
+}
+
+/// Fills `lower_bound` (a relaxation's dual objective), `upper_bound` (the best of CI and
+/// nmCI, each conservative for every admissible `P_ab`) and the gap.
+fn certified_bracket(
+    problem: &FusionProblem,
+    lower: f64,
+    r: &mut FuseResponse,
+) -> Result<(), InputError> {
+    let ci = covariance_intersection(problem, Criterion::Trace)?
+        .fused
+        .trace();
+    let nmci = non_monolithic_ci(problem, Criterion::Trace)?.fused.trace();
+    let (upper, rule) = if nmci <= ci {
+        (nmci, Method::Nmci)
+    } else {
+        (ci, Method::Ci)
+    };
+    r.lower_bound = Some(lower);
+    r.upper_bound = Some(upper);
+    r.upper_bound_rule = Some(rule);
+    r.gap = Some(upper - lower);
+    r.gap_relative = Some((upper - lower) / upper);
+    Ok(())
 }
 
 /// The CI response and the fused result it was made from.
@@ -303,22 +362,7 @@ pub(crate) fn sdp_response(
     r.lmis = Some(opt.lmis);
     r.worst_sample_margin = Some(opt.worst_sample_margin);
     r.blocks = Some(opt.blocks.clone());
-    // The certified bracket [lower, upper] on the robust optimum of tr P̄.
-    let ci = covariance_intersection(problem, Criterion::Trace)?
-        .fused
-        .trace();
-    let nmci = non_monolithic_ci(problem, Criterion::Trace)?.fused.trace();
-    let (upper, rule) = if nmci <= ci {
-        (nmci, Method::Nmci)
-    } else {
-        (ci, Method::Ci)
-    };
-    let lower = opt.dual_objective;
-    r.lower_bound = Some(lower);
-    r.upper_bound = Some(upper);
-    r.upper_bound_rule = Some(rule);
-    r.gap = Some(upper - lower);
-    r.gap_relative = Some((upper - lower) / upper);
+    certified_bracket(problem, opt.dual_objective, &mut r)?;
     Ok((r, opt.fused))
 }
 

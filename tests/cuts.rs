@@ -72,3 +72,30 @@ fn an_unconverged_loop_says_so() {
         .to_string()
         .contains("at least 1"));
 }
+
+#[test]
+fn sdp_cuts_through_the_json_contract() {
+    let request: FuseRequest = serde_json::from_str(
+        r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
+            "pab_unknown": [[true, false], [false, true]], "method": "sdp_cuts", "seed": 2}"#,
+    )
+    .unwrap();
+    let r = fuse(&request).unwrap();
+    assert_eq!(r.method, Method::SdpCuts);
+    assert!((r.trace - 2.0).abs() < 1e-6);
+    assert_eq!(r.converged, Some(true));
+    assert!(r.violation.unwrap() <= 1e-6);
+    assert!(r.lmis.unwrap() <= 20 && r.iterations.unwrap() >= 1);
+    assert!(r.lower_bound.unwrap() <= r.upper_bound.unwrap() + 1e-9);
+    assert!(r.gap.unwrap() <= 1e-6);
+    let json = serde_json::to_value(&r).unwrap();
+    assert_eq!(json["method"], "sdp_cuts");
+    // Sampling fields belong to "sdp".
+    let bad: FuseRequest =
+        serde_json::from_str(r#"{"pa": [[1]], "pb": [[1]], "method": "sdp_cuts", "samples": 10}"#)
+            .unwrap();
+    assert_eq!(
+        fuse(&bad).unwrap_err().to_string(),
+        "invalid request: `samples` applies to method \"sdp\" only"
+    );
+}

@@ -135,7 +135,7 @@ fn request_errors() {
         ),
         (
             &format!(r#"{{{ok}, "method": "nmci", "seed": 1}}"#),
-            "`seed` applies to method \"sdp\" only",
+            "`seed` applies to methods \"sdp\" and \"sdp_cuts\" only",
         ),
         (
             &format!(r#"{{{ok}, "method": "sdp", "samples": 0}}"#),
