@@ -62,7 +62,12 @@ fn an_unconverged_loop_says_so() {
         "{}",
         cuts.violation
     );
-    assert_eq!(cuts.constraints, 4 + 1);
+    // 4 starting samples, then at most one cut per restart (4) in the one cutting round.
+    assert!(
+        cuts.constraints > 4 && cuts.constraints <= 4 + 4,
+        "{}",
+        cuts.constraints
+    );
     let bad = CutsSettings {
         restarts: 0,
         ..CutsSettings::default()

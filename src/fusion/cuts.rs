@@ -18,9 +18,11 @@
 //! through its positive semidefinite projection.
 //!
 //! Convergence is that of a cutting-plane method: fast where few constraints are active
-//! (the paper's example, fully unknown `P_ab`: a handful of cuts), slow in general (a 3-D
-//! case with a partial pattern took ~50 iterations to `1e-7`, a 4-D one had not converged
-//! after 60 — `converged: false` says so).
+//! (the paper's example, fully unknown `P_ab`: a handful of cuts), slower in general. Each
+//! iteration adds the cut of every start that found a violation. Measured (release): a 3-D
+//! partial pattern converged to `1e-7` in 25 iterations (81 constraints, 3 s), a 4-D one in 32
+//! (98 constraints, 16 s); a 6-D case stopped with Clarabel's `NumericalError`, returned as
+//! an error. `converged: false` reports an iteration limit.
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
@@ -154,17 +156,13 @@ pub fn optimal_fusion_cuts(
             let v = DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0));
             starts.push(v.normalize());
         }
-        let mut worst: Option<(f64, DMatrix<f64>)> = None;
+        // Every start that finds a violation contributes its cut (distinct directions cut off
+        // different parts of the current relaxation); the worst decides convergence.
+        let mut found: Vec<(f64, DMatrix<f64>)> = Vec::with_capacity(starts.len());
         for start in starts {
-            let (violation, P_ab) = worst_case_search(problem, &opt.fused, start, settings)?;
-            if worst.as_ref().is_none_or(|w| violation > w.0) {
-                worst = Some((violation, P_ab));
-            }
+            found.push(worst_case_search(problem, &opt.fused, start, settings)?);
         }
-        let (violation, P_ab) = match worst {
-            Some(w) => w,
-            None => (f64::NEG_INFINITY, DMatrix::zeros(n, n)),
-        };
+        let violation = found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
         let converged = violation <= threshold;
         if converged || iterations >= settings.max_iterations {
             return Ok(CutsResult {
@@ -178,7 +176,14 @@ pub fn optimal_fusion_cuts(
                 cross,
             });
         }
-        cross.push(P_ab);
+        for (v, P_ab) in found {
+            let duplicate = cross
+                .iter()
+                .any(|c| (c - &P_ab).amax() <= 1e-12 * P_ab.amax().max(1.0));
+            if v > threshold && !duplicate {
+                cross.push(P_ab);
+            }
+        }
     }
 }
 
