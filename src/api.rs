@@ -282,7 +282,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                 },
                 ..defaults
             };
-            Ok(sdp_response(&problem, &settings)?.0)
+            Ok(sdp_response(&problem, &settings, None)?.0)
         }
         Method::SdpCuts => {
             let settings = CutsSettings {
@@ -296,23 +296,30 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             r.lmis = Some(cuts.constraints);
             r.violation = Some(cuts.violation);
             r.converged = Some(cuts.converged);
-            certified_bracket(&problem, cuts.dual_objective, &mut r)?;
+            certified_bracket(&problem, cuts.dual_objective, None, &mut r)?;
             Ok(r)
         }
     }
 }
 
 /// Fills `lower_bound` (a relaxation's dual objective), `upper_bound` (the best of CI and
-/// nmCI, each conservative for every admissible `P_ab`) and the gap.
+/// nmCI, each conservative for every admissible `P_ab`) and the gap. `traces` are the
+/// trace-optimal CI and nmCI traces when the caller already has them.
 fn certified_bracket(
     problem: &FusionProblem,
     lower: f64,
+    traces: Option<(f64, f64)>,
     r: &mut FuseResponse,
 ) -> Result<(), InputError> {
-    let ci = covariance_intersection(problem, Criterion::Trace)?
-        .fused
-        .trace();
-    let nmci = non_monolithic_ci(problem, Criterion::Trace)?.fused.trace();
+    let (ci, nmci) = match traces {
+        Some(t) => t,
+        None => (
+            covariance_intersection(problem, Criterion::Trace)?
+                .fused
+                .trace(),
+            non_monolithic_ci(problem, Criterion::Trace)?.fused.trace(),
+        ),
+    };
     let (upper, rule) = if nmci <= ci {
         (nmci, Method::Nmci)
     } else {
@@ -349,9 +356,12 @@ pub(crate) fn nmci_response(
     Ok((r, nm.fused))
 }
 
+/// The sampled-SDP response; `conservative_traces` are the trace-optimal CI and nmCI traces
+/// for the certified upper bound when the caller has already computed them.
 pub(crate) fn sdp_response(
     problem: &FusionProblem,
     settings: &SdpSettings,
+    conservative_traces: Option<(f64, f64)>,
 ) -> Result<(FuseResponse, Fused), SolveError> {
     let opt = optimal_fusion(problem, settings)?;
     let mut r = response(Method::Sdp, Criterion::Trace, &opt.fused);
@@ -362,7 +372,7 @@ pub(crate) fn sdp_response(
     r.lmis = Some(opt.lmis);
     r.worst_sample_margin = Some(opt.worst_sample_margin);
     r.blocks = Some(opt.blocks.clone());
-    certified_bracket(problem, opt.dual_objective, &mut r)?;
+    certified_bracket(problem, opt.dual_objective, conservative_traces, &mut r)?;
     Ok((r, opt.fused))
 }
 

@@ -157,7 +157,9 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         sampler,
         ..SdpSettings::default()
     };
-    let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings) {
+    // CI and nmCI are already computed; for the trace criterion they are the bracket's upper bound.
+    let traces = (criterion == Criterion::Trace).then_some((ci.trace, nmci.trace));
+    let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings, traces) {
         Ok((r, f)) => (Some(r), Some(f), None),
         Err(e) => (None, None, Some(e.to_string())),
     };
