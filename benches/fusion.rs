@@ -4,6 +4,9 @@
 //! on the same block-diagonal problem), `sdp/paper/{10,100,1000}`.
 //! Targets: `ci/trace/112` ≤ 2× `eigen/symmetric/112`; `sdp/paper/100` ≤ 10 ms,
 //! `sdp/paper/1000` ≤ 150 ms.
+//! Issue 5: `sample/hit_and_run/14x1000` (≥ 1000 samples/s), `sdp_cuts/paper` (the paper's
+//! example by cutting planes) and `sdp_cuts/random6` (a random 6-D problem, each entry of
+//! `P_ab` unknown with probability 0.6: no independent blocks).
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
@@ -106,9 +109,58 @@ fn benches(c: &mut Bench) {
     });
 }
 
+fn cut_benches(c: &mut Bench) {
+    let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+    let paper =
+        FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]), CrossPattern::diagonal(2))
+            .unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let unknown = DMatrix::from_fn(6, 6, |_, _| rng.random_bool(0.6));
+    // Random orientation, eigenvalues in [0.2, 5] (as in tests/common): cases with the
+    // flatter spectra of `random_spd` converge far more slowly (see `fusion::cuts`).
+    let mut spread_spd = || {
+        let g = DMatrix::from_fn(6, 6, |_, _| rng.random_range(-1.0..1.0));
+        let q = g.qr().q();
+        let d = DVector::from_fn(6, |_, _| rng.random_range(0.2..5.0));
+        let m = &q * DMatrix::from_diagonal(&d) * q.transpose();
+        (&m + m.transpose()) * 0.5
+    };
+    let random6 = FusionProblem::from_covariances(
+        spread_spd(),
+        spread_spd(),
+        CrossPattern::from_matrix(unknown).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        independent_blocks(&random6.P_a, &random6.P_b, &random6.cross_pattern).len(),
+        1,
+        "random6 must not split"
+    );
+    let settings = CutsSettings::default();
+    for (name, problem) in [("sdp_cuts/paper", &paper), ("sdp_cuts/random6", &random6)] {
+        let run = optimal_fusion_cuts(problem, &settings).unwrap();
+        assert!(run.converged, "{name}: violation {}", run.violation);
+        eprintln!(
+            "{name}: {} iterations, {} constraints, tr {:.9}",
+            run.iterations,
+            run.constraints,
+            run.fused.trace()
+        );
+        c.bench_function(name, |b| {
+            b.iter(|| optimal_fusion_cuts(black_box(problem), &settings).unwrap())
+        });
+    }
+}
+
+criterion_group! {
+    name = cuts;
+    config = Bench::default().sample_size(10).measurement_time(std::time::Duration::from_secs(10));
+    targets = cut_benches
+}
+
 criterion_group! {
     name = fusion;
     config = Bench::default().sample_size(20).measurement_time(std::time::Duration::from_secs(3));
     targets = benches
 }
-criterion_main!(fusion);
+criterion_main!(fusion, cuts);
