@@ -86,6 +86,10 @@ pub enum InputError {
         /// Size expected.
         expected: usize,
     },
+    /// A set of estimates for N-way fusion that cannot be fused (too few, sizes differ, a pair
+    /// pattern out of range or given twice).
+    #[error("invalid estimates: {0}")]
+    Estimates(String),
 }
 
 /// The sampler of admissible cross-covariances could not deliver.

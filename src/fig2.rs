@@ -19,8 +19,9 @@ use crate::fusion::sdp::{optimal_fusion_for_samples, SdpSettings};
 use crate::fusion::{Criterion, FusionProblem};
 use crate::structure::CrossPattern;
 
-/// The study's settings.
+/// The study's settings (every key optional in JSON; unknown keys are rejected).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Fig2Config {
     /// Monte Carlo runs (default 1000).
     pub runs: usize,

@@ -52,13 +52,21 @@ pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method};
 pub use error::{InputError, RequestError, SampleError, SolveError};
 pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
 pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
-pub use fusion::check::{conservativeness_margin, fused_error_covariance, worst_margin};
+pub use fusion::check::{
+    conservativeness_index, conservativeness_margin, fused_coin, fused_error_covariance,
+    worst_margin,
+};
 pub use fusion::ci::{
     ci_covariance, covariance_intersection, covariance_intersection_blocks, CiResult,
 };
 pub use fusion::cuts::{optimal_fusion_cuts, CutsResult, CutsSettings};
+pub use fusion::ei::ellipsoidal_intersection;
+pub use fusion::ici::{inverse_covariance_intersection, IciResult};
 pub use fusion::known::{known_correlation_fusion, naive_fusion};
 pub use fusion::nmci::{non_monolithic_ci, NmciResult};
+pub use fusion::nway::{
+    covariance_intersection_nway, non_monolithic_ci_nway, Estimate, NwayResult, PairPattern,
+};
 pub use fusion::sample::{
     sample_cross_covariances, sample_cross_covariances_with, CrossSamples, SamplerKind,
     SamplerSettings,

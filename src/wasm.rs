@@ -1,5 +1,5 @@
-//! The wasm-bindgen bindings: a thin layer over [`crate::fuse`], [`crate::explore`] and the
-//! tracking study ([`crate::sim::LiveStudy`]). No logic lives here.
+//! The wasm-bindgen bindings: a thin layer over [`crate::fuse`], [`crate::explore`], the
+//! fig. 2 study ([`crate::fig2_run`]) and the tracking study ([`crate::sim::LiveStudy`]). No logic lives here.
 
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -7,7 +7,7 @@ use wasm_bindgen::prelude::*;
 
 use crate::api::FuseRequest;
 use crate::sim::{LiveStudy, StudyConfig};
-use crate::ExploreRequest;
+use crate::{ExploreRequest, Fig2Config, Fig2Record};
 
 /// A request object, parsed exactly as the CLI parses JSON: through a `serde_json::Value`,
 /// because serde-wasm-bindgen alone skips unknown fields instead of rejecting them.
@@ -86,6 +86,22 @@ impl Study {
         }
         Ok(object)
     }
+}
+
+/// Run `run` of the paper's fig. 2 study ([`crate::fig2_run`]): `config` has the keys of
+/// [`crate::Fig2Config`] (`runs`, `sizes`, `seed`); returns one record per sample-set size.
+#[wasm_bindgen]
+pub fn fig2_run(config: JsValue, run: usize) -> Result<JsValue, JsError> {
+    let config: Fig2Config = parse(config)?;
+    to_js(&crate::fig2_run(&config, run)?)
+}
+
+/// The rows of `fig2.csv` ([`crate::fig2_summary`]) from the records of the runs done so far.
+#[wasm_bindgen]
+pub fn fig2_summary(config: JsValue, runs: JsValue) -> Result<JsValue, JsError> {
+    let config: Fig2Config = parse(config)?;
+    let runs: Vec<Vec<Fig2Record>> = parse(runs)?;
+    to_js(&crate::fig2_summary(&config, &runs))
 }
 
 /// The crate version.

@@ -9,7 +9,7 @@ const COLORS = { central: "#1d1f21", ci: "#1f77b4", nmci: "#d62728", naive: "#99
 
 // Tabs.
 function showTab(name) {
-  for (const [tab, panel] of [["explorer", $("#explorer")], ["study", $("#study")]]) {
+  for (const [tab, panel] of [["explorer", $("#explorer")], ["study", $("#study")], ["fig2", $("#fig2")]]) {
     const on = tab === name;
     $(`#tab-${tab}`).setAttribute("aria-selected", String(on));
     panel.hidden = !on;
@@ -17,6 +17,7 @@ function showTab(name) {
 }
 $("#tab-explorer").addEventListener("click", () => showTab("explorer"));
 $("#tab-study").addEventListener("click", () => showTab("study"));
+$("#tab-fig2").addEventListener("click", () => showTab("fig2"));
 
 let worker = null;
 let running = false;

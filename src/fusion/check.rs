@@ -47,3 +47,53 @@ pub fn worst_margin(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f64
         .map(|p| conservativeness_margin(problem, fused, p))
         .fold(f64::INFINITY, f64::min)
 }
+
+/// The conservativeness index (COIN): `λ_max(L⁻¹ E L⁻ᵀ)` with `P = L Lᵀ` and `E` the true
+/// error covariance. `≤ 1` exactly when `P ⪰ E` (conservative); `1` for `P = E`; smaller is
+/// more conservative (`P` inflated by `c` gives `1/c`); `> 1` is not conservative. A single
+/// number for "less conservative" (the paper's open question (i)).
+///
+/// ```
+/// use nalgebra::DMatrix;
+/// use nmci::conservativeness_index;
+/// let E = DMatrix::from_row_slice(2, 2, &[2.0, 0.5, 0.5, 1.0]);
+/// assert!((conservativeness_index(&E, &E).unwrap() - 1.0).abs() < 1e-12);
+/// assert!((conservativeness_index(&(&E * 4.0), &E).unwrap() - 0.25).abs() < 1e-12);
+/// ```
+#[allow(non_snake_case)]
+pub fn conservativeness_index(
+    P: &DMatrix<f64>,
+    E: &DMatrix<f64>,
+) -> Result<f64, crate::error::InputError> {
+    let L = crate::linalg::cholesky(P)
+        .ok_or_else(|| crate::error::InputError::NotPositiveDefinite {
+            name: "P".into(),
+            min_eigenvalue: min_eigenvalue(P),
+        })?
+        .unpack();
+    if E.shape() != P.shape() {
+        return Err(crate::error::InputError::SizeMismatch {
+            name: "E".into(),
+            found: E.nrows(),
+            expected: P.nrows(),
+        });
+    }
+    // W = L⁻¹ E L⁻ᵀ: two triangular solves.
+    let mut W = E.clone();
+    L.solve_lower_triangular_mut(&mut W);
+    let mut W = W.transpose();
+    L.solve_lower_triangular_mut(&mut W);
+    let W = crate::linalg::symmetrize(&W);
+    Ok(-min_eigenvalue(&(-W)))
+}
+
+/// COIN of a fused result for one cross-covariance: `E = K P' Kᵀ`.
+#[allow(non_snake_case)]
+pub fn fused_coin(
+    problem: &FusionProblem,
+    fused: &Fused,
+    P_ab: &DMatrix<f64>,
+) -> Result<f64, crate::error::InputError> {
+    let E = fused_error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
+    conservativeness_index(&fused.P, &E)
+}

@@ -109,24 +109,27 @@ impl HalfPencil {
     }
 }
 
-/// The CI family of one problem in its diagonalizing basis.
+/// The CI family of one problem in its diagonalizing basis (shared with ICI and EI, which are
+/// diagonal in the same basis: `P_b = W Wᵀ`, `P_a = W diag(μ) Wᵀ`).
 #[allow(non_snake_case)]
-struct Pencil {
+pub(super) struct Pencil {
     /// Cholesky factor `L` of `P_b`.
     L: DMatrix<f64>,
     /// Eigenvectors `V` of `L⁻¹ P_a L⁻ᵀ`.
     V: DMatrix<f64>,
     /// `W = L V`.
-    basis: DMatrix<f64>,
+    pub(super) basis: DMatrix<f64>,
     /// `‖wᵢ‖²`.
-    weights: Vec<f64>,
+    pub(super) weights: Vec<f64>,
     /// `λᵢ − 1`, with `λᵢ = 1/μᵢ` the generalized eigenvalues of `(P_a⁻¹, P_b⁻¹)`.
     slopes: Vec<f64>,
+    /// `μᵢ`: the eigenvalues of `L⁻¹ P_a L⁻ᵀ` (`P_a = W diag(μ) Wᵀ`).
+    pub(super) mu: Vec<f64>,
 }
 
 #[allow(non_snake_case)]
 impl Pencil {
-    fn new(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> Result<Self, InputError> {
+    pub(super) fn new(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> Result<Self, InputError> {
         Self::from_half(HalfPencil::new(P_a, P_b)?, P_a)
     }
 
@@ -152,18 +155,19 @@ impl Pencil {
             basis,
             weights,
             slopes,
+            mu: eig.eigenvalues.iter().copied().collect(),
         })
     }
 
     /// `W⁻¹ = Vᵀ L⁻¹`.
-    fn basis_inv(&self) -> DMatrix<f64> {
+    pub(super) fn basis_inv(&self) -> DMatrix<f64> {
         let mut Z = self.V.clone();
         self.L.tr_solve_lower_triangular_mut(&mut Z); // Z = L⁻ᵀ V
         Z.transpose()
     }
 
     /// `W diag(s) R`.
-    fn scaled_product(
+    pub(super) fn scaled_product(
         &self,
         scales: impl Iterator<Item = f64>,
         right: &DMatrix<f64>,

@@ -3,8 +3,11 @@
 pub(crate) mod check;
 pub(crate) mod ci;
 pub(crate) mod cuts;
+pub(crate) mod ei;
+pub(crate) mod ici;
 pub(crate) mod known;
 pub(crate) mod nmci;
+pub(crate) mod nway;
 pub(crate) mod sample;
 pub(crate) mod sdp;
 
@@ -96,7 +99,7 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
     Ok(())
 }
 
-fn validate_vector(name: &str, v: &DVector<f64>, n: usize) -> Result<(), InputError> {
+pub(crate) fn validate_vector(name: &str, v: &DVector<f64>, n: usize) -> Result<(), InputError> {
     if v.len() != n {
         return Err(InputError::SizeMismatch {
             name: name.into(),

@@ -257,6 +257,32 @@ test("the study tab rejects bad settings inline and can be stopped", async () =>
   assert.equal(await page.locator("#explorer").isVisible(), true);
 });
 
+test("the fig. 2 tab runs the sample-size study: non-conservative at N = 1, nmCI's diag(1, 1) by N = 100", async () => {
+  await page.click("#tab-fig2");
+  assert.equal(await page.locator("#fig2").isVisible(), true);
+  await page.fill("#fig2-sizes", "1, 10, 0");
+  await page.click("#fig2-start");
+  assert.match(await text("#err-fig2"), /sizes must be a comma-separated list of whole numbers in 1…5000/);
+  await page.fill("#fig2-runs", "30");
+  await page.fill("#fig2-sizes", "1,10,100");
+  await page.fill("#fig2-seed", "3");
+  await page.click("#fig2-start");
+  assert.equal(await text("#err-fig2"), "");
+  await page.waitForFunction(() => document.body.dataset.fig2 === "done", null, { timeout: 180_000 });
+  assert.match(await text("#fig2-progress"), /^30 of 30 runs/);
+  const rows = await page.evaluate(() => [...document.querySelectorAll("#fig2-table tbody tr")].map((tr) => [...tr.children].map((td) => td.textContent)));
+  assert.deepEqual(rows.map((r) => r[0]), ["1", "10", "100"]);
+  assert.ok(Number(rows[0][2]) < 0, `N = 1: some run non-conservative (${rows[0][2]})`);
+  assert.ok(Number(rows[2][1]) <= 1e-5, `N = 100: median deviation ${rows[2][1]}`);
+  assert.ok(Number(rows[2][2]) >= -1e-6, `N = 100: worst ${rows[2][2]}`);
+  assert.ok(rows.every((r) => Number(r[3]) >= -1e-9 && r[4] === "0"), JSON.stringify(rows));
+  assert.equal(await page.locator("#fig2-dev path[data-label]").count(), 1);
+  assert.equal(await page.locator("#fig2-eig path[data-label]").count(), 2);
+  assert.equal(await page.locator("#fig2-eig circle").count(), 6);
+  await page.screenshot({ path: join(out, "fig2.png"), fullPage: true });
+  await page.click("#tab-explorer");
+});
+
 test("no page errors or console errors along the way", () => {
   assert.deepEqual(problems, []);
 });

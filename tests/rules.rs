@@ -1,0 +1,171 @@
+//! ICI, EI and COIN against hand-derived values (derivations in each test).
+#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
+#![allow(non_snake_case)]
+
+mod common;
+
+use common::*;
+use nalgebra::{DMatrix, DVector};
+use nmci::*;
+
+/// ICI on P_a = diag(3, 1), P_b = diag(1, 4). Everything is diagonal, so with
+/// Γ = ωP_a + (1−ω)P_b = diag(1 + 2ω, 4 − 3ω):
+///   p₁(ω) = 1 / (1/3 + 1 − 1/(1 + 2ω)),  p₂(ω) = 1 / (1 + 1/4 − 1/(4 − 3ω)).
+/// tr P = p₁ + p₂; at ω = 0 it is 3 + 1 = 4 (P = P_a), at ω = 1 it is 1 + 4 = 5 (P = P_b),
+/// at ω = ½ it is 1.2 + 1.1765 = 2.3765: an interior minimum, found here by bisection on a
+/// central-difference derivative of these two scalar formulas (independent of the library).
+#[test]
+fn ici_on_the_paper_matrices_matches_the_scalar_derivation() {
+    let p1 = |w: f64| 1.0 / (4.0 / 3.0 - 1.0 / (1.0 + 2.0 * w));
+    let p2 = |w: f64| 1.0 / (1.25 - 1.0 / (4.0 - 3.0 * w));
+    let tr = |w: f64| p1(w) + p2(w);
+    assert!((tr(0.5) - (1.2 + 1.0 / 0.85)).abs() < 1e-12);
+    let (mut lo, mut hi) = (0.2, 0.8);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        let h = 1e-7;
+        if tr(mid + h) - tr(mid - h) < 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let w = 0.5 * (lo + hi);
+    let p = FusionProblem::new(
+        DVector::from_vec(vec![1.0, 2.0]),
+        diag(&[3.0, 1.0]),
+        DVector::from_vec(vec![4.0, -1.0]),
+        diag(&[1.0, 4.0]),
+        CrossPattern::fully_unknown(2),
+    )
+    .unwrap();
+    let ici = inverse_covariance_intersection(&p, Criterion::Trace).unwrap();
+    assert!((ici.omega - w).abs() < 1e-6, "{} vs {w}", ici.omega);
+    assert!(tr(ici.omega) <= tr(w) + 1e-14);
+    // At the library's ω, P and the gains are the scalar formulas' values.
+    let w = ici.omega;
+    assert!((&ici.fused.P - diag(&[p1(w), p2(w)])).amax() < 1e-12);
+    // Gains: K_a = P (P_a⁻¹ − ω Γ⁻¹) is diagonal too.
+    let k1 = p1(w) * (1.0 / 3.0 - w / (1.0 + 2.0 * w));
+    let k2 = p2(w) * (1.0 - w / (4.0 - 3.0 * w));
+    assert!((&ici.fused.K_a - diag(&[k1, k2])).amax() < 1e-10);
+    assert!((ici.fused.x[0] - (k1 * 1.0 + (1.0 - k1) * 4.0)).abs() < 1e-9);
+    assert!((ici.fused.x[1] - (k2 * 2.0 + (1.0 - k2) * -1.0)).abs() < 1e-9);
+    // Tighter than CI here (CI's optimum on the same pair).
+    let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+    assert!(ici.fused.trace() < ci.fused.trace());
+}
+
+/// 1-D: p(ω) = 1/(1/a + 1/b − 1/(ωa + (1−ω)b)) is smallest where Γ = ωa + (1−ω)b is largest:
+/// for a = 2 < b = 5 at ω = 0, giving P = a exactly (ICI takes the better estimate).
+#[test]
+fn ici_in_one_dimension_takes_the_better_estimate_exactly() {
+    let p =
+        FusionProblem::from_covariances(diag(&[2.0]), diag(&[5.0]), CrossPattern::fully_unknown(1))
+            .unwrap();
+    for criterion in [Criterion::Trace, Criterion::Logdet] {
+        let ici = inverse_covariance_intersection(&p, criterion).unwrap();
+        assert_eq!(ici.omega, 0.0);
+        assert_eq!(ici.fused.P, diag(&[2.0]));
+    }
+}
+
+/// Common information: estimate a fuses private information I_a with shared I_c
+/// (P_a⁻¹ = I_a + I_c), estimate b fuses I_b with the same I_c; then P_ab = P_a I_c P_b.
+/// ICI is conservative for every such pair (COIN ≤ 1), and never looser than CI's trace.
+#[test]
+fn ici_is_conservative_under_common_information_and_tighter_than_ci() {
+    let mut r = rng(11);
+    for n in [2usize, 3, 5] {
+        for _ in 0..10 {
+            let inv = |m: DMatrix<f64>| m.try_inverse().unwrap();
+            let (I_a, I_b, I_c) = (
+                random_spd(n, &mut r),
+                random_spd(n, &mut r),
+                random_spd(n, &mut r),
+            );
+            let P_a = inv(&I_a + &I_c);
+            let P_b = inv(&I_b + &I_c);
+            let P_ab = &P_a * &I_c * &P_b;
+            let p =
+                FusionProblem::from_covariances(P_a, P_b, CrossPattern::fully_unknown(n)).unwrap();
+            for criterion in [Criterion::Trace, Criterion::Logdet] {
+                let ici = inverse_covariance_intersection(&p, criterion).unwrap();
+                let coin = fused_coin(&p, &ici.fused, &P_ab).unwrap();
+                assert!(coin <= 1.0 + 1e-9, "n={n}: COIN {coin}");
+                let ci = covariance_intersection(&p, criterion).unwrap();
+                assert!(ici.fused.criterion(criterion) <= ci.fused.criterion(criterion) + 1e-9);
+                let sum = &ici.fused.K_a + &ici.fused.K_b;
+                assert!((sum - DMatrix::identity(n, n)).amax() < 1e-9);
+            }
+        }
+    }
+}
+
+/// EI on P_a = [[2, 1], [1, 2]], P_b = 2I. P_b ∝ I, so the common principal axes are P_a's
+/// eigenvectors u₁ = (1, 1)/√2 (variance 3 in a, 2 in b) and u₂ = (1, −1)/√2 (1 in a, 2 in b).
+/// EI keeps the smaller variance per axis: P = 2 u₁u₁ᵀ + 1 u₂u₂ᵀ = [[1.5, 0.5], [0.5, 1.5]].
+/// Mean, x_a = (1, 0), x_b = (0, 2): along u₁ b's coordinate 2/√2, along u₂ a's 1/√2, so
+/// x = (1, 1) + (½, −½) = (1.5, 0.5).
+#[test]
+fn ei_matches_the_principal_axis_derivation() {
+    let p = FusionProblem::new(
+        DVector::from_vec(vec![1.0, 0.0]),
+        DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, 2.0]),
+        DVector::from_vec(vec![0.0, 2.0]),
+        diag(&[2.0, 2.0]),
+        CrossPattern::fully_unknown(2),
+    )
+    .unwrap();
+    let ei = ellipsoidal_intersection(&p).unwrap();
+    let expected = DMatrix::from_row_slice(2, 2, &[1.5, 0.5, 0.5, 1.5]);
+    assert!((&ei.P - expected).amax() < 1e-12, "{}", ei.P);
+    assert!(
+        (ei.x[0] - 1.5).abs() < 1e-12 && (ei.x[1] - 0.5).abs() < 1e-12,
+        "{}",
+        ei.x
+    );
+}
+
+/// EI is not a bound: on the paper's matrices with a fully unknown P_ab it returns
+/// diag(1, 1), which CI (optimal for that case) cannot reach — some admissible P_ab breaks it.
+#[test]
+fn ei_is_not_conservative_for_a_fully_unknown_cross_covariance() {
+    let p = FusionProblem::from_covariances(
+        diag(&[3.0, 1.0]),
+        diag(&[1.0, 4.0]),
+        CrossPattern::fully_unknown(2),
+    )
+    .unwrap();
+    let ei = ellipsoidal_intersection(&p).unwrap();
+    assert!((&ei.P - diag(&[1.0, 1.0])).amax() < 1e-12);
+    let samples = sample_cross_covariances(&p, 2000, 3, SamplerSettings::hit_and_run()).unwrap();
+    assert!(worst_margin(&p, &ei, &samples.cross) < -0.05);
+    let worst_coin = samples
+        .cross
+        .iter()
+        .map(|c| fused_coin(&p, &ei, c).unwrap())
+        .fold(0.0, f64::max);
+    assert!(worst_coin > 1.05, "{worst_coin}");
+}
+
+#[test]
+fn coin_is_one_for_the_exact_covariance_and_below_one_when_inflated() {
+    let mut r = rng(3);
+    for n in [1usize, 3, 6] {
+        let E = random_spd(n, &mut r);
+        assert!((conservativeness_index(&E, &E).unwrap() - 1.0).abs() < 1e-10);
+        let inflated = &E * 1.5 + DMatrix::identity(n, n) * 0.1;
+        let coin = conservativeness_index(&inflated, &E).unwrap();
+        assert!(coin < 1.0 / 1.5 + 1e-12 && coin > 0.0, "{coin}");
+        let shrunk = &E * 0.8;
+        assert!((conservativeness_index(&shrunk, &E).unwrap() - 1.25).abs() < 1e-10);
+    }
+    // Exact fusion with the true P_ab (the known-correlation optimum) has COIN 1.
+    let p = paper_example();
+    let P_ab = diag(&[0.5, -0.3]);
+    let exact = known_correlation_fusion(&p, &P_ab);
+    assert!((fused_coin(&p, &exact, &P_ab).unwrap() - 1.0).abs() < 1e-10);
+    let bad = conservativeness_index(&diag(&[1.0, -1.0]), &diag(&[1.0, 1.0])).unwrap_err();
+    assert!(bad.to_string().contains("not positive definite"), "{bad}");
+}
