@@ -4,6 +4,7 @@
 //! on the same block-diagonal problem), `sdp/paper/{10,100,1000}`.
 //! Targets: `ci/trace/112` ≤ 2× `eigen/symmetric/112`; `sdp/paper/100` ≤ 10 ms,
 //! `sdp/paper/1000` ≤ 150 ms.
+//! Issue 6: `ici/trace/112`, `ci_nway/5x14`.
 //! Issue 5: `sample/hit_and_run/14x1000` (≥ 1000 samples/s), `sdp_cuts/paper` (the paper's
 //! example by cutting planes) and `sdp_cuts/random6` (a random 6-D problem, each entry of
 //! `P_ab` unknown with probability 0.6: no independent blocks).
@@ -46,6 +47,31 @@ fn benches(c: &mut Bench) {
         });
     }
     group.finish();
+
+    // Issue 6: ICI at n = 112 (same cost class as CI: one pencil) and N-way CI of 5
+    // estimates of size 14 (simplex Newton).
+    let p112 = FusionProblem::from_covariances(
+        random_spd(112, &mut rng),
+        random_spd(112, &mut rng),
+        CrossPattern::fully_unknown(112),
+    )
+    .unwrap();
+    c.bench_function("ici/trace/112", |b| {
+        b.iter(|| inverse_covariance_intersection(black_box(&p112), Criterion::Trace).unwrap())
+    });
+    let five: Vec<Estimate> = (0..5)
+        .map(|i| {
+            Estimate::new(
+                &format!("e{i}"),
+                DVector::zeros(14),
+                random_spd(14, &mut rng),
+            )
+            .unwrap()
+        })
+        .collect();
+    c.bench_function("ci_nway/5x14", |b| {
+        b.iter(|| covariance_intersection_nway(black_box(&five), Criterion::Trace).unwrap())
+    });
 
     let s = random_spd(112, &mut rng);
     c.bench_function("eigen/symmetric/112", |b| {

@@ -10,6 +10,9 @@ use serde::{Deserialize, Serialize};
 use crate::error::{InputError, RequestError, SolveError};
 use crate::fusion::ci::covariance_intersection;
 use crate::fusion::cuts::{optimal_fusion_cuts, CutsSettings};
+use crate::fusion::ei::ellipsoidal_intersection;
+use crate::fusion::ici::inverse_covariance_intersection;
+use crate::fusion::known::naive_fusion;
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::sample::{SamplerKind, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion, SdpSettings};
@@ -30,6 +33,12 @@ pub enum Method {
     /// The robust SDP by cutting planes: worst-case cross-covariances as constraints.
     #[serde(rename = "sdp_cuts")]
     SdpCuts,
+    /// Inverse covariance intersection: conservative for common-information correlation only.
+    Ici,
+    /// Ellipsoidal intersection: not guaranteed conservative.
+    Ei,
+    /// Naive fusion (as if independent): not conservative when the estimates are correlated.
+    Naive,
 }
 
 /// A fusion request (see the README for the JSON form).
@@ -138,6 +147,11 @@ pub struct FuseResponse {
     /// stopped the loop).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub converged: Option<bool>,
+    /// `ici`, `ei`, `naive`: what the bound is guaranteed for — `"common information only"`
+    /// (ICI) or `"not guaranteed"` (EI, naive). CI, nmCI and the certified SDP bracket hold
+    /// for every admissible `P_ab`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub conservative_for: Option<String>,
 }
 
 fn matrix(name: &str, rows: &[Vec<f64>]) -> Result<DMatrix<f64>, InputError> {
@@ -205,6 +219,12 @@ impl FuseRequest {
                 "`seed` applies to methods \"sdp\" and \"sdp_cuts\" only".into(),
             ));
         }
+        if matches!(self.method, Method::Ei | Method::Naive) && self.criterion.is_some() {
+            return Err(RequestError::Invalid(
+                "methods \"ei\" and \"naive\" have no weight to optimise; `criterion` does not apply"
+                    .into(),
+            ));
+        }
         if matches!(self.method, Method::Sdp | Method::SdpCuts)
             && self.criterion == Some(Criterion::Logdet)
         {
@@ -250,6 +270,7 @@ pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> F
         gap_relative: None,
         violation: None,
         converged: None,
+        conservative_for: None,
     }
 }
 
@@ -270,6 +291,23 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
     match request.method {
         Method::Ci => Ok(ci_response(&problem, criterion)?.0),
         Method::Nmci => Ok(nmci_response(&problem, criterion)?.0),
+        Method::Ici => {
+            let ici = inverse_covariance_intersection(&problem, criterion)?;
+            let mut r = response(Method::Ici, criterion, &ici.fused);
+            r.omega = Some(vec![ici.omega]);
+            r.conservative_for = Some("common information only".into());
+            Ok(r)
+        }
+        Method::Ei | Method::Naive => {
+            let fused = if request.method == Method::Ei {
+                ellipsoidal_intersection(&problem)?
+            } else {
+                naive_fusion(&problem)
+            };
+            let mut r = response(request.method, criterion, &fused);
+            r.conservative_for = Some("not guaranteed".into());
+            Ok(r)
+        }
         Method::Sdp => {
             let defaults = SdpSettings::default();
             let settings = SdpSettings {

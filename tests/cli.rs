@@ -195,3 +195,30 @@ fn fig2_writes_the_csv_and_the_figure_and_rejects_bad_sizes() {
         "{stderr}"
     );
 }
+
+#[test]
+fn ici_ei_and_naive_through_the_cli_with_their_guarantees_stated() {
+    let req = |method: &str| PAPER.replace("\"nmci\"", &format!("\"{method}\""));
+    let (code, out, err) = nmci(&["fuse"], &req("ici"));
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["conservative_for"], "common information only");
+    let omega = v["omega"][0].as_f64().unwrap();
+    assert!(omega > 0.0 && omega < 1.0, "{omega}");
+    for method in ["ei", "naive"] {
+        let (code, out, err) = nmci(&["fuse"], &req(method));
+        assert_eq!(code, 0, "{err}");
+        let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+        assert_eq!(v["conservative_for"], "not guaranteed");
+        assert!(v.get("omega").is_none());
+    }
+    // EI keeps the smaller variance per axis: diag(1, 1) here.
+    let (_, out, _) = nmci(&["fuse"], &req("ei"));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["trace"], 2.0);
+    let bad = req("ei").replace("}", ", \"criterion\": \"logdet\"}");
+    let (code, out, err) = nmci(&["fuse"], &bad);
+    assert_ne!(code, 0);
+    assert!(out.is_empty());
+    assert!(err.contains("`criterion` does not apply"), "{err}");
+}
