@@ -50,7 +50,7 @@ fn ici_on_the_paper_matrices_matches_the_scalar_derivation() {
     let k2 = p2(w) * (1.0 - w / (4.0 - 3.0 * w));
     assert!((&ici.fused.K_a - diag(&[k1, k2])).amax() < 1e-10);
     assert!((ici.fused.x[0] - (k1 * 1.0 + (1.0 - k1) * 4.0)).abs() < 1e-9);
-    assert!((ici.fused.x[1] - (k2 * 2.0 + (1.0 - k2) * -1.0)).abs() < 1e-9);
+    assert!((ici.fused.x[1] - (k2 * 2.0 - (1.0 - k2))).abs() < 1e-9);
     // Tighter than CI here (CI's optimum on the same pair).
     let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
     assert!(ici.fused.trace() < ci.fused.trace());

@@ -96,10 +96,13 @@ export function bandChart(svg, { sizes, series, yLog, yFloor = 1e-12, zero, yLab
   }
   for (const s of sizes) svg.append(el("text", { x: X(s), y: H - bottom + 13, "text-anchor": "middle" }, String(s)));
   svg.append(el("text", { x: W - right, y: H - 4, "text-anchor": "end" }, "samples N"));
-  if (yLabel) svg.append(el("text", { x: 4, y: 12 }, yLabel));
   svg.append(el("rect", { class: "axis", x: left, y: top, width: W - left - right, height: H - top - bottom }));
   if (zero) svg.append(el("line", { x1: left, x2: W - right, y1: Yraw(0), y2: Yraw(0), stroke: "#000", "stroke-dasharray": "3 3" }));
-  let legendX = left + 4;
+  let legendX = 4;
+  if (yLabel) {
+    svg.append(el("text", { x: 4, y: 15 }, yLabel));
+    legendX += 16 + 6 * yLabel.length;
+  }
   for (const s of series) {
     const ok = sizes.map((_, k) => Number.isFinite(s.min[k]) && Number.isFinite(s.max[k]));
     const upper = sizes.map((n, k) => (ok[k] ? `${X(n).toFixed(1)},${Y(s.max[k]).toFixed(1)}` : null)).filter(Boolean);

@@ -214,9 +214,9 @@ fn connected_components(n: usize, linked: impl Fn(usize, usize) -> bool) -> Vec<
         block_of[start] = b;
         while let Some(i) = stack.pop() {
             members.push(i);
-            for j in 0..n {
-                if block_of[j] == usize::MAX && linked(i, j) {
-                    block_of[j] = b;
+            for (j, slot) in block_of.iter_mut().enumerate() {
+                if *slot == usize::MAX && linked(i, j) {
+                    *slot = b;
                     stack.push(j);
                 }
             }
@@ -449,6 +449,7 @@ fn simplex_newton(
 }
 
 #[cfg(test)]
+#[allow(non_snake_case)]
 mod tests {
     use super::*;
     use crate::fusion::ci::covariance_intersection;
