@@ -70,7 +70,8 @@ impl Study {
     }
 
     /// The current snapshot ([`crate::sim::StudyView`]); the series cross as `Float64Array`s
-    /// `nees`, `rmse`, `two_sigma` (`4 × series_len`) and `omega` (`(1 + blocks) × series_len`).
+    /// `nees`, `rmse`, `two_sigma` (`5 × series_len`), `omega` (`(2 + blocks) × series_len`)
+    /// and `coin` (`5 × coin_len`).
     pub fn view(&self) -> Result<JsValue, JsError> {
         let view = self.inner.view();
         let object = to_js(&view)?;
@@ -79,6 +80,7 @@ impl Study {
             ("rmse", &view.rmse),
             ("two_sigma", &view.two_sigma),
             ("omega", &view.omega),
+            ("coin", &view.coin),
         ] {
             let array = js_sys::Float64Array::from(values.as_slice());
             js_sys::Reflect::set(&object, &name.into(), &array)

@@ -96,12 +96,14 @@ fn track_writes_the_summary_and_csvs() {
     assert!(out.contains("2 runs × 6 steps"));
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
-    for method in ["central", "ci", "nmci", "naive"] {
+    for method in ["central", "ci", "nmci", "naive", "ici"] {
         for key in [
             "rmse_mean",
             "two_sigma_mean",
             "nees_mean",
             "nees_frac_above_upper",
+            "coin_mean",
+            "coin_max",
         ] {
             assert!(summary[method][key].is_number(), "{method}.{key}");
         }
@@ -120,7 +122,12 @@ fn track_writes_the_summary_and_csvs() {
     );
     let nees = std::fs::read_to_string(dir.join("nees.csv")).unwrap();
     assert_eq!(nees.lines().count(), 7);
-    assert!(nees.starts_with("step,time,central,ci,nmci,naive"));
+    assert!(nees.starts_with("step,time,central,ci,nmci,naive,ici\n"));
+    let coin = std::fs::read_to_string(dir.join("coin.csv")).unwrap();
+    assert!(coin.starts_with("step,time,central,ci,nmci,naive,ici\n"));
+    assert_eq!(coin.lines().count(), 7);
+    assert!(dir.join("coin.svg").exists());
+    assert!(summary["omega_7_11"]["ici"].is_number());
     assert_eq!(
         std::fs::read_to_string(dir.join("omega.csv"))
             .unwrap()

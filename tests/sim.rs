@@ -47,7 +47,7 @@ fn block_storage_gives_the_dense_numbers() {
             .zip(b)
             .all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs().max(1.0))
     };
-    for s in 0..4 {
+    for s in 0..5 {
         assert!(
             close(&blocks.nees[s], &dense.nees[s]),
             "NEES {s}: {:?} vs {:?}",
@@ -58,6 +58,7 @@ fn block_storage_gives_the_dense_numbers() {
         assert!(close(&blocks.two_sigma[s], &dense.two_sigma[s]));
     }
     assert!(close(&blocks.omega_ci, &dense.omega_ci));
+    assert!(close(&blocks.omega_ici, &dense.omega_ici));
     // Dense nmCI finds the same 8 blocks by itself (from the exact zeros and the pattern).
     for (b, d) in blocks.omega_nmci.iter().zip(&dense.omega_nmci) {
         assert_eq!(b.len(), 8);
@@ -186,6 +187,7 @@ fn golden_of(view: &StudyView, config: &StudyConfig) -> golden::GoldenStudy {
         rmse: view.rmse.clone(),
         two_sigma: view.two_sigma.clone(),
         omega: view.omega.clone(),
+        coin: view.coin.clone(),
     }
 }
 
@@ -200,8 +202,11 @@ fn live_study_equals_the_batch_study_and_the_golden_file() {
         chunks += 1;
         let v = live.view();
         assert!(!v.finished && v.series_len <= config.steps);
-        assert_eq!(v.nees.len(), 4 * v.series_len);
-        assert_eq!(v.omega.len(), 9 * v.series_len);
+        assert_eq!(v.nees.len(), 5 * v.series_len);
+        assert_eq!(v.omega.len(), 10 * v.series_len);
+        // The exact COIN advances with the first run.
+        assert_eq!(v.coin.len(), 5 * v.coin_len);
+        assert_eq!(v.coin_len, v.series_len);
     }
     assert_eq!(chunks, 4, "24 steps in chunks of 5");
     let view = live.view();
@@ -211,6 +216,7 @@ fn live_study_equals_the_batch_study_and_the_golden_file() {
     let (summary, report) = run_study(&config).unwrap();
     assert_eq!(view.report, report);
     assert_eq!(view.nees, summary.nees_series.concat());
+    assert_eq!(view.coin, summary.coin_series.concat());
     // Golden data (shared with the wasm test).
     let ours = golden_of(&view, &config);
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/tiny_study.json");
@@ -229,6 +235,7 @@ fn live_study_equals_the_batch_study_and_the_golden_file() {
         (&ours.rmse, &stored.rmse),
         (&ours.two_sigma, &stored.two_sigma),
         (&ours.omega, &stored.omega),
+        (&ours.coin, &stored.coin),
     ] {
         golden::within_1e9(a, b).unwrap();
     }

@@ -162,6 +162,7 @@ fn tiny_study_matches_the_native_golden_numbers() {
     golden::within_1e9(&series(&view, "rmse"), &stored.rmse).unwrap();
     golden::within_1e9(&series(&view, "two_sigma"), &stored.two_sigma).unwrap();
     golden::within_1e9(&series(&view, "omega"), &stored.omega).unwrap();
+    golden::within_1e9(&series(&view, "coin"), &stored.coin).unwrap();
 }
 
 #[wasm_bindgen_test]

@@ -21,7 +21,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::ci::Pencil;
-use super::{Criterion, Fused, FusionProblem};
+use super::{covariance_twins, Criterion, Fused, FusionProblem, Gaussian};
 use crate::error::InputError;
 use crate::linalg::symmetrize_in_place;
 
@@ -40,10 +40,15 @@ fn axis(mu: f64, omega: f64) -> (f64, f64) {
     (g, 1.0 / mu + 1.0 - 1.0 / g)
 }
 
-/// The criterion (up to a constant for log-det) and its derivative at `ω`.
-fn criterion_and_slope(pencil: &Pencil, criterion: Criterion, omega: f64) -> (f64, f64, f64) {
+/// The criterion (up to a constant for log-det) summed over `pencils` (the blocks of a
+/// block-diagonal problem share one `ω`), its derivative at `ω` and the size of the terms the
+/// derivative sums.
+fn criterion_and_slope(pencils: &[&Pencil], criterion: Criterion, omega: f64) -> (f64, f64, f64) {
     let (mut f, mut d, mut size) = (0.0, 0.0, 0.0);
-    for (&c, &mu) in pencil.weights.iter().zip(&pencil.mu) {
+    let axes = pencils
+        .iter()
+        .flat_map(|p| p.weights.iter().zip(&p.mu));
+    for (&c, &mu) in axes {
         let (g, h) = axis(mu, omega);
         let dh = (mu - 1.0) / (g * g);
         match criterion {
@@ -65,7 +70,7 @@ fn criterion_and_slope(pencil: &Pencil, criterion: Criterion, omega: f64) -> (f6
 /// Relative derivative below which an endpoint counts as optimal (as CI's tie rule).
 const ENDPOINT_TIE: f64 = 1e-9;
 
-fn optimal_omega(pencil: &Pencil, criterion: Criterion) -> f64 {
+fn optimal_omega(pencil: &[&Pencil], criterion: Criterion) -> f64 {
     const GRID: usize = 64;
     let values: Vec<f64> = (0..=GRID)
         .map(|k| criterion_and_slope(pencil, criterion, k as f64 / GRID as f64).0)
@@ -110,6 +115,35 @@ fn optimal_omega(pencil: &Pencil, criterion: Criterion) -> f64 {
     0.5 * (lo + hi)
 }
 
+/// `(P, K_a)` of one pencil at `ω`, exact at the endpoints (`ω = 0` gives `P_a`, `ω = 1`
+/// gives `P_b`).
+#[allow(non_snake_case)]
+fn fuse_at(
+    pencil: &Pencil,
+    P_a: &DMatrix<f64>,
+    P_b: &DMatrix<f64>,
+    omega: f64,
+) -> (DMatrix<f64>, DMatrix<f64>) {
+    let n = P_a.nrows();
+    if omega == 0.0 {
+        (P_a.clone(), DMatrix::identity(n, n))
+    } else if omega == 1.0 {
+        (P_b.clone(), DMatrix::zeros(n, n))
+    } else {
+        // P = W diag(1/hᵢ) Wᵀ; K_a = P P_a⁻¹ − ω P Γ⁻¹ = W diag((1/μᵢ − ω/gᵢ)/hᵢ) W⁻¹.
+        let (mut p, mut k) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for &mu in &pencil.mu {
+            let (g, h) = axis(mu, omega);
+            p.push(1.0 / h);
+            k.push((1.0 / mu - omega / g) / h);
+        }
+        let mut P = pencil.scaled_product(p.into_iter(), &pencil.basis.transpose());
+        symmetrize_in_place(&mut P);
+        let K_a = pencil.scaled_product(k.into_iter(), &pencil.basis_inv());
+        (P, K_a)
+    }
+}
+
 /// ICI with the weight minimising `criterion` (see the module docs).
 ///
 /// ```
@@ -129,28 +163,50 @@ pub fn inverse_covariance_intersection(
 ) -> Result<IciResult, InputError> {
     let n = problem.dim();
     let pencil = Pencil::new(&problem.P_a, &problem.P_b)?;
-    let omega = optimal_omega(&pencil, criterion);
-    let (P, K_a) = if omega == 0.0 {
-        (problem.P_a.clone(), DMatrix::identity(n, n))
-    } else if omega == 1.0 {
-        (problem.P_b.clone(), DMatrix::zeros(n, n))
-    } else {
-        // P = W diag(1/hᵢ) Wᵀ; K_a = P P_a⁻¹ − ω P Γ⁻¹ = W diag((1/μᵢ − ω/gᵢ)/hᵢ) W⁻¹.
-        let (mut p, mut k) = (Vec::with_capacity(n), Vec::with_capacity(n));
-        for &mu in &pencil.mu {
-            let (g, h) = axis(mu, omega);
-            p.push(1.0 / h);
-            k.push((1.0 / mu - omega / g) / h);
-        }
-        let mut P = pencil.scaled_product(p.into_iter(), &pencil.basis.transpose());
-        symmetrize_in_place(&mut P);
-        let K_a = pencil.scaled_product(k.into_iter(), &pencil.basis_inv());
-        (P, K_a)
-    };
+    let omega = optimal_omega(&[&pencil], criterion);
+    let (P, K_a) = fuse_at(&pencil, &problem.P_a, &problem.P_b, omega);
     let K_b = DMatrix::identity(n, n) - &K_a;
     let x: DVector<f64> = &K_a * &problem.x_a + &K_b * &problem.x_b;
     Ok(IciResult {
         fused: Fused { x, P, K_a, K_b },
         omega,
     })
+}
+
+/// Monolithic ICI of block-stored estimates in place: `a[k] ← ICI(a[k], b[k])` with one
+/// common `ω` minimising the criterion summed over the blocks (the blocks are independent
+/// parts of one state; the tracking study's `ici` agents). Blocks whose covariances equal an
+/// earlier block's in both estimates share its pencil, bound and gains. Returns `ω`.
+#[allow(non_snake_case)]
+pub(crate) fn ici_in_place(
+    a: &mut [Gaussian],
+    b: &[Gaussian],
+    criterion: Criterion,
+) -> Result<f64, InputError> {
+    let twins = covariance_twins(a, b);
+    let mut pencils: Vec<Option<Pencil>> = Vec::with_capacity(a.len());
+    for (k, twin) in twins.iter().enumerate() {
+        pencils.push(match twin {
+            Some(_) => None,
+            None => Some(Pencil::new(&a[k].P, &b[k].P)?),
+        });
+    }
+    let source = |k: usize| twins[k].unwrap_or(k);
+    let refs: Vec<&Pencil> = (0..a.len())
+        .filter_map(|k| pencils[source(k)].as_ref())
+        .collect();
+    let omega = optimal_omega(&refs, criterion);
+    let mut done: Vec<Option<(DMatrix<f64>, DMatrix<f64>)>> = vec![None; a.len()];
+    for k in 0..a.len() {
+        let (P, K_a) = match (twins[k].and_then(|t| done[t].clone()), &pencils[k]) {
+            (Some(shared), _) => shared,
+            (None, Some(pencil)) => fuse_at(pencil, &a[k].P, &b[k].P, omega),
+            // Not reached (a block without a twin has its pencil); kept total without a panic.
+            (None, None) => fuse_at(&Pencil::new(&a[k].P, &b[k].P)?, &a[k].P, &b[k].P, omega),
+        };
+        let x = &K_a * &a[k].x + (DMatrix::identity(K_a.nrows(), K_a.nrows()) - &K_a) * &b[k].x;
+        a[k] = Gaussian { x, P: P.clone() };
+        done[k] = Some((P, K_a));
+    }
+    Ok(omega)
 }

@@ -3,7 +3,10 @@
 
 use serde::Serialize;
 
-use super::{summarize, Model, RunState, RunTrace, SimError, Storage, StudyConfig, StudyReport};
+use super::{
+    estimators, summarize, ErrorPropagation, Model, RunState, RunTrace, SimError, Storage,
+    StudyConfig, StudyReport,
+};
 
 /// The runs of a study, run one after the other and advanced in chunks of steps. The numbers
 /// are those of [`super::simulate_run`] for each run (same seeds and streams), so a finished
@@ -13,6 +16,9 @@ pub struct LiveStudy {
     model: Model,
     done: Vec<RunTrace>,
     current: Option<RunState>,
+    /// With `config.coin`: each estimator's exact error propagation and its COIN so far,
+    /// advanced alongside the first run.
+    coin: Vec<(ErrorPropagation, Vec<f64>)>,
 }
 
 /// A snapshot of a [`LiveStudy`]: progress, the headline numbers over the runs so far (a run in
@@ -37,7 +43,7 @@ pub struct StudyView {
     pub series_len: usize,
     /// nmCI blocks of the watched fusion.
     pub blocks: usize,
-    /// Run-averaged NEES, `4 × series_len` row-major (`central`, `ci`, `nmci`, `naive`).
+    /// Run-averaged NEES, `5 × series_len` row-major (`central`, `ci`, `nmci`, `naive`, `ici`).
     #[serde(skip)]
     pub nees: Vec<f64>,
     /// Run-averaged position RMSE, same layout.
@@ -46,10 +52,15 @@ pub struct StudyView {
     /// Run-averaged 2σ, same layout.
     #[serde(skip)]
     pub two_sigma: Vec<f64>,
-    /// Run-averaged ω of the watched fusion, `(1 + blocks) × series_len` row-major: CI's,
-    /// then nmCI's per block.
+    /// Run-averaged ω of the watched fusion, `(2 + blocks) × series_len` row-major: CI's,
+    /// nmCI's per block, then ICI's.
     #[serde(skip)]
     pub omega: Vec<f64>,
+    /// Steps of the exact COIN computed so far (0 without COIN).
+    pub coin_len: usize,
+    /// Exact COIN per step, `5 × coin_len` row-major (estimators as `nees`).
+    #[serde(skip)]
+    pub coin: Vec<f64>,
 }
 
 impl LiveStudy {
@@ -57,17 +68,31 @@ impl LiveStudy {
     pub fn new(config: StudyConfig) -> Result<Self, SimError> {
         config.validate()?;
         let model = Model::new(&config.scenario)?;
+        let coin = if config.coin {
+            estimators()
+                .map(|e| (ErrorPropagation::new(&model, e), Vec::new()))
+                .collect()
+        } else {
+            Vec::new()
+        };
         Ok(Self {
             config,
             model,
             done: Vec::new(),
             current: None,
+            coin,
         })
     }
 
-    /// Whether every run is done.
+    /// Whether every run is done (and the COIN series, which advance with the first run).
     pub fn finished(&self) -> bool {
-        self.done.len() >= self.config.runs
+        self.done.len() >= self.config.runs && self.coin_finished()
+    }
+
+    fn coin_finished(&self) -> bool {
+        self.coin
+            .iter()
+            .all(|(p, _)| p.steps_done() >= self.config.steps)
     }
 
     /// Advances by up to `steps` time steps, across run boundaries; returns whether the study
@@ -76,6 +101,17 @@ impl LiveStudy {
         for _ in 0..steps {
             if self.finished() {
                 break;
+            }
+            let agent = self.config.agent - 1;
+            for (propagation, series) in &mut self.coin {
+                if propagation.steps_done() < self.config.steps {
+                    propagation.step(&self.model)?;
+                    let filter = if propagation.is_central() { 0 } else { agent };
+                    series.push(propagation.coin(filter));
+                }
+            }
+            if self.done.len() >= self.config.runs {
+                continue;
             }
             let run = match &mut self.current {
                 Some(run) => run,
@@ -102,13 +138,20 @@ impl LiveStudy {
         if let Some(run) = &self.current {
             traces.push(run.trace().clone());
         }
-        let summary = summarize(&traces, self.model.dim());
+        let mut summary = summarize(&traces, self.model.dim());
+        let coin: Vec<Vec<f64>> = self.coin.iter().map(|(_, s)| s.clone()).collect();
+        let coin_len = coin.first().map_or(0, Vec::len);
+        let coin_flat = coin.concat();
+        if !coin.is_empty() {
+            summary.attach_coin(coin);
+        }
         let mut report = StudyReport::new(&self.config, &summary);
         report.runs = traces.len();
         let series_len = summary.nees_series.first().map_or(0, Vec::len);
         let flat = |series: &[Vec<f64>]| series.concat();
         let mut omega = summary.omega_ci_series.clone();
         omega.extend(flat(&summary.omega_nmci_series));
+        omega.extend(&summary.omega_ici_series);
         StudyView {
             runs_done: self.done.len(),
             runs: self.config.runs,
@@ -127,6 +170,8 @@ impl LiveStudy {
             rmse: flat(&summary.rmse_series),
             two_sigma: flat(&summary.two_sigma_series),
             omega,
+            coin_len,
+            coin: coin_flat,
         }
     }
 }

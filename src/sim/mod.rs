@@ -3,15 +3,20 @@
 //! [`Scenario`] holds the parameters (every value the paper omits is stated there),
 //! [`Model`] the linear-Gaussian model and the independent blocks derived from it, and
 //! [`simulate_run`] one Monte Carlo run of the centralized filter and of the decentralized
-//! agents fusing with CI, nmCI and naive fusion. [`summarize`] averages runs into the study's
-//! headline numbers; [`LiveStudy`] advances a study a few steps at a time (the page's live
-//! Study tab) and [`simulate_runs_parallel`] runs it on every core (the CLI).
+//! agents fusing with CI, nmCI, naive fusion and ICI. [`summarize`] averages runs into the
+//! study's headline numbers; [`ErrorPropagation`] propagates every estimator's *true* error
+//! covariance exactly (no Monte Carlo: all covariances and gains are deterministic), giving
+//! each estimator's conservativeness index (COIN) per step next to its NEES;
+//! [`LiveStudy`] advances a study a few steps at a time (the page's live Study tab) and
+//! [`simulate_runs_parallel`] runs it on every core (the CLI).
 
+mod coin;
 mod live;
 mod model;
 mod scenario;
 mod study;
 
+pub use coin::{coin_series, ErrorPropagation};
 pub use live::{LiveStudy, StudyView};
 pub use model::Model;
 pub use scenario::{ScalarMeasurement, Scenario};
@@ -91,6 +96,9 @@ pub struct StudyConfig {
     pub agent: usize,
     /// Neighbour whose fusion into `agent` is watched for ω, 1-based.
     pub watched: usize,
+    /// Compute every estimator's exact COIN per step ([`ErrorPropagation`]; once per study,
+    /// it does not depend on the run).
+    pub coin: bool,
     /// The scenario.
     pub scenario: Scenario,
 }
@@ -103,6 +111,7 @@ impl Default for StudyConfig {
             seed: 1,
             agent: 7,
             watched: 11,
+            coin: true,
             scenario: Scenario::default(),
         }
     }
@@ -156,6 +165,8 @@ pub struct StudyReport {
     pub nmci: EstimatorSummary,
     /// Decentralized, naive fusion.
     pub naive: EstimatorSummary,
+    /// Decentralized, ICI (not in the paper).
+    pub ici: EstimatorSummary,
     /// 95 % bounds of the run-averaged NEES.
     pub nees_bounds: [f64; 2],
     /// Steady-state ω of the watched fusion (mean over the last half of the steps).
@@ -177,6 +188,8 @@ pub struct OmegaReport {
     pub ci: f64,
     /// nmCI's ω per block (G1x, G1y, G2x, G2y, …).
     pub nmci: Vec<f64>,
+    /// ICI's one ω (`0` keeps the agent's estimate).
+    pub ici: f64,
 }
 
 impl StudyReport {
@@ -195,10 +208,12 @@ impl StudyReport {
             ci: pick(1),
             nmci: pick(2),
             naive: pick(3),
+            ici: pick(4),
             nees_bounds: [summary.nees_bounds.0, summary.nees_bounds.1],
             omega_7_11: OmegaReport {
                 ci: summary.omega_ci,
                 nmci: summary.omega_nmci.clone(),
+                ici: summary.omega_ici,
             },
             steps: config.steps,
             runs: config.runs,
@@ -237,6 +252,37 @@ pub fn simulate_runs_parallel(
         .collect())
 }
 
+/// The estimators of the study in report order: `None` is the centralized filter, then
+/// [`RULES`].
+pub fn estimators() -> impl Iterator<Item = Option<Rule>> {
+    std::iter::once(None).chain(RULES.iter().copied().map(Some))
+}
+
+/// The name of an estimator of [`estimators`] (`central`, `ci`, …).
+pub fn estimator_name(estimator: Option<Rule>) -> &'static str {
+    estimator.map_or("central", Rule::name)
+}
+
+/// Every estimator's exact COIN per step for the headline agent ([`coin_series`]), in
+/// [`estimators`] order, in parallel (rayon); `on_piece` is called after each estimator.
+#[cfg(not(target_arch = "wasm32"))]
+pub fn coin_parallel(
+    config: &StudyConfig,
+    model: &Model,
+    on_piece: impl Fn() + Sync,
+) -> Result<Vec<Vec<f64>>, SimError> {
+    use rayon::prelude::*;
+    let pieces: Vec<Option<Rule>> = estimators().collect();
+    pieces
+        .par_iter()
+        .map(|&e| {
+            let series = coin_series(model, config.steps, config.agent - 1, e);
+            on_piece();
+            series
+        })
+        .collect()
+}
+
 /// Runs a whole study sequentially (the CLI runs the same runs in parallel).
 pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), SimError> {
     config.validate()?;
@@ -244,7 +290,13 @@ pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), Si
     let traces = (0..config.runs as u64)
         .map(|r| simulate_run(&model, &config.run_spec(r, Storage::Blocks)))
         .collect::<Result<Vec<_>, _>>()?;
-    let summary = summarize(&traces, model.dim());
+    let mut summary = summarize(&traces, model.dim());
+    if config.coin {
+        let coin = estimators()
+            .map(|e| coin_series(&model, config.steps, config.agent - 1, e))
+            .collect::<Result<Vec<_>, _>>()?;
+        summary.attach_coin(coin);
+    }
     let report = StudyReport::new(config, &summary);
     Ok((summary, report))
 }
@@ -260,12 +312,20 @@ pub struct EstimatorSummary {
     pub nees_mean: f64,
     /// Fraction of steps whose run-averaged NEES is above the upper 95 % bound.
     pub nees_frac_above_upper: f64,
+    /// Mean over the steps of the exact COIN (`λ_max(P^{-1/2} E P^{-1/2})`, `E` the true error
+    /// covariance): `≤ 1` conservative, `1` exact, `> 1` overconfident. Absent when the study
+    /// ran without COIN.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coin_mean: Option<f64>,
+    /// The largest COIN over the steps (`≤ 1` = conservative at every step).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coin_max: Option<f64>,
 }
 
 /// Per-step means over runs and the headline numbers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StudySummary {
-    /// `central`, `ci`, `nmci`, `naive`.
+    /// `central`, `ci`, `nmci`, `naive`, `ici`.
     pub estimators: Vec<(String, EstimatorSummary)>,
     /// 95 % bounds of the run-averaged NEES.
     pub nees_bounds: (f64, f64),
@@ -273,6 +333,8 @@ pub struct StudySummary {
     pub omega_ci: f64,
     /// nmCI's steady-state ω per block.
     pub omega_nmci: Vec<f64>,
+    /// ICI's steady-state ω.
+    pub omega_ici: f64,
     /// Run-averaged NEES per step, same order as `estimators`.
     pub nees_series: Vec<Vec<f64>>,
     /// Run-averaged position RMSE per step.
@@ -283,6 +345,25 @@ pub struct StudySummary {
     pub omega_ci_series: Vec<f64>,
     /// nmCI's ω per block (outer) and step (inner), averaged over runs.
     pub omega_nmci_series: Vec<Vec<f64>>,
+    /// ICI's ω of the watched fusion per step, averaged over runs.
+    pub omega_ici_series: Vec<f64>,
+    /// Exact COIN per estimator (same order as `estimators`) and step; empty without COIN.
+    pub coin_series: Vec<Vec<f64>>,
+}
+
+impl StudySummary {
+    /// Adds the exact COIN series (one per estimator, [`estimators`] order; a live study's
+    /// may be shorter than the runs) and their mean and maximum to the estimators' numbers.
+    pub fn attach_coin(&mut self, coin: Vec<Vec<f64>>) {
+        for ((_, e), series) in self.estimators.iter_mut().zip(&coin) {
+            if series.is_empty() {
+                continue;
+            }
+            e.coin_mean = Some(series.iter().sum::<f64>() / series.len() as f64);
+            e.coin_max = Some(series.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+        }
+        self.coin_series = coin;
+    }
 }
 
 /// Averages run traces into the study's numbers (`dof` = state dimension). Traces may be of
@@ -310,7 +391,7 @@ pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
     let two_sigma = mean_series(&|t| &t.two_sigma);
     let bounds = nees_bounds(traces.len().max(1), dof);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let names = ["central", "ci", "nmci", "naive"];
+    let names: Vec<&str> = estimators().map(estimator_name).collect();
     let estimators = (0..series)
         .map(|s| {
             (
@@ -321,6 +402,8 @@ pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
                     nees_mean: mean(&nees[s]),
                     nees_frac_above_upper: nees[s].iter().filter(|v| **v > bounds.1).count() as f64
                         / steps.max(1) as f64,
+                    coin_mean: None,
+                    coin_max: None,
                 },
             )
         })
@@ -357,6 +440,13 @@ pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
             .collect()
     };
     let omega_ci_series = step_mean(&|t, k| t.omega_ci.get(k).copied());
+    let omega_ici = mean(
+        &traces
+            .iter()
+            .flat_map(|t| t.omega_ici.iter().skip(half).copied())
+            .collect::<Vec<_>>(),
+    );
+    let omega_ici_series = step_mean(&|t, k| t.omega_ici.get(k).copied());
     let omega_nmci_series = (0..blocks)
         .map(|b| step_mean(&|t, k| t.omega_nmci.get(k).and_then(|w| w.get(b)).copied()))
         .collect();
@@ -365,8 +455,11 @@ pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
         nees_bounds: bounds,
         omega_ci,
         omega_nmci,
+        omega_ici,
         omega_ci_series,
         omega_nmci_series,
+        omega_ici_series,
+        coin_series: Vec::new(),
         nees_series: nees,
         rmse_series: rmse,
         two_sigma_series: two_sigma,

@@ -1,5 +1,5 @@
 //! Monte Carlo runs of the tracking study: truth, measurements, the centralized Kalman
-//! filter and the decentralized agents fusing with CI, nmCI or naive fusion.
+//! filter and the decentralized agents fusing with CI, nmCI, naive fusion or ICI.
 //!
 //! Every estimate is kept in *storage blocks*: with [`Storage::Blocks`] one `(x, P)` per
 //! independent block of the model (8 of 14 states by default), with [`Storage::Dense`] a
@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 use super::model::Model;
 use super::SimError;
 use crate::fusion::ci::{ci_in_place, covariance_intersection, nmci_in_place};
+use crate::fusion::ici::{ici_in_place, inverse_covariance_intersection};
 use crate::fusion::known::{naive_fusion, naive_in_place};
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::{Criterion, FusionProblem, Gaussian};
@@ -32,10 +33,26 @@ pub enum Rule {
     Nmci,
     /// Naive fusion as if independent.
     Naive,
+    /// Inverse covariance intersection (one ω): conservative for common-information
+    /// correlation only (not the paper's; issue 6).
+    Ici,
 }
 
-/// The rules, in report order.
-pub const RULES: [Rule; 3] = [Rule::Ci, Rule::Nmci, Rule::Naive];
+/// The rules, in report order (series `1..` of a [`RunTrace`]; series 0 is the centralized
+/// filter).
+pub const RULES: [Rule; 4] = [Rule::Ci, Rule::Nmci, Rule::Naive, Rule::Ici];
+
+impl Rule {
+    /// The name used in reports (`ci`, `nmci`, `naive`, `ici`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Rule::Ci => "ci",
+            Rule::Nmci => "nmci",
+            Rule::Naive => "naive",
+            Rule::Ici => "ici",
+        }
+    }
+}
 
 /// How estimates are stored and fused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,29 +64,29 @@ pub enum Storage {
 }
 
 /// An estimate in storage blocks.
-type Estimate = Vec<Gaussian>;
+pub(super) type Estimate = Vec<Gaussian>;
 
 /// One scalar measurement in block coordinates: `(block, local sparse row, noise variance)`.
-type LocalMeasurement = (usize, Vec<(usize, f64)>, f64);
+pub(super) type LocalMeasurement = (usize, Vec<(usize, f64)>, f64);
 
 /// Per-block restrictions of the model.
 #[allow(non_snake_case)]
-struct Partition {
-    blocks: Vec<Vec<usize>>,
+pub(super) struct Partition {
+    pub(super) blocks: Vec<Vec<usize>>,
     /// The non-zeros of each block's transition matrix, row by row: `F[k][i] = [(j, F_ij)]`
     /// (at most two per row for nearly-constant-velocity targets and constant biases, so the
     /// prediction `F P Fᵀ` is O(n²) instead of two dense products).
-    F: Vec<Vec<Vec<(usize, f64)>>>,
-    Q: Vec<DMatrix<f64>>,
+    pub(super) F: Vec<Vec<Vec<(usize, f64)>>>,
+    pub(super) Q: Vec<DMatrix<f64>>,
     /// For each agent: `(block, local row, variance)` per scalar measurement.
-    measurements: Vec<Vec<LocalMeasurement>>,
+    pub(super) measurements: Vec<Vec<LocalMeasurement>>,
     /// Local indices of the target position coordinates in each block.
     positions: Vec<Vec<usize>>,
 }
 
 #[allow(non_snake_case)]
 impl Partition {
-    fn new(model: &Model, storage: Storage) -> Self {
+    pub(super) fn new(model: &Model, storage: Storage) -> Self {
         let blocks = match storage {
             Storage::Blocks => model.blocks.clone(),
             Storage::Dense => vec![(0..model.dim()).collect()],
@@ -126,7 +143,7 @@ impl Partition {
         }
     }
 
-    fn prior(&self, model: &Model) -> Estimate {
+    pub(super) fn prior(&self, model: &Model) -> Estimate {
         self.blocks
             .iter()
             .map(|b| Gaussian {
@@ -137,7 +154,7 @@ impl Partition {
     }
 
     /// `x ← F x`, `P ← F P Fᵀ + Q` block by block, with the sparse rows of `F`.
-    fn predict(&self, e: &mut Estimate) {
+    pub(super) fn predict(&self, e: &mut Estimate) {
         for (k, g) in e.iter_mut().enumerate() {
             let F = &self.F[k];
             let n = g.x.len();
@@ -170,7 +187,7 @@ impl Partition {
     /// `P ← (I − K hᵀ) P (I − K hᵀ)ᵀ + r K Kᵀ`, evaluated exactly through its rank-one factors
     /// (`(I − K hᵀ) P = P − K (P h)ᵀ`, then `Y (I − h Kᵀ) = Y − (Y h) Kᵀ`): O(n²) instead of
     /// two dense products.
-    fn update(&self, e: &mut Estimate, a: usize, m: usize, z: f64) {
+    pub(super) fn update(&self, e: &mut Estimate, a: usize, m: usize, z: f64) {
         let (b, row, r) = &self.measurements[a][m];
         let Gaussian { x, P } = &mut e[*b];
         let sparse_dot = |v: &DMatrix<f64>, col: usize| -> f64 {
@@ -192,7 +209,7 @@ impl Partition {
 }
 
 /// Fuses `b` into `a` with `rule`; returns the weights used (CI: one; nmCI: one per model block).
-fn fuse(
+pub(super) fn fuse(
     model: &Model,
     storage: Storage,
     rule: Rule,
@@ -207,6 +224,7 @@ fn fuse(
                 naive_in_place(a, b);
                 vec![]
             }
+            Rule::Ici => vec![ici_in_place(a, b, Criterion::Trace)?],
         }),
         Storage::Dense => {
             let p = FusionProblem::new_trusted(
@@ -226,6 +244,10 @@ fn fuse(
                     (nm.fused, nm.omega)
                 }
                 Rule::Naive => (naive_fusion(&p), vec![]),
+                Rule::Ici => {
+                    let ici = inverse_covariance_intersection(&p, Criterion::Trace)?;
+                    (ici.fused, vec![ici.omega])
+                }
             };
             a[0] = Gaussian {
                 x: fused.x,
@@ -249,6 +271,8 @@ pub struct RunTrace {
     pub omega_ci: Vec<f64>,
     /// nmCI's ω per block (model block order) for that fusion, per step.
     pub omega_nmci: Vec<Vec<f64>>,
+    /// ICI's ω for that fusion, per step (`0` keeps the agent's own estimate).
+    pub omega_ici: Vec<f64>,
 }
 
 /// What one run computes.
@@ -303,6 +327,7 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
         two_sigma: Vec::with_capacity(RULES.len() + 1),
         omega_ci: Vec::new(),
         omega_nmci: Vec::new(),
+        omega_ici: Vec::new(),
     };
     for (k, part) in parts.into_iter().enumerate() {
         let RunTrace {
@@ -311,6 +336,7 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
             two_sigma,
             omega_ci,
             omega_nmci,
+            omega_ici,
         } = part;
         // Series 0 is the centralized filter (the same in every part); series 1 the rule's.
         let skip = if k == 0 { 0 } else { 1 };
@@ -319,6 +345,7 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
         merged.two_sigma.extend(two_sigma.into_iter().skip(skip));
         merged.omega_ci.extend(omega_ci);
         merged.omega_nmci.extend(omega_nmci);
+        merged.omega_ici.extend(omega_ici);
     }
     merged
 }
@@ -382,6 +409,7 @@ impl RunState {
             two_sigma: vec![Vec::with_capacity(spec.steps); series],
             omega_ci: Vec::with_capacity(spec.steps),
             omega_nmci: Vec::with_capacity(spec.steps),
+            omega_ici: Vec::with_capacity(spec.steps),
         };
         Self {
             spec: *spec,
@@ -407,6 +435,23 @@ impl RunState {
     /// Whether all `spec.steps` steps are done.
     pub fn finished(&self) -> bool {
         self.done >= self.spec.steps
+    }
+
+    /// The current error `x − x̂` (truth minus estimate, in state order) of series `series`:
+    /// `0` is the centralized filter (`agent` ignored), `1 + r` agent `agent` (0-based) of the
+    /// `r`-th rule simulated. `None` for a series or agent that does not exist.
+    pub fn error(&self, series: usize, agent: usize) -> Option<DVector<f64>> {
+        let estimate = match series {
+            0 => &self.central,
+            s => self.agents.get(s - 1)?.get(agent)?,
+        };
+        let mut err = self.truth.clone();
+        for (block, g) in self.part.blocks.iter().zip(estimate) {
+            for (k, &i) in block.iter().enumerate() {
+                err[i] -= g.x[k];
+            }
+        }
+        Some(err)
     }
 
     /// The per-step results so far.
@@ -476,6 +521,7 @@ impl RunState {
                         match rule {
                             Rule::Ci => trace.omega_ci.push(omega[0]),
                             Rule::Nmci => trace.omega_nmci.push(omega),
+                            Rule::Ici => trace.omega_ici.push(omega[0]),
                             Rule::Naive => {}
                         }
                     }

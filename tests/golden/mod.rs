@@ -19,6 +19,8 @@ pub struct GoldenStudy {
     pub rmse: Vec<f64>,
     pub two_sigma: Vec<f64>,
     pub omega: Vec<f64>,
+    /// Exact COIN per estimator and step (`5 × steps`).
+    pub coin: Vec<f64>,
 }
 
 /// `|a − b| ≤ 1e-9 · max(|b|, 1)` element by element; the first offending index otherwise.
@@ -38,16 +40,18 @@ pub fn within_1e9(a: &[f64], b: &[f64]) -> Result<(), String> {
 /// The headline numbers of a report as one vector (for [`within_1e9`]).
 pub fn headline(r: &StudyReport) -> Vec<f64> {
     let mut v = Vec::new();
-    for e in [&r.central, &r.ci, &r.nmci, &r.naive] {
+    for e in [&r.central, &r.ci, &r.nmci, &r.naive, &r.ici] {
         v.extend([
             e.rmse_mean,
             e.two_sigma_mean,
             e.nees_mean,
             e.nees_frac_above_upper,
         ]);
+        v.extend(e.coin_mean.iter().chain(&e.coin_max));
     }
     v.extend(r.nees_bounds);
     v.push(r.omega_7_11.ci);
     v.extend(&r.omega_7_11.nmci);
+    v.push(r.omega_7_11.ici);
     v
 }

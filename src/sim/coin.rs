@@ -1,0 +1,421 @@
+//! The exact conservativeness index (COIN) of the tracking study's estimators.
+//!
+//! Every covariance and every gain of the study is deterministic: Kalman covariances do not
+//! depend on the measurements, and the CI, nmCI and ICI weights depend on covariances only.
+//! So the *true* error covariance of each agent can be propagated exactly, without Monte
+//! Carlo, next to the covariance the agent believes. Per model block (the errors of different
+//! blocks are independent), keep the joint covariance `Σ` of the errors `eᵢ = x − x̂ᵢ` of all
+//! `N` agents (`N m × N m` for a block of `m` states):
+//!
+//! - prior: every estimate starts at the prior mean, so `eᵢ = x` and `Σ = 𝟙𝟙ᵀ ⊗ P₀`;
+//! - prediction: `eᵢ ← F eᵢ + w` with the *common* process noise `w`, so
+//!   `Σ ← (I ⊗ F) Σ (I ⊗ F)ᵀ + 𝟙𝟙ᵀ ⊗ Q`;
+//! - agent `i`'s scalar measurement `z = hᵀx + v` with gain `K`: `eᵢ ← (I − K hᵀ) eᵢ − K v`,
+//!   `v` independent of everything else (rows and columns of agent `i` multiplied by
+//!   `I − K hᵀ`, then `r K Kᵀ` added to its diagonal block);
+//! - exchange: agent `a` fuses its neighbours' sent estimates one after the other,
+//!   `e_a ← K_a e_a + K_b e_b`, so after the exchange `e_a = Σⱼ C_aj eⱼ` (pre-exchange errors)
+//!   and `Σ ← C Σ Cᵀ`. The gains follow from the weights the rule chose: CI (and nmCI per
+//!   block) `K_b = (1−ω) P P_b⁻¹`, naive `K_b = P P_b⁻¹`, ICI `K_b = P (P_b⁻¹ − (1−ω) Γ⁻¹)`
+//!   with `Γ = ω P_a + (1−ω) P_b`.
+//!
+//! The agent's COIN is then `λ_max(L⁻¹ E L⁻ᵀ)` with `P = L Lᵀ` its covariance and `E` its
+//! diagonal block of `Σ` ([`conservativeness_index`]); both are block-diagonal over the model
+//! blocks, so it is the largest block value. `≤ 1` means the agent's covariance bounds its
+//! true error covariance (conservative); `> 1` means it is overconfident. The centralized
+//! filter is the optimal Kalman filter of the model, so its `E` equals its `P` (COIN `= 1`):
+//! computed the same way, it checks the propagation.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::model::Model;
+use super::study::{fuse, Estimate, Partition};
+use super::{Rule, SimError, Storage};
+use crate::error::InputError;
+use crate::fusion::check::conservativeness_index;
+
+/// The exact error covariances of one estimator of the study (the centralized filter or the
+/// agents of one rule), advanced a step at a time as [`super::RunState`] advances a run.
+#[allow(non_snake_case)]
+pub struct ErrorPropagation {
+    part: Partition,
+    /// `None`: the centralized filter (one filter applying every agent's measurements).
+    rule: Option<Rule>,
+    neighbours: Vec<Vec<usize>>,
+    /// The filters' covariances (means stay at zero: nothing here depends on them).
+    filters: Vec<Estimate>,
+    /// Per model block, the joint covariance of all filters' errors.
+    joint: Vec<DMatrix<f64>>,
+    /// Per model block, an earlier block whose recursion is the same (equal transition, process
+    /// noise, prior and, agent by agent, the same measurements in local coordinates — the
+    /// x and y blocks of a group): its joint covariance is not propagated twice.
+    twin: Vec<Option<usize>>,
+    done: usize,
+}
+
+#[allow(non_snake_case)]
+impl ErrorPropagation {
+    /// Starts at the common prior: `rule = None` follows the centralized filter, `Some(rule)`
+    /// every agent of that rule.
+    pub fn new(model: &Model, rule: Option<Rule>) -> Self {
+        let part = Partition::new(model, Storage::Blocks);
+        let filters: Vec<Estimate> = match rule {
+            None => vec![part.prior(model)],
+            Some(_) => (0..model.scenario.agents())
+                .map(|_| part.prior(model))
+                .collect(),
+        };
+        let count = filters.len();
+        let joint = part
+            .blocks
+            .iter()
+            .enumerate()
+            .map(|(k, b)| {
+                let m = b.len();
+                let P0 = &filters[0][k].P;
+                DMatrix::from_fn(count * m, count * m, |i, j| P0[(i % m, j % m)])
+            })
+            .collect();
+        let local = |k: usize| -> Vec<Vec<(Vec<(usize, f64)>, f64)>> {
+            part.measurements
+                .iter()
+                .map(|ms| {
+                    ms.iter()
+                        .filter(|(b, _, _)| *b == k)
+                        .map(|(_, row, r)| (row.clone(), *r))
+                        .collect()
+                })
+                .collect()
+        };
+        let twin = (0..part.blocks.len())
+            .map(|k| {
+                (0..k).find(|&t| {
+                    part.F[t] == part.F[k]
+                        && part.Q[t] == part.Q[k]
+                        && filters[0][t].P == filters[0][k].P
+                        && local(t) == local(k)
+                })
+            })
+            .collect();
+        Self {
+            part,
+            rule,
+            neighbours: model.scenario.neighbours(),
+            filters,
+            joint,
+            twin,
+            done: 0,
+        }
+    }
+
+    /// Whether this follows the centralized filter (its only filter is `0`).
+    pub fn is_central(&self) -> bool {
+        self.rule.is_none()
+    }
+
+    /// Steps done.
+    pub fn steps_done(&self) -> usize {
+        self.done
+    }
+
+    /// One time step: prediction, every filter's measurements, and the rule's exchange.
+    /// `model` must be the one the propagation was created with.
+    pub fn step(&mut self, model: &Model) -> Result<(), SimError> {
+        self.predict();
+        self.measure(model.scenario.agents());
+        if let Some(rule) = self.rule {
+            self.exchange(model, rule)?;
+        }
+        self.done += 1;
+        Ok(())
+    }
+
+    fn predict(&mut self) {
+        let count = self.filters.len();
+        for (k, S) in self.joint.iter_mut().enumerate() {
+            if self.twin[k].is_some() {
+                continue;
+            }
+            // F's rows have at most two non-zeros: column operations.
+            let (F, Q) = (&self.part.F[k], &self.part.Q[k]);
+            let m = F.len();
+            let right_multiply = |X: &DMatrix<f64>| {
+                let mut Y = DMatrix::zeros(count * m, count * m);
+                for j in 0..count {
+                    for (r, row) in F.iter().enumerate() {
+                        for &(l, f) in row {
+                            Y.column_mut(j * m + r)
+                                .axpy(f, &X.column(j * m + l), 1.0);
+                        }
+                    }
+                }
+                Y
+            };
+            // (I ⊗ F) Σ (I ⊗ F)ᵀ = Uᵀ (I ⊗ F)ᵀ with U = Σ (I ⊗ F)ᵀ (Σ symmetric).
+            let U = right_multiply(S).transpose();
+            *S = right_multiply(&U);
+            for i in 0..count {
+                for j in 0..count {
+                    let mut view = S.view_mut((i * m, j * m), (m, m));
+                    view += Q;
+                }
+            }
+        }
+        for f in &mut self.filters {
+            self.part.predict(f);
+        }
+    }
+
+    fn measure(&mut self, agents: usize) {
+        for i in 0..self.filters.len() {
+            let sources: Vec<usize> = match self.rule {
+                None => (0..agents).collect(),
+                Some(_) => vec![i],
+            };
+            for a in sources {
+                for m_index in 0..self.part.measurements[a].len() {
+                    let (b, row, r) = &self.part.measurements[a][m_index];
+                    let P = &self.filters[i][*b].P;
+                    let m = P.nrows();
+                    // K = P h / (hᵀ P h + r), from the covariance before the update.
+                    let Ph = DVector::from_fn(m, |l, _| {
+                        row.iter().map(|&(j, c)| c * P[(l, j)]).sum::<f64>()
+                    });
+                    let s = row.iter().map(|&(j, c)| c * Ph[j]).sum::<f64>() + r;
+                    let K = Ph.unscale(s);
+                    self.part.update(&mut self.filters[i], a, m_index, 0.0);
+                    if self.twin[*b].is_some() {
+                        continue;
+                    }
+                    let S = &mut self.joint[*b];
+                    // Rows of filter i: Σ[i, :] ← Σ[i, :] − K (hᵀ Σ[i, :]).
+                    let hS: Vec<f64> = (0..S.ncols())
+                        .map(|col| row.iter().map(|&(j, c)| c * S[(i * m + j, col)]).sum())
+                        .collect();
+                    for (col, &h) in hS.iter().enumerate() {
+                        for l in 0..m {
+                            S[(i * m + l, col)] -= K[l] * h;
+                        }
+                    }
+                    // Columns of filter i: Σ[:, i] ← Σ[:, i] − (Σ[:, i] h) Kᵀ.
+                    let mut Sh = DVector::zeros(S.nrows());
+                    for &(j, c) in row {
+                        Sh.axpy(c, &S.column(i * m + j), 1.0);
+                    }
+                    for l in 0..m {
+                        let mut target = S.column_mut(i * m + l);
+                        target.axpy(-K[l], &Sh, 1.0);
+                    }
+                    // Measurement noise: Σ[i, i] += r K Kᵀ.
+                    let mut diag = S.view_mut((i * m, i * m), (m, m));
+                    diag.ger(*r, &K, &K, 1.0);
+                }
+            }
+        }
+    }
+
+    fn exchange(&mut self, model: &Model, rule: Rule) -> Result<(), SimError> {
+        let count = self.filters.len();
+        let blocks = self.part.blocks.len();
+        let sent = self.filters.clone();
+        // coefficients[a][k]: agent a's post-exchange error in block k as Σⱼ C_aj eⱼ
+        // (`None` = the identity: most fusions keep or take whole blocks).
+        let mut coefficients: Vec<Vec<Coefficients>> = Vec::with_capacity(count);
+        for a in 0..count {
+            let mut coef: Vec<Coefficients> = (0..blocks).map(|_| vec![(a, None)]).collect();
+            for &b in &self.neighbours[a] {
+                let before: Vec<DMatrix<f64>> =
+                    self.filters[a].iter().map(|g| g.P.clone()).collect();
+                let omega = fuse(
+                    model,
+                    Storage::Blocks,
+                    rule,
+                    &mut self.filters[a],
+                    &sent[b],
+                )?;
+                for k in (0..blocks).filter(|&k| self.twin[k].is_none()) {
+                    let gain = gain_b(
+                        rule,
+                        &omega,
+                        k,
+                        &before[k],
+                        &sent[b][k].P,
+                        &self.filters[a][k].P,
+                    )?;
+                    match gain {
+                        Gain::Keep => {}
+                        Gain::Take => coef[k] = vec![(b, None)],
+                        Gain::Mix(K_b) => {
+                            let m = K_b.nrows();
+                            let K_a = DMatrix::identity(m, m) - &K_b;
+                            for (_, c) in coef[k].iter_mut() {
+                                *c = Some(match c.take() {
+                                    Some(c) => &K_a * c,
+                                    None => K_a.clone(),
+                                });
+                            }
+                            match coef[k].iter_mut().find(|(j, _)| *j == b) {
+                                Some((_, Some(c))) => *c += &K_b,
+                                _ => coef[k].push((b, Some(K_b))),
+                            }
+                        }
+                    }
+                }
+            }
+            coefficients.push(coef);
+        }
+        for (k, S) in self.joint.iter_mut().enumerate() {
+            if self.twin[k].is_some() {
+                continue;
+            }
+            let m = self.part.blocks[k].len();
+            // Column operations only (contiguous in column-major storage), using symmetry:
+            // U = Σ Cᵀ, then C Σ Cᵀ = C U = (Uᵀ Cᵀ)ᵀ = Uᵀ Cᵀ (symmetric).
+            let right_multiply = |X: &DMatrix<f64>| {
+                let mut Y = DMatrix::zeros(count * m, count * m);
+                for (c, coef) in coefficients.iter().enumerate() {
+                    for (l, C) in &coef[k] {
+                        let mut target = Y.columns_mut(c * m, m);
+                        match C {
+                            None => target += X.columns(l * m, m),
+                            Some(C) => target.gemm(1.0, &X.columns(l * m, m), &C.transpose(), 1.0),
+                        }
+                    }
+                }
+                Y
+            };
+            let U = right_multiply(S).transpose();
+            *S = right_multiply(&U);
+            crate::linalg::symmetrize_in_place(S);
+        }
+        Ok(())
+    }
+
+    /// Filter `i`'s covariance (agent `i` of the rule, or `0` for the centralized filter),
+    /// per model block.
+    pub fn covariance(&self, i: usize) -> Vec<DMatrix<f64>> {
+        self.filters[i].iter().map(|g| g.P.clone()).collect()
+    }
+
+    /// Filter `i`'s true error covariance, per model block.
+    pub fn error_covariance(&self, i: usize) -> Vec<DMatrix<f64>> {
+        (0..self.joint.len())
+            .map(|k| {
+                let S = &self.joint[self.twin[k].unwrap_or(k)];
+                let m = self.part.blocks[k].len();
+                S.view((i * m, i * m), (m, m)).into_owned()
+            })
+            .collect()
+    }
+
+    /// Filter `i`'s COIN: the largest block value of `λ_max(L⁻¹ E L⁻ᵀ)`. Naive fusion double
+    /// counts until its covariance is numerically singular; then, as for the study's NEES, the
+    /// eigenvalues of `P` are floored at `λ_max(P) · ε` and the COIN is reported as the huge
+    /// finite number it is, not as a failure.
+    pub fn coin(&self, i: usize) -> f64 {
+        self.covariance(i)
+            .iter()
+            .zip(self.error_covariance(i))
+            .map(|(P, E)| conservativeness_index(P, &E).unwrap_or_else(|_| floored_coin(P, &E)))
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+}
+
+/// `λ_max(D^{-1/2} Vᵀ E V D^{-1/2})` with `P = V D Vᵀ` and `D` floored at `λ_max(P) · ε`.
+#[allow(non_snake_case)]
+fn floored_coin(P: &DMatrix<f64>, E: &DMatrix<f64>) -> f64 {
+    let eig = nalgebra::SymmetricEigen::new(P.clone());
+    let floor = eig.eigenvalues.amax() * f64::EPSILON;
+    let scale = eig.eigenvalues.map(|l| 1.0 / l.max(floor).sqrt());
+    let mut W = eig.eigenvectors.transpose() * E * &eig.eigenvectors;
+    for i in 0..W.nrows() {
+        for j in 0..W.ncols() {
+            W[(i, j)] *= scale[i] * scale[j];
+        }
+    }
+    -crate::linalg::min_eigenvalue(&(-crate::linalg::symmetrize(&W)))
+}
+
+/// Agent `a`'s error after the exchange in one block: `Σⱼ C_aj eⱼ` (`None` = identity).
+type Coefficients = Vec<(usize, Option<DMatrix<f64>>)>;
+
+/// The gain on the sent estimate of one fusion in one block.
+enum Gain {
+    /// `K_b = 0`: the agent keeps its block.
+    Keep,
+    /// `K_b = I`: the agent takes the sent block.
+    Take,
+    /// Anything else.
+    Mix(DMatrix<f64>),
+}
+
+/// The gain on the sent estimate of one fusion in block `k`, from the rule's weights, the
+/// covariances before (`P_a`, `P_b`) and the fused covariance `P` (see the module docs).
+#[allow(non_snake_case)]
+fn gain_b(
+    rule: Rule,
+    omega: &[f64],
+    k: usize,
+    P_a: &DMatrix<f64>,
+    P_b: &DMatrix<f64>,
+    P: &DMatrix<f64>,
+) -> Result<Gain, InputError> {
+    let weight = match rule {
+        Rule::Ci | Rule::Ici => omega.first().copied(),
+        Rule::Nmci => omega.get(k).copied(),
+        Rule::Naive => None,
+    };
+    // Endpoints exactly: CI/nmCI ω = 1 and ICI ω = 0 keep `a`; CI ω = 0 and ICI ω = 1 take `b`.
+    match (rule, weight) {
+        (Rule::Ci | Rule::Nmci, Some(w)) if w == 1.0 => return Ok(Gain::Keep),
+        (Rule::Ci | Rule::Nmci, Some(w)) if w == 0.0 => return Ok(Gain::Take),
+        (Rule::Ici, Some(w)) if w == 0.0 => return Ok(Gain::Keep),
+        (Rule::Ici, Some(w)) if w == 1.0 => return Ok(Gain::Take),
+        _ => {}
+    }
+    let not_pd = |name: &str, M: &DMatrix<f64>| InputError::NotPositiveDefinite {
+        name: name.into(),
+        min_eigenvalue: crate::linalg::min_eigenvalue(M),
+    };
+    // P P_b⁻¹ = (P_b⁻¹ P)ᵀ (both symmetric).
+    let over_b = crate::linalg::cholesky(P_b)
+        .ok_or_else(|| not_pd("P_b", P_b))?
+        .solve(P)
+        .transpose();
+    Ok(Gain::Mix(match (rule, weight) {
+        (Rule::Naive, _) => over_b,
+        (Rule::Ici, Some(w)) => {
+            let Gamma = P_a * w + P_b * (1.0 - w);
+            let over_gamma = crate::linalg::cholesky(&Gamma)
+                .ok_or_else(|| not_pd("Γ", &Gamma))?
+                .solve(P)
+                .transpose();
+            over_b - over_gamma * (1.0 - w)
+        }
+        (_, Some(w)) => over_b * (1.0 - w),
+        (_, None) => {
+            return Err(InputError::Estimates(format!(
+                "fusion rule {} returned no weight for block {k}",
+                rule.name()
+            )))
+        }
+    }))
+}
+
+/// The COIN of the headline agent (`agent`, 0-based) per step for `rule`, or of the
+/// centralized filter for `None`, over `steps` steps.
+pub fn coin_series(
+    model: &Model,
+    steps: usize,
+    agent: usize,
+    rule: Option<Rule>,
+) -> Result<Vec<f64>, SimError> {
+    let mut propagation = ErrorPropagation::new(model, rule);
+    let filter = if rule.is_some() { agent } else { 0 };
+    let mut series = Vec::with_capacity(steps);
+    for _ in 0..steps {
+        propagation.step(model)?;
+        series.push(propagation.coin(filter));
+    }
+    Ok(series)
+}
