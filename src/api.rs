@@ -291,23 +291,9 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
     match request.method {
         Method::Ci => Ok(ci_response(&problem, criterion)?.0),
         Method::Nmci => Ok(nmci_response(&problem, criterion)?.0),
-        Method::Ici => {
-            let ici = inverse_covariance_intersection(&problem, criterion)?;
-            let mut r = response(Method::Ici, criterion, &ici.fused);
-            r.omega = Some(vec![ici.omega]);
-            r.conservative_for = Some("common information only".into());
-            Ok(r)
-        }
-        Method::Ei | Method::Naive => {
-            let fused = if request.method == Method::Ei {
-                ellipsoidal_intersection(&problem)?
-            } else {
-                naive_fusion(&problem)
-            };
-            let mut r = response(request.method, criterion, &fused);
-            r.conservative_for = Some("not guaranteed".into());
-            Ok(r)
-        }
+        Method::Ici => Ok(ici_response(&problem, criterion)?.0),
+        Method::Ei => Ok(ei_response(&problem)?.0),
+        Method::Naive => Ok(naive_response(&problem).0),
         Method::Sdp => {
             let defaults = SdpSettings::default();
             let settings = SdpSettings {
@@ -392,6 +378,35 @@ pub(crate) fn nmci_response(
     r.omega = Some(nm.omega);
     r.blocks = Some(nm.blocks);
     Ok((r, nm.fused))
+}
+
+/// The ICI response and the fused result it was made from.
+pub(crate) fn ici_response(
+    problem: &FusionProblem,
+    criterion: Criterion,
+) -> Result<(FuseResponse, Fused), InputError> {
+    let ici = inverse_covariance_intersection(problem, criterion)?;
+    let mut r = response(Method::Ici, criterion, &ici.fused);
+    r.omega = Some(vec![ici.omega]);
+    r.conservative_for = Some("common information only".into());
+    Ok((r, ici.fused))
+}
+
+/// The EI response and the fused result it was made from (`criterion` reported as the
+/// default: EI has no weight to optimise).
+pub(crate) fn ei_response(problem: &FusionProblem) -> Result<(FuseResponse, Fused), InputError> {
+    let fused = ellipsoidal_intersection(problem)?;
+    let mut r = response(Method::Ei, Criterion::default(), &fused);
+    r.conservative_for = Some("not guaranteed".into());
+    Ok((r, fused))
+}
+
+/// The naive-fusion response and the fused result it was made from.
+pub(crate) fn naive_response(problem: &FusionProblem) -> (FuseResponse, Fused) {
+    let fused = naive_fusion(problem);
+    let mut r = response(Method::Naive, Criterion::default(), &fused);
+    r.conservative_for = Some("not guaranteed".into());
+    (r, fused)
 }
 
 /// The sampled-SDP response; `conservative_traces` are the trace-optimal CI and nmCI traces

@@ -5,10 +5,14 @@
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
-use crate::api::{ci_response, nmci_response, problem_from_parts, sdp_response, FuseResponse};
+use crate::api::{
+    ci_response, ei_response, ici_response, naive_response, nmci_response, problem_from_parts,
+    sdp_response, FuseResponse,
+};
 use crate::error::RequestError;
-use crate::fusion::check::worst_margin;
+use crate::fusion::check::{fused_coin, worst_margin};
 use crate::fusion::known::known_correlation_fusion;
+use crate::fusion::{Fused, FusionProblem};
 use crate::fusion::sample::{sample_cross_covariances, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::Criterion;
@@ -76,6 +80,40 @@ pub struct Margins {
     pub nmci: f64,
     /// Sampled SDP (absent when it failed). Negative = not conservative for some drawn `P'`.
     pub sdp: Option<f64>,
+    /// ICI (conservative for common-information correlation only).
+    pub ici: f64,
+    /// EI (not guaranteed conservative).
+    pub ei: f64,
+    /// Naive fusion (not conservative for correlated estimates).
+    pub naive: f64,
+}
+
+/// The conservativeness index of one rule over the region's cross-covariances:
+/// `COIN = λ_max(L⁻¹ E L⁻ᵀ)` with `P = L Lᵀ` the rule's bound and `E = K P' Kᵀ` the true
+/// fused error covariance for each drawn `P'` (`≤ 1` conservative; closer to 1 = tighter).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CoinStats {
+    /// The largest COIN over the drawn `P'` (`> 1`: not conservative for some `P'`).
+    pub max: f64,
+    /// The median COIN over the drawn `P'`.
+    pub median: f64,
+}
+
+/// [`CoinStats`] of each rule over the region.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Coins {
+    /// CI.
+    pub ci: CoinStats,
+    /// nmCI.
+    pub nmci: CoinStats,
+    /// Sampled SDP (absent when it failed).
+    pub sdp: Option<CoinStats>,
+    /// ICI.
+    pub ici: CoinStats,
+    /// EI.
+    pub ei: CoinStats,
+    /// Naive fusion.
+    pub naive: CoinStats,
 }
 
 /// Everything the explorer shows for one state.
@@ -87,6 +125,12 @@ pub struct Exploration {
     pub ci: FuseResponse,
     /// nmCI.
     pub nmci: FuseResponse,
+    /// ICI (same criterion as CI; `conservative_for` says for what).
+    pub ici: FuseResponse,
+    /// Ellipsoidal intersection (not guaranteed conservative).
+    pub ei: FuseResponse,
+    /// Naive fusion (not guaranteed conservative).
+    pub naive: FuseResponse,
     /// The sampled-SDP bound, when it could be computed.
     pub sdp: Option<FuseResponse>,
     /// Why it could not (sampler budget, solver status).
@@ -101,6 +145,8 @@ pub struct Exploration {
     pub region_error: Option<String>,
     /// Conservativeness of each rule over the region's cross-covariances.
     pub margins: Option<Margins>,
+    /// Each rule's conservativeness index over the region's cross-covariances.
+    pub coin: Option<Coins>,
     /// The region: `region_count` optimal known-correlation covariances `P*`, each `n × n`
     /// row-major, concatenated (the wasm layer hands it over as a `Float64Array`).
     #[serde(skip)]
@@ -151,6 +197,9 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
 
     let (ci, ci_fused) = ci_response(&problem, criterion)?;
     let (nmci, nm_fused) = nmci_response(&problem, criterion)?;
+    let (ici, ici_fused) = ici_response(&problem, criterion)?;
+    let (ei, ei_fused) = ei_response(&problem)?;
+    let (naive, naive_fused) = naive_response(&problem);
     let settings = SdpSettings {
         samples,
         seed,
@@ -175,8 +224,8 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
 
     let region_samples = request.region_samples.unwrap_or(300);
     let mut region = Vec::new();
-    let (mut region_count, mut region_acceptance_rate, mut region_error, mut margins) =
-        (0, None, None, None);
+    let (mut region_count, mut region_acceptance_rate, mut region_error, mut margins, mut coin) =
+        (0, None, None, None, None);
     if region_samples > 0 {
         match sample_cross_covariances(&problem, region_samples, region_seed(seed), sampler) {
             Ok(drawn) => {
@@ -185,12 +234,23 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
                     let best = known_correlation_fusion(&problem, P_ab);
                     region.extend(rows_flat(&best.P));
                 }
+                let worst = |f: &Fused| worst_margin(&problem, f, &drawn.cross);
                 margins = Some(Margins {
-                    ci: worst_margin(&problem, &ci_fused, &drawn.cross),
-                    nmci: worst_margin(&problem, &nm_fused, &drawn.cross),
-                    sdp: sdp_fused
-                        .as_ref()
-                        .map(|f| worst_margin(&problem, f, &drawn.cross)),
+                    ci: worst(&ci_fused),
+                    nmci: worst(&nm_fused),
+                    sdp: sdp_fused.as_ref().map(worst),
+                    ici: worst(&ici_fused),
+                    ei: worst(&ei_fused),
+                    naive: worst(&naive_fused),
+                });
+                let stats = |f: &Fused| coin_stats(&problem, f, &drawn.cross);
+                coin = Some(Coins {
+                    ci: stats(&ci_fused)?,
+                    nmci: stats(&nm_fused)?,
+                    sdp: sdp_fused.as_ref().map(stats).transpose()?,
+                    ici: stats(&ici_fused)?,
+                    ei: stats(&ei_fused)?,
+                    naive: stats(&naive_fused)?,
                 });
                 region_count = drawn.len();
                 region_acceptance_rate = Some(drawn.acceptance_rate());
@@ -202,6 +262,9 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         n,
         ci,
         nmci,
+        ici,
+        ei,
+        naive,
         sdp,
         sdp_error,
         gap,
@@ -209,7 +272,32 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         region_acceptance_rate,
         region_error,
         margins,
+        coin,
         region,
+    })
+}
+
+/// COIN of `fused` for every drawn cross-covariance: the largest and the median.
+#[allow(non_snake_case)]
+fn coin_stats(
+    problem: &FusionProblem,
+    fused: &Fused,
+    cross: &[DMatrix<f64>],
+) -> Result<CoinStats, RequestError> {
+    let mut values = cross
+        .iter()
+        .map(|P_ab| fused_coin(problem, fused, P_ab))
+        .collect::<Result<Vec<f64>, _>>()?;
+    values.sort_by(f64::total_cmp);
+    let k = values.len();
+    let median = match k {
+        0 => f64::NAN,
+        _ if k % 2 == 1 => values[k / 2],
+        _ => 0.5 * (values[k / 2 - 1] + values[k / 2]),
+    };
+    Ok(CoinStats {
+        max: values.last().copied().unwrap_or(f64::NAN),
+        median,
     })
 }
 

@@ -40,7 +40,7 @@ self.onmessage = async (event) => {
       }
       view.elapsed_ms = performance.now() - t0;
       view.run_ms = runTimes.slice();
-      self.postMessage({ type: "view", view }, [view.nees.buffer, view.rmse.buffer, view.two_sigma.buffer, view.omega.buffer]);
+      self.postMessage({ type: "view", view }, [view.nees.buffer, view.rmse.buffer, view.two_sigma.buffer, view.omega.buffer, view.coin.buffer]);
       // Yield so that a "stop" message can arrive.
       await new Promise((resolve) => setTimeout(resolve, 0));
     }

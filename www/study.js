@@ -3,9 +3,12 @@
 import { lineChart } from "./chart.js";
 
 const $ = (s) => document.querySelector(s);
-const NAMES = ["central", "ci", "nmci", "naive"];
-const LABELS = { central: "centralized KF", ci: "CI", nmci: "nmCI", naive: "naive (not conservative)" };
-const COLORS = { central: "#1d1f21", ci: "#1f77b4", nmci: "#d62728", naive: "#999999" };
+const NAMES = ["central", "ci", "nmci", "naive", "ici"];
+const LABELS = { central: "centralized KF", ci: "CI", nmci: "nmCI", naive: "naive (not conservative)", ici: "ICI (common information only)" };
+const COLORS = { central: "#1d1f21", ci: "#1f77b4", nmci: "#d62728", naive: "#999999", ici: "#2ca02c" };
+// Table order: ICI beside CI and nmCI; the charts leave naive fusion off (off the scale).
+const TABLE = ["central", "ci", "nmci", "ici", "naive"];
+const CHARTED = ["central", "ci", "nmci", "ici"];
 
 // Tabs.
 function showTab(name) {
@@ -36,6 +39,7 @@ function readConfig() {
     input.classList.remove("bad");
     config[key] = v;
   }
+  config.coin = $("#study-coin").checked;
   return config;
 }
 
@@ -59,11 +63,13 @@ function render(view) {
     : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps} · ${(view.elapsed_ms / 1000).toFixed(1)} s${runSeconds}`;
   const body = $("#study-table tbody");
   body.replaceChildren();
-  for (const name of NAMES) {
+  for (const name of TABLE) {
     const e = view.report[name];
     const tr = document.createElement("tr");
     tr.dataset.estimator = name;
-    const cells = [LABELS[name], fmt(e.rmse_mean), fmt(e.two_sigma_mean), fmt(e.nees_mean), `${(100 * e.nees_frac_above_upper).toFixed(0)}%`];
+    const coin = (v) => (v === undefined || v === null ? "—" : fmt(v));
+    if (e.coin_max > 1 + 1e-9) tr.classList.add("warn");
+    const cells = [LABELS[name], fmt(e.rmse_mean), fmt(e.two_sigma_mean), fmt(e.nees_mean), `${(100 * e.nees_frac_above_upper).toFixed(0)}%`, coin(e.coin_mean), coin(e.coin_max)];
     for (const c of cells) {
       const td = document.createElement("td");
       td.textContent = c;
@@ -75,16 +81,17 @@ function render(view) {
   const gain = (a, b) => `${(100 * (a / b - 1)).toFixed(0)}%`;
   $("#study-omega").textContent =
     `nmCI vs CI: RMSE ${gain(view.report.nmci.rmse_mean, view.report.ci.rmse_mean)}, 2σ ${gain(view.report.nmci.two_sigma_mean, view.report.ci.two_sigma_mean)}. ` +
-    `Steady ω (7←11): CI ${fmt(w.ci)}; nmCI ${w.nmci.map((v) => v.toFixed(2)).join(", ")} (G1x … G4y).`;
+    `Steady ω (7←11): CI ${fmt(w.ci)}; nmCI ${w.nmci.map((v) => v.toFixed(2)).join(", ")} (G1x … G4y); ICI ${fmt(w.ici)}.` +
+    (view.report.nmci.coin_mean !== undefined ? ` Mean COIN: CI ${fmt(view.report.ci.coin_mean)}, nmCI ${fmt(view.report.nmci.coin_mean)}, ICI ${fmt(view.report.ici.coin_mean)} (closer to 1 = less conservative).` : "");
   const [lo, hi] = view.report.nees_bounds;
   lineChart($("#study-nees"), {
     dt: view.dt, steps: view.steps, band: [lo, hi], yLabel: "NEES",
     yRange: [0, Math.max(2 * hi, 10)],
-    series: ["central", "ci", "nmci"].map((name) => ({ label: LABELS[name], color: COLORS[name], values: row(view.nees, NAMES.indexOf(name)) })),
+    series: CHARTED.map((name) => ({ label: LABELS[name], color: COLORS[name], values: row(view.nees, NAMES.indexOf(name)) })),
   });
   lineChart($("#study-rmse"), {
     dt: view.dt, steps: view.steps, yLabel: "m",
-    series: ["central", "ci", "nmci"].flatMap((name) => [
+    series: CHARTED.flatMap((name) => [
       { label: `${LABELS[name]} RMSE`, color: COLORS[name], values: row(view.rmse, NAMES.indexOf(name)) },
       { label: "2σ", color: COLORS[name], dash: true, values: row(view.two_sigma, NAMES.indexOf(name)) },
     ]),
@@ -94,7 +101,13 @@ function render(view) {
     const shade = Math.round((200 * b) / Math.max(view.blocks - 1, 1));
     omega.push({ label: `G${Math.floor(b / 2) + 1}${b % 2 ? "y" : "x"}`, color: `rgb(214, ${shade}, ${Math.round(shade / 2)})`, dash: b % 2 === 1, values: row(view.omega, b + 1) });
   }
+  omega.push({ label: "ICI", color: COLORS.ici, values: row(view.omega, view.blocks + 1) });
   lineChart($("#study-omega-plot"), { dt: view.dt, steps: view.steps, yRange: [-0.05, 1.05], yLabel: "ω", series: omega });
+  const c = view.coin_len;
+  lineChart($("#study-coin-plot"), {
+    dt: view.dt, steps: view.steps, yLabel: "COIN", yRange: [0.5, 1.1], band: [0.5, 1],
+    series: c ? CHARTED.map((name) => ({ label: LABELS[name], color: COLORS[name], values: view.coin.subarray(NAMES.indexOf(name) * c, (NAMES.indexOf(name) + 1) * c) })) : [],
+  });
 }
 
 function start() {

@@ -1,7 +1,9 @@
 // Browser benchmark of the tracking study (not a test: nothing is asserted on time):
 // `node tests/e2e/bench-study.mjs [repeats]` serves the page, runs ONE default run
-// (400 steps, all four estimators) in the Study tab's Web Worker in headless Chromium, and
-// prints the wall time of each repeat. Needs www/pkg (scripts/wasm.sh build).
+// (400 steps, all five estimators) in the Study tab's Web Worker in headless Chromium, and
+// prints the wall time of each repeat: `study/one_run` without the exact COIN (the run
+// itself), then `study/one_run_coin` with it (the run plus the five exact error
+// propagations, which advance with the first run). Needs www/pkg (scripts/wasm.sh build).
 import { serveWww, launchChromium } from "./harness.mjs";
 
 const repeats = Number(process.argv[2] ?? 3);
@@ -14,17 +16,20 @@ try {
   await page.fill("#study-runs", "1");
   await page.fill("#study-steps", "400");
   await page.fill("#study-seed", "1");
-  const seconds = [];
-  for (let r = 0; r < repeats; r++) {
-    await page.click("#study-start");
-    await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 300_000 });
-    const text = await page.locator("#study-progress").innerText();
-    const match = /in ([\d.]+) s/.exec(text);
-    seconds.push(Number(match[1]));
-    console.log(`study/one_run (headless Chromium, wasm): ${match[1]} s — ${text}`);
+  for (const [id, coin] of [["study/one_run", false], ["study/one_run_coin", true]]) {
+    await page.setChecked("#study-coin", coin);
+    const seconds = [];
+    for (let r = 0; r < repeats; r++) {
+      await page.click("#study-start");
+      await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 600_000 });
+      const text = await page.locator("#study-progress").innerText();
+      const match = /in ([\d.]+) s/.exec(text);
+      seconds.push(Number(match[1]));
+      console.log(`${id} (headless Chromium, wasm): ${match[1]} s — ${text}`);
+    }
+    seconds.sort((a, b) => a - b);
+    console.log(`${id} (headless Chromium, wasm): min ${seconds[0]} s, median ${seconds[Math.floor(seconds.length / 2)]} s over ${seconds.length} repeats`);
   }
-  seconds.sort((a, b) => a - b);
-  console.log(`study/one_run (headless Chromium, wasm): min ${seconds[0]} s, median ${seconds[Math.floor(seconds.length / 2)]} s over ${seconds.length} repeats`);
 } finally {
   await chromium.close();
   server.close();

@@ -224,16 +224,25 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
   await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 120_000 });
   assert.match(await text("#study-progress"), /^done: 2 runs × 80 steps/);
   const rows = await page.evaluate(() => Object.fromEntries([...document.querySelectorAll("#study-table tbody tr")].map((tr) => [tr.dataset.estimator, [...tr.children].map((td) => td.textContent)])));
-  assert.deepEqual(Object.keys(rows), ["central", "ci", "nmci", "naive"]);
+  assert.deepEqual(Object.keys(rows), ["central", "ci", "nmci", "ici", "naive"]);
   assert.match(rows.naive[0], /not conservative/);
+  assert.match(rows.ici[0], /common information only/);
+  // Exact COIN (mean, max): the centralized KF is exact, CI and nmCI conservative, naive
+  // fusion overconfident (its row flagged).
+  const coin = (k, c) => Number(rows[k][c]);
+  assert.equal(rows.central[5], "1.000");
+  assert.equal(rows.central[6], "1.000");
+  for (const k of ["ci", "nmci"]) assert.ok(coin(k, 5) < 1 && coin(k, 6) <= 1, `${k} COIN ${rows[k].slice(5)}`);
+  assert.ok(coin("naive", 6) > 1, `naive COIN ${rows.naive.slice(5)}`);
+  assert.deepEqual(await page.locator("#study-table tr.warn").evaluateAll((trs) => trs.map((tr) => tr.dataset.estimator)), ["naive"]);
   const rmse = (k) => Number(rows[k][1]);
   const twoSigma = (k) => Number(rows[k][2]);
   assert.ok(rmse("nmci") < rmse("ci"), `nmCI RMSE ${rmse("nmci")} vs CI ${rmse("ci")}`);
   assert.ok(twoSigma("nmci") < twoSigma("ci"));
   assert.ok(rmse("central") < rmse("nmci"));
   assert.match(await text("#study-omega"), /nmCI vs CI: RMSE -\d+%/);
-  // Three charts, each with its series drawn over the whole run.
-  for (const id of ["#study-nees", "#study-rmse", "#study-omega-plot"]) {
+  // Four charts, each with its series drawn over the whole run.
+  for (const id of ["#study-nees", "#study-rmse", "#study-omega-plot", "#study-coin-plot"]) {
     const lengths = await page.locator(`${id} path[data-label]`).evaluateAll((ps) => ps.map((p) => p.getAttribute("d").split("L").length));
     assert.ok(lengths.length >= 3 && lengths.every((n) => n === 80), `${id}: ${lengths}`);
   }
