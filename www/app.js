@@ -10,7 +10,12 @@ const STYLE = {
   ci: { label: "CI", color: "#7b3fa0" },
   nmci: { label: "nmCI", color: "#d62728" },
   sdp: { label: "optimal (sampled SDP)", color: "#2a9d3f" },
+  ici: { label: "ICI (common information only)", color: "#17becf" },
+  ei: { label: "EI (not guaranteed conservative)", color: "#8c564b" },
+  naive: { label: "naive (not guaranteed conservative)", color: "#999999" },
 };
+// Rules whose bound is not guaranteed for every admissible P_ab: drawn dotted.
+const UNGUARANTEED = ["ici", "ei", "naive"];
 
 let state = preset("paper");
 let text = null; // the grids' raw text, so an invalid entry stays visible
@@ -280,6 +285,9 @@ function render() {
     ci: last.ci.p,
     nmci: last.nmci.p,
     sdp: last.sdp ? last.sdp.p : null,
+    ici: last.ici.p,
+    ei: last.ei.p,
+    naive: last.naive.p,
   };
   const n = last.n;
   const region = [];
@@ -297,9 +305,9 @@ function render() {
     const rg = el("g", { opacity: 0.32, id: "layer-region" }, g);
     for (const m of region) el("path", { d: ellipsePath(m, toPx, 40), fill: STYLE.region.color, stroke: "none" }, rg);
   }
-  const widths = { pa: 2, pb: 2, ci: 2.2, nmci: 2.6, sdp: 2 };
-  const dashes = { sdp: "7 4", ci: "none" };
-  for (const k of ["pa", "pb", "ci", "nmci", "sdp"]) {
+  const widths = { pa: 2, pb: 2, ci: 2.2, nmci: 2.6, sdp: 2, ici: 1.8, ei: 1.8, naive: 1.8 };
+  const dashes = { sdp: "7 4", ci: "none", ici: "2 3", ei: "2 3", naive: "2 3" };
+  for (const k of ["pa", "pb", "ci", "nmci", "sdp", ...UNGUARANTEED]) {
     if (!state.layers[k] || !mats[k]) continue;
     el("path", {
       id: `layer-${k}`, d: ellipsePath(marginal(mats[k], i, j), toPx), fill: "none",
@@ -391,35 +399,56 @@ function renderNumbers() {
     const tol = 1e-8 * Math.max(1, scale);
     return [fe(v), v < -tol ? "neg" : v < 0 ? "tol" : ""];
   };
+  // COIN over the drawn P' (worst, median): > 1 = not conservative for some drawn P' (red),
+  // within 1e-8 of 1 = touching (the SDP's optimum does by design).
+  const coin = (c) => {
+    if (!c) return ["—", ""];
+    return [`${f3(c.max)} (${f3(c.median)})`, c.max > 1 + 1e-8 ? "neg" : c.max > 1 ? "tol" : ""];
+  };
+  const omega = (r) => (r.omega ? r.omega.map(f3).join(", ") : "—");
+  const rule = (key, label, r) => [key, label, r.trace, r.det, omega(r), a.margins ? a.margins[key] : null, a.coin ? a.coin[key] : null];
   const rows = [
-    ["pa", "P_a", tr(s.pa), det2(s.pa), "", null],
-    ["pb", "P_b", tr(s.pb), det2(s.pb), "", null],
-    ["ci", "CI", a.ci.trace, a.ci.det, a.ci.omega.map(f3).join(", "), a.margins ? a.margins.ci : null],
-    ["nmci", "nmCI", a.nmci.trace, a.nmci.det, a.nmci.omega.map(f3).join(", "), a.margins ? a.margins.nmci : null],
+    ["pa", "P_a", tr(s.pa), det2(s.pa), "", null, null],
+    ["pb", "P_b", tr(s.pb), det2(s.pb), "", null, null],
+    rule("ci", "CI", a.ci),
+    rule("nmci", "nmCI", a.nmci),
+    "sdp",
+    rule("ici", "ICI <small>(common information only)</small>", a.ici),
+    rule("ei", "EI <small>(not guaranteed conservative)</small>", a.ei),
+    rule("naive", "naive <small>(not guaranteed conservative)</small>", a.naive),
   ];
   const body = document.querySelector("#table tbody");
   body.replaceChildren();
-  for (const [key, label, t, d, w, m] of rows) {
+  for (const row of rows) {
     const tr_ = document.createElement("tr");
+    if (row === "sdp") {
+      tr_.id = "row-sdp";
+      if (a.sdp) {
+        const [mt, cls] = margin(a.margins ? a.margins.sdp : null, a.sdp.trace);
+        const [ct, ccls] = coin(a.coin ? a.coin.sdp : null);
+        tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.sdp.color}"></span> optimal (SDP)</td><td class="trace">${f3(a.sdp.trace)}</td><td class="det">${f3(a.sdp.det)}</td><td class="omega">—</td><td class="margin ${cls}">${mt}</td><td class="coin ${ccls}">${ct}</td>`;
+      } else {
+        tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.sdp.color}"></span> optimal (SDP)</td><td class="na" colspan="5"></td>`;
+        tr_.querySelector(".na").textContent = `not available: ${a.sdp_error}`;
+      }
+      body.appendChild(tr_);
+      continue;
+    }
+    const [key, label, t, d, w, m, c] = row;
     tr_.id = `row-${key}`;
+    if (UNGUARANTEED.includes(key)) tr_.className = "unguaranteed";
     tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE[key].color}"></span> ${label}</td><td class="trace">${f3(t)}</td><td class="det">${f3(d)}</td><td class="omega">${w}</td>`;
     const [mt, cls] = margin(m, t);
     const td = document.createElement("td");
     td.className = `margin ${cls}`;
     td.textContent = mt;
-    tr_.appendChild(td);
+    const [ct, ccls] = coin(c);
+    const tdc = document.createElement("td");
+    tdc.className = `coin ${ccls}`;
+    tdc.textContent = ct;
+    tr_.append(td, tdc);
     body.appendChild(tr_);
   }
-  const sdpRow = document.createElement("tr");
-  sdpRow.id = "row-sdp";
-  if (a.sdp) {
-    const [mt, cls] = margin(a.margins ? a.margins.sdp : null, a.sdp.trace);
-    sdpRow.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.sdp.color}"></span> optimal (SDP)</td><td class="trace">${f3(a.sdp.trace)}</td><td class="det">${f3(a.sdp.det)}</td><td class="omega">—</td><td class="margin ${cls}">${mt}</td>`;
-  } else {
-    sdpRow.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.sdp.color}"></span> optimal (SDP)</td><td class="na" colspan="4"></td>`;
-    sdpRow.querySelector(".na").textContent = `not available: ${a.sdp_error}`;
-  }
-  body.appendChild(sdpRow);
 
   const blocks = a.nmci.blocks.map((b, k) => `{${b.map((x) => "x" + (x + 1)).join(", ")}}: ω = ${f3(a.nmci.omega[k])}`).join(" · ");
   const d = $("details");

@@ -1,6 +1,8 @@
 // The explorer's state: presets, resizing, and the URL hash that makes a view shareable.
 
-export const LAYERS = ["region", "pa", "pb", "ci", "nmci", "sdp"];
+export const LAYERS = ["region", "pa", "pb", "ci", "nmci", "sdp", "ici", "ei", "naive"];
+// Drawn by default: the conservative rules; ICI, EI and naive fusion are a click away.
+const DEFAULT_OFF = ["ici", "ei", "naive"];
 
 const diag = (v) => v.map((x, i) => v.map((_, j) => (i === j ? x : 0)));
 const blockDiag = (blocks) => {
@@ -43,7 +45,7 @@ function components(n, linked) {
 }
 
 export function preset(name) {
-  const base = { samples: 200, seed: 0, region: 300, criterion: "trace", sampler: "rejection", view: [0, 1], layers: Object.fromEntries(LAYERS.map((l) => [l, true])), preset: name };
+  const base = { samples: 200, seed: 0, region: 300, criterion: "trace", sampler: "rejection", view: [0, 1], layers: Object.fromEntries(LAYERS.map((l) => [l, !DEFAULT_OFF.includes(l)])), preset: name };
   switch (name) {
     case "paper":
       return { ...base, n: 2, pa: diag([3, 1]), pb: diag([1, 4]), pattern: [[true, false], [false, true]] };

@@ -51,7 +51,24 @@ test("opens on the paper's example: nmCI trace 2.000, ω = [0, 1], CI looser", a
   // The region of possible true fused covariances is drawn, with the five bounds.
   assert.ok((await page.locator("#layer-region path").count()) >= 100);
   for (const k of ["pa", "pb", "ci", "nmci", "sdp"]) assert.equal(await page.locator(`#layer-${k}`).count(), 1, k);
+  // ICI, EI and naive fusion: in the table with what they are (not) guaranteed for, COIN per
+  // rule over the drawn P' (naive fusion's > 1, flagged), their ellipses off until ticked.
+  assert.match(await text("#row-ici"), /common information only/);
+  assert.match(await text("#row-ei"), /not guaranteed conservative/);
+  assert.match(await text("#row-naive"), /not guaranteed conservative/);
+  assert.equal((await text("#row-naive .trace")).trim(), "1.550");
+  const worstCoin = async (k) => Number((await text(`#row-${k} .coin`)).split(" ")[0]);
+  assert.ok((await worstCoin("ci")) < 1 && (await worstCoin("nmci")) <= 1);
+  assert.ok((await worstCoin("naive")) > 1);
+  assert.equal(await page.locator("#row-naive .coin.neg").count(), 1);
+  assert.equal(await page.locator("#layer-naive").count(), 0);
+  await page.check('#legend input[data-layer="naive"]');
+  await page.check('#legend input[data-layer="ici"]');
+  assert.equal(await page.locator("#layer-naive").count(), 1);
+  assert.equal(await page.locator("#layer-ici").count(), 1);
   await page.screenshot({ path: join(out, "explorer-paper.png"), fullPage: true });
+  await page.uncheck('#legend input[data-layer="naive"]');
+  await page.uncheck('#legend input[data-layer="ici"]');
 });
 
 test("choosing a preset and back restores the paper's numbers", async () => {
