@@ -5,14 +5,16 @@
 //! drawn with the sampler; for each sample-set size `N`, a sample set is drawn and the sampled
 //! SDP (paper eq. (sampled_sdp), solved exactly with the working set) gives `P_opt`, `K_opt`.
 //! Recorded: `‖P_nmCI − P_opt‖₂`, and for each rule `λ_min(P − K P_true Kᵀ)` (negative =
-//! not conservative for the true cross-covariance). Runs are independent (run `r` uses seeds
+//! not conservative for the true cross-covariance) and its conservativeness index
+//! `COIN = λ_max(L⁻¹ K P_true Kᵀ L⁻ᵀ)`, `P = L Lᵀ` (`> 1` = not conservative; a scale-free
+//! "how much": `1.1` means 10 % too small along the worst direction). Runs are independent (run `r` uses seeds
 //! derived from `(seed, r)`), so any subset of runs can be computed anywhere, in any order.
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 
 use crate::error::RequestError;
-use crate::fusion::check::conservativeness_margin;
+use crate::fusion::check::{conservativeness_margin, fused_coin};
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::sample::{sample_cross_covariances, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion_for_samples, SdpSettings};
@@ -64,6 +66,10 @@ pub struct Fig2Record {
     pub eig_nmci: f64,
     /// `λ_min(P_opt − K_opt P_true K_optᵀ)`.
     pub eig_opt: Option<f64>,
+    /// nmCI's COIN for the true `P_ab`.
+    pub coin_nmci: f64,
+    /// The sampled SDP's COIN for the true `P_ab`.
+    pub coin_opt: Option<f64>,
     /// The solver's message when the SDP failed.
     pub failure: Option<String>,
 }
@@ -101,6 +107,7 @@ pub fn fig2_run(config: &Fig2Config, run: usize) -> Result<Vec<Fig2Record>, Requ
     let P_true = &truth.cross[0];
     let nm = non_monolithic_ci(&problem, Criterion::Trace)?;
     let eig_nmci = conservativeness_margin(&problem, &nm.fused, P_true);
+    let coin_nmci = fused_coin(&problem, &nm.fused, P_true)?;
     let mut records = Vec::with_capacity(config.sizes.len());
     for (k, &samples) in config.sizes.iter().enumerate() {
         let set = sample_cross_covariances(
@@ -119,6 +126,8 @@ pub fn fig2_run(config: &Fig2Config, run: usize) -> Result<Vec<Fig2Record>, Requ
                 deviation: Some(spectral_norm(&(&nm.fused.P - &opt.fused.P))),
                 eig_nmci,
                 eig_opt: Some(conservativeness_margin(&problem, &opt.fused, P_true)),
+                coin_nmci,
+                coin_opt: Some(fused_coin(&problem, &opt.fused, P_true)?),
                 failure: None,
             },
             Err(e) => Fig2Record {
@@ -126,6 +135,8 @@ pub fn fig2_run(config: &Fig2Config, run: usize) -> Result<Vec<Fig2Record>, Requ
                 deviation: None,
                 eig_nmci,
                 eig_opt: None,
+                coin_nmci,
+                coin_opt: None,
                 failure: Some(e.to_string()),
             },
         };
@@ -151,6 +162,10 @@ pub struct Fig2Row {
     pub eig_nmci: [f64; 3],
     /// The same for `λ_min(P_opt − K P_true Kᵀ)`.
     pub eig_opt: [f64; 3],
+    /// The same for nmCI's COIN.
+    pub coin_nmci: [f64; 3],
+    /// The same for the sampled SDP's COIN.
+    pub coin_opt: [f64; 3],
     /// Runs whose SDP failed.
     pub failures: usize,
 }
@@ -183,26 +198,31 @@ pub fn fig2_summary(config: &Fig2Config, runs: &[Vec<Fig2Record>]) -> Vec<Fig2Ro
                 dev: median_min_max(at.iter().filter_map(|r| r.deviation).collect()),
                 eig_nmci: median_min_max(at.iter().map(|r| r.eig_nmci).collect()),
                 eig_opt: median_min_max(at.iter().filter_map(|r| r.eig_opt).collect()),
+                coin_nmci: median_min_max(at.iter().map(|r| r.coin_nmci).collect()),
+                coin_opt: median_min_max(at.iter().filter_map(|r| r.coin_opt).collect()),
                 failures: at.iter().filter(|r| r.failure.is_some()).count(),
             }
         })
         .collect()
 }
 
-/// `fig2.csv`: `samples, dev_median, dev_min, dev_max, eig_nmci_median, …, failures`.
+/// `fig2.csv`: `samples, dev_median, dev_min, dev_max, eig_nmci_median, …, failures` (the
+/// issue's columns), then the COIN columns `coin_nmci_median, …, coin_opt_max`.
 pub fn fig2_csv(rows: &[Fig2Row]) -> String {
     let mut csv = String::from(
-        "samples,dev_median,dev_min,dev_max,eig_nmci_median,eig_nmci_min,eig_nmci_max,eig_opt_median,eig_opt_min,eig_opt_max,failures\n",
+        "samples,dev_median,dev_min,dev_max,eig_nmci_median,eig_nmci_min,eig_nmci_max,eig_opt_median,eig_opt_min,eig_opt_max,failures,coin_nmci_median,coin_nmci_min,coin_nmci_max,coin_opt_median,coin_opt_min,coin_opt_max\n",
     );
     for r in rows {
         let f = |v: &[f64; 3]| format!("{:e},{:e},{:e}", v[0], v[1], v[2]);
         csv += &format!(
-            "{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{}\n",
             r.samples,
             f(&r.dev),
             f(&r.eig_nmci),
             f(&r.eig_opt),
-            r.failures
+            r.failures,
+            f(&r.coin_nmci),
+            f(&r.coin_opt)
         );
     }
     csv

@@ -31,12 +31,27 @@ fn small_fig2_run_reproduces_the_papers_evidence() {
     assert!(rows[2].eig_opt[1] >= -1e-6, "{:?}", rows[2].eig_opt);
     // nmCI is never non-conservative (here it is exactly tight: K P_true Kᵀ = diag(1, 1)).
     assert!(rows.iter().all(|r| r.eig_nmci[1] >= -1e-12));
+    // COIN says the same, scale-free: nmCI's is 1 (exact), the SDP's is above 1 exactly when
+    // its margin is negative, and by N = 100 it is 1 to solver tolerance.
+    assert!(rows
+        .iter()
+        .all(|r| r.coin_nmci.iter().all(|c| (c - 1.0).abs() < 1e-12)));
+    assert!(rows[0].coin_opt[2] > 1.0 + 1e-3, "{:?}", rows[0].coin_opt);
+    assert!(rows[2].coin_opt[2] <= 1.0 + 1e-5, "{:?}", rows[2].coin_opt);
+    for run in &runs {
+        for r in run {
+            let (eig, coin) = (r.eig_opt.unwrap(), r.coin_opt.unwrap());
+            if eig.abs() > 1e-9 {
+                assert_eq!(eig < 0.0, coin > 1.0, "{r:?}");
+            }
+        }
+    }
     // Reproducible: the same run gives the same records.
     assert_eq!(fig2_run(&config, 7).unwrap(), runs[7]);
     // The CSV has the columns.
     let csv = fig2_csv(&rows);
     assert!(csv.starts_with(
-        "samples,dev_median,dev_min,dev_max,eig_nmci_median,eig_nmci_min,eig_nmci_max,eig_opt_median,eig_opt_min,eig_opt_max,failures\n"
+        "samples,dev_median,dev_min,dev_max,eig_nmci_median,eig_nmci_min,eig_nmci_max,eig_opt_median,eig_opt_min,eig_opt_max,failures,coin_nmci_median,coin_nmci_min,coin_nmci_max,coin_opt_median,coin_opt_min,coin_opt_max\n"
     ));
     assert_eq!(csv.lines().count(), 4);
 }

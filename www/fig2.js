@@ -48,7 +48,8 @@ function render(rows, runsDone, elapsedMs) {
   for (const r of rows) {
     const tr = document.createElement("tr");
     tr.dataset.samples = r.samples;
-    for (const c of [String(r.samples), fmt(r.dev[0]), fmt(r.eig_opt[1]), fmt(r.eig_nmci[1]), String(r.failures)]) {
+    const coin = (v) => (v === null || v === undefined || !Number.isFinite(v) ? "—" : v.toFixed(5));
+    for (const c of [String(r.samples), fmt(r.dev[0]), fmt(r.eig_opt[1]), fmt(r.eig_nmci[1]), coin(r.coin_opt[2]), coin(r.coin_nmci[2]), String(r.failures)]) {
       const td = document.createElement("td");
       td.textContent = c;
       tr.append(td);

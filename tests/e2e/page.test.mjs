@@ -301,7 +301,11 @@ test("the fig. 2 tab runs the sample-size study: non-conservative at N = 1, nmCI
   assert.ok(Number(rows[0][2]) < 0, `N = 1: some run non-conservative (${rows[0][2]})`);
   assert.ok(Number(rows[2][1]) <= 1e-5, `N = 100: median deviation ${rows[2][1]}`);
   assert.ok(Number(rows[2][2]) >= -1e-6, `N = 100: worst ${rows[2][2]}`);
-  assert.ok(rows.every((r) => Number(r[3]) >= -1e-9 && r[4] === "0"), JSON.stringify(rows));
+  // COIN, scale-free: the SDP's above 1 at N = 1, 1 by N = 100; nmCI's exactly 1.
+  assert.ok(Number(rows[0][4]) > 1.001, `N = 1: max COIN ${rows[0][4]}`);
+  assert.ok(Number(rows[2][4]) <= 1.00001, `N = 100: max COIN ${rows[2][4]}`);
+  assert.ok(rows.every((r) => r[5] === "1.00000"), JSON.stringify(rows));
+  assert.ok(rows.every((r) => Number(r[3]) >= -1e-9 && r[6] === "0"), JSON.stringify(rows));
   assert.equal(await page.locator("#fig2-dev path[data-label]").count(), 1);
   assert.equal(await page.locator("#fig2-eig path[data-label]").count(), 2);
   assert.equal(await page.locator("#fig2-eig circle").count(), 6);
