@@ -1,8 +1,9 @@
 //! The JSON request/response contract shared by `nmci fuse` and the wasm export `fuse`.
 //!
-//! A request names two estimates, the pattern of `P_ab` and a method; the response carries
-//! the fused estimate, the bound, the gains and everything a user needs to judge it. Unknown
-//! fields are rejected.
+//! A request names two estimates, the pattern of `P_ab` and a method — or, for N-way CI and
+//! nmCI, a list of `estimates` and the patterns of the pairs' cross-covariances; the response
+//! carries the fused estimate, the bound, the gains and everything a user needs to judge it.
+//! Unknown fields are rejected.
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -14,6 +15,9 @@ use crate::fusion::ei::ellipsoidal_intersection;
 use crate::fusion::ici::inverse_covariance_intersection;
 use crate::fusion::known::naive_fusion;
 use crate::fusion::nmci::non_monolithic_ci;
+use crate::fusion::nway::{
+    covariance_intersection_nway, non_monolithic_ci_nway, Estimate, NwayResult, PairPattern,
+};
 use crate::fusion::sample::{SamplerKind, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion, SdpSettings};
 use crate::fusion::{Criterion, Fused, FusionProblem};
@@ -41,13 +45,40 @@ pub enum Method {
     Naive,
 }
 
-/// A fusion request (see the README for the JSON form).
+/// One estimate of an N-way request.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NwayEstimate {
+    /// Mean (default zeros).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub x: Option<Vec<f64>>,
+    /// Covariance, nested rows.
+    pub p: Vec<Vec<f64>>,
+}
+
+/// The pattern of the cross-covariance `P_ij` of two estimates of an N-way request (pairs not
+/// listed are fully unknown).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NwayPair {
+    /// First estimate (0-based index into `estimates`).
+    pub i: usize,
+    /// Second estimate (0-based, `≠ i`).
+    pub j: usize,
+    /// `n × n`, `true` = `P_ij[r][c]` may be non-zero, `false` = known zero.
+    pub pab_unknown: Vec<Vec<bool>>,
+}
+
+/// A fusion request (see the README for the JSON form): two estimates (`pa`, `pb`, …) or,
+/// for N-way CI / nmCI, `estimates` and `patterns`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FuseRequest {
-    /// `P_a`, row-major nested rows.
+    /// `P_a`, row-major nested rows (required unless `estimates` is given).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub pa: Vec<Vec<f64>>,
-    /// `P_b`, row-major nested rows.
+    /// `P_b`, row-major nested rows (required unless `estimates` is given).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub pb: Vec<Vec<f64>>,
     /// `x_a` (default zeros).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -75,6 +106,13 @@ pub struct FuseRequest {
     /// `sdp`: `rejection` (the paper's, default) or `hit_and_run` (any dimension).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerKind>,
+    /// N-way fusion (methods `ci`, `nmci`): `k ≥ 2` estimates, instead of `pa`, `pb`, `xa`,
+    /// `xb`, `pab_unknown`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimates: Option<Vec<NwayEstimate>>,
+    /// N-way: the patterns of the pairs' cross-covariances (pairs not listed: fully unknown).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patterns: Option<Vec<NwayPair>>,
 }
 
 /// A fusion response.
@@ -88,10 +126,18 @@ pub struct FuseResponse {
     pub x: Vec<f64>,
     /// Covariance bound, nested rows.
     pub p: Vec<Vec<f64>>,
-    /// Gain on `x_a`.
-    pub ka: Vec<Vec<f64>>,
-    /// Gain on `x_b`.
-    pub kb: Vec<Vec<f64>>,
+    /// Gain on `x_a` (two-estimate requests).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ka: Option<Vec<Vec<f64>>>,
+    /// Gain on `x_b` (two-estimate requests).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kb: Option<Vec<Vec<f64>>>,
+    /// N-way: the gain on each estimate (`x = Σᵢ Kᵢ xᵢ`, `Σᵢ Kᵢ = I`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gains: Option<Vec<Vec<Vec<f64>>>>,
+    /// N-way: per block, the weight `ωᵢ` of each estimate (on the simplex).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights: Option<Vec<Vec<f64>>>,
     /// `tr P`.
     pub trace: f64,
     /// `det P`.
@@ -108,7 +154,8 @@ pub struct FuseResponse {
     /// `sdp`, `sdp_cuts`: Clarabel's status, `Solved` or `AlmostSolved`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub status: Option<String>,
-    /// `sdp`: interior-point iterations (all working-set rounds); `sdp_cuts`: outer iterations.
+    /// `sdp`: interior-point iterations (all working-set rounds); `sdp_cuts`: outer iterations;
+    /// N-way: Newton iterations (0 when two estimates went to the exact pairwise CI).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iterations: Option<u32>,
     /// `sdp`: rejection-sampler acceptance rate.
@@ -201,6 +248,27 @@ impl FuseRequest {
     }
 
     fn check_fields(&self) -> Result<(), RequestError> {
+        let invalid = |m: &str| Err(RequestError::Invalid(m.into()));
+        if self.estimates.is_some() {
+            if !self.pa.is_empty()
+                || !self.pb.is_empty()
+                || self.xa.is_some()
+                || self.xb.is_some()
+                || self.pab_unknown.is_some()
+            {
+                return invalid("give either two estimates (`pa`, `pb`, `xa`, `xb`, `pab_unknown`) or `estimates` for N-way fusion, not both");
+            }
+            if !matches!(self.method, Method::Ci | Method::Nmci) {
+                return invalid("N-way fusion (`estimates`) supports methods \"ci\" and \"nmci\"");
+            }
+        } else {
+            if self.patterns.is_some() {
+                return invalid("`patterns` applies to N-way fusion only (with `estimates`); two estimates take `pab_unknown`");
+            }
+            if self.pa.is_empty() || self.pb.is_empty() {
+                return invalid("`pa` and `pb` are required (or `estimates` for N-way fusion)");
+            }
+        }
         if self.method != Method::Sdp {
             for (name, set) in [
                 ("samples", self.samples.is_some()),
@@ -251,8 +319,10 @@ pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> F
         criterion,
         x: fused.x.iter().copied().collect(),
         p: matrix_to_rows(&fused.P),
-        ka: matrix_to_rows(&fused.K_a),
-        kb: matrix_to_rows(&fused.K_b),
+        ka: Some(matrix_to_rows(&fused.K_a)),
+        kb: Some(matrix_to_rows(&fused.K_b)),
+        gains: None,
+        weights: None,
         trace: fused.trace(),
         det: fused.P.determinant(),
         omega: None,
@@ -286,8 +356,16 @@ pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> F
 /// ```
 pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
     request.check_fields()?;
-    let problem = request.problem()?;
     let criterion = request.criterion.unwrap_or_default();
+    if let Some(estimates) = &request.estimates {
+        return fuse_nway(
+            estimates,
+            request.patterns.as_deref().unwrap_or_default(),
+            request.method,
+            criterion,
+        );
+    }
+    let problem = request.problem()?;
     match request.method {
         Method::Ci => Ok(ci_response(&problem, criterion)?.0),
         Method::Nmci => Ok(nmci_response(&problem, criterion)?.0),
@@ -324,6 +402,72 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             Ok(r)
         }
     }
+}
+
+/// N-way CI (`method` `ci`) or nmCI (`nmci`) of a request's `estimates` and `patterns`.
+#[allow(non_snake_case)]
+fn fuse_nway(
+    estimates: &[NwayEstimate],
+    patterns: &[NwayPair],
+    method: Method,
+    criterion: Criterion,
+) -> Result<FuseResponse, RequestError> {
+    let estimates = estimates
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let name = format!("estimates[{i}]");
+            let P = matrix(&format!("{name}.p"), &e.p)?;
+            let x = match &e.x {
+                Some(x) => DVector::from_row_slice(x),
+                None => DVector::zeros(P.nrows()),
+            };
+            Estimate::new(&name, x, P)
+        })
+        .collect::<Result<Vec<_>, InputError>>()?;
+    let result: NwayResult = if method == Method::Ci {
+        covariance_intersection_nway(&estimates, criterion)?
+    } else {
+        let pairs = patterns
+            .iter()
+            .map(|p| {
+                Ok(PairPattern {
+                    i: p.i,
+                    j: p.j,
+                    pattern: CrossPattern::from_rows(&p.pab_unknown)?,
+                })
+            })
+            .collect::<Result<Vec<_>, InputError>>()?;
+        non_monolithic_ci_nway(&estimates, &pairs, criterion)?
+    };
+    Ok(FuseResponse {
+        method,
+        criterion,
+        x: result.x.iter().copied().collect(),
+        p: matrix_to_rows(&result.P),
+        ka: None,
+        kb: None,
+        gains: Some(result.gains.iter().map(matrix_to_rows).collect()),
+        weights: Some(result.omega.clone()),
+        trace: result.P.trace(),
+        det: result.P.determinant(),
+        omega: None,
+        blocks: Some(result.blocks.clone()),
+        samples: None,
+        status: None,
+        iterations: Some(result.iterations as u32),
+        acceptance_rate: None,
+        lmis: None,
+        worst_sample_margin: None,
+        lower_bound: None,
+        upper_bound: None,
+        upper_bound_rule: None,
+        gap: None,
+        gap_relative: None,
+        violation: None,
+        converged: None,
+        conservative_for: None,
+    })
 }
 
 /// Fills `lower_bound` (a relaxation's dual objective), `upper_bound` (the best of CI and

@@ -48,7 +48,7 @@ mod structure;
 #[cfg(target_arch = "wasm32")]
 pub mod wasm;
 
-pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method};
+pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method, NwayEstimate, NwayPair};
 pub use error::{InputError, RequestError, SampleError, SolveError};
 pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
 pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};

@@ -229,3 +229,30 @@ fn ici_ei_and_naive_through_the_cli_with_their_guarantees_stated() {
     assert!(out.is_empty());
     assert!(err.contains("`criterion` does not apply"), "{err}");
 }
+
+#[test]
+fn fuse_takes_n_estimates() {
+    let (code, out, err) = nmci(
+        &["fuse"],
+        r#"{"estimates": [{"x": [1,0], "p": [[1,0],[0,9]]}, {"x": [0,1], "p": [[9,0],[0,1]]},
+                          {"p": [[4,0],[0,4]]}], "method": "ci"}"#,
+    );
+    assert_eq!(code, 0, "{err}");
+    let r: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(r["gains"].as_array().unwrap().len(), 3);
+    let w: Vec<f64> = r["weights"][0]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(w.len(), 3);
+    assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    let (code, out, err) = nmci(
+        &["fuse"],
+        r#"{"estimates": [{"p": [[1]]}, {"p": [[1]]}], "method": "ei"}"#,
+    );
+    assert_ne!(code, 0);
+    assert!(out.is_empty());
+    assert!(err.contains("supports methods \"ci\" and \"nmci\""), "{err}");
+}

@@ -186,3 +186,99 @@ fn bad_estimate_sets_are_typed_errors() {
         .to_string()
         .starts_with("estimates[4].p is not positive definite"));
 }
+
+/// The JSON contract: `estimates` with two entries answer exactly what `pa`/`pb` answer (same
+/// `x`, `p`, trace; `weights` = `[ω, 1 − ω]` per block), for CI and nmCI.
+#[test]
+fn json_two_estimates_equal_the_pairwise_request() {
+    for (method, pattern) in [("ci", "true,true],[true,true"), ("nmci", "true,false],[false,true")] {
+        let pairwise = fuse_json(&format!(
+            r#"{{"pa": [[3,0.5],[0.5,1]], "pb": [[1,0],[0,4]], "xa": [1,2], "xb": [3,-1],
+                "pab_unknown": [[{pattern}]], "method": "{method}"}}"#
+        ))
+        .unwrap();
+        let nway = fuse_json(&format!(
+            r#"{{"estimates": [{{"x": [1,2], "p": [[3,0.5],[0.5,1]]}}, {{"x": [3,-1], "p": [[1,0],[0,4]]}}],
+                "patterns": [{{"i": 0, "j": 1, "pab_unknown": [[{pattern}]]}}], "method": "{method}"}}"#
+        ))
+        .unwrap();
+        let (a, b): (FuseResponse, FuseResponse) = (
+            serde_json::from_str(&pairwise).unwrap(),
+            serde_json::from_str(&nway).unwrap(),
+        );
+        assert_eq!((&a.x, &a.p, a.trace), (&b.x, &b.p, b.trace), "{method}");
+        assert_eq!(b.gains.as_ref().unwrap()[0], *a.ka.as_ref().unwrap());
+        assert_eq!(b.gains.as_ref().unwrap()[1], *a.kb.as_ref().unwrap());
+        let omega = a.omega.unwrap();
+        let weights = b.weights.unwrap();
+        assert_eq!(weights.len(), omega.len());
+        for (w, o) in weights.iter().zip(&omega) {
+            assert_eq!(w, &vec![*o, 1.0 - o]);
+        }
+        assert!(b.ka.is_none() && b.kb.is_none() && b.omega.is_none());
+        assert!(!nway.contains("\"ka\""));
+    }
+}
+
+/// Three estimates through the contract: weights on the simplex per block, gains summing to
+/// the identity, the fused mean their combination, nmCI never looser than CI.
+#[test]
+fn json_three_estimates() {
+    let request = |method: &str| {
+        format!(
+            r#"{{"estimates": [{{"x": [1,0], "p": [[1,0],[0,9]]}}, {{"x": [0,1], "p": [[9,0],[0,1]]}},
+                              {{"p": [[4,0],[0,4]]}}],
+                "patterns": [{{"i": 0, "j": 1, "pab_unknown": [[true,false],[false,true]]}},
+                             {{"i": 0, "j": 2, "pab_unknown": [[true,false],[false,true]]}},
+                             {{"i": 1, "j": 2, "pab_unknown": [[true,false],[false,true]]}}],
+                "method": "{method}"}}"#
+        )
+    };
+    let ci: FuseResponse = serde_json::from_str(&fuse_json(&request("ci")).unwrap()).unwrap();
+    let nm: FuseResponse = serde_json::from_str(&fuse_json(&request("nmci")).unwrap()).unwrap();
+    assert_eq!(ci.blocks.as_ref().unwrap().len(), 1);
+    assert_eq!(nm.blocks.as_ref().unwrap(), &vec![vec![0], vec![1]]);
+    // Per block, the best single estimate: x1 from estimate 0, x2 from estimate 1.
+    assert_eq!(nm.weights.as_ref().unwrap(), &vec![vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0]]);
+    assert!((nm.trace - 2.0).abs() < 1e-12 && ci.trace > nm.trace);
+    for r in [&ci, &nm] {
+        for w in r.weights.as_ref().unwrap() {
+            assert!(w.iter().all(|v| *v >= 0.0) && (w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        }
+        let gains = r.gains.as_ref().unwrap();
+        let xs = [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]];
+        for row in 0..2 {
+            let sum: f64 = (0..3).map(|k| gains[k][row][row]).sum();
+            assert!((sum - 1.0).abs() < 1e-12);
+            let x: f64 = (0..3)
+                .map(|k| (0..2).map(|c| gains[k][row][c] * xs[k][c]).sum::<f64>())
+                .sum();
+            assert!((x - r.x[row]).abs() < 1e-12);
+        }
+    }
+}
+
+/// Wrong N-way requests are typed errors with what to change.
+#[test]
+fn json_nway_errors() {
+    let e = |json: &str| fuse_json(json).unwrap_err().to_string();
+    let two = r#"[{"p": [[1]]}, {"p": [[2]]}]"#;
+    assert!(e(&format!(r#"{{"estimates": {two}, "pa": [[1]], "method": "ci"}}"#))
+        .contains("not both"));
+    assert!(e(&format!(r#"{{"estimates": {two}, "method": "sdp"}}"#))
+        .contains("supports methods \"ci\" and \"nmci\""));
+    assert!(e(r#"{"pa": [[1]], "pb": [[1]], "patterns": [], "method": "ci"}"#)
+        .contains("`patterns` applies to N-way fusion only"));
+    assert!(e(r#"{"method": "ci"}"#).contains("`pa` and `pb` are required"));
+    assert!(e(r#"{"estimates": [{"p": [[1]]}], "method": "ci"}"#).contains("at least 2 estimates"));
+    assert!(e(r#"{"estimates": [{"p": [[1]]}, {"p": [[1,0],[0,1]]}], "method": "ci"}"#)
+        .contains("estimates[1] has size 2"));
+    assert!(e(r#"{"estimates": [{"p": [[1]]}, {"p": [[-1]]}], "method": "ci"}"#)
+        .contains("estimates[1].p"));
+    assert!(e(&format!(
+        r#"{{"estimates": {two}, "patterns": [{{"i": 0, "j": 3, "pab_unknown": [[true]]}}], "method": "nmci"}}"#
+    ))
+    .contains("pair (0, 3)"));
+    assert!(e(r#"{"estimates": [{"p": [[1]], "q": 1}, {"p": [[1]]}], "method": "ci"}"#)
+        .contains("unknown field `q`"));
+}

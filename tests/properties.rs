@@ -73,6 +73,8 @@ proptest! {
             method: if method == "ci" { Method::Ci } else { Method::Nmci },
             criterion: None, samples: None, seed: None, max_trials: None,
             sampler: None,
+            estimates: None,
+            patterns: None,
         };
         // Either a result or a typed error; never a panic.
         match fuse(&req) {

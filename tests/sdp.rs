@@ -275,6 +275,8 @@ fn certified_gap_brackets_the_robust_optimum() {
             seed: Some(1),
             max_trials: None,
             sampler: None,
+            estimates: None,
+            patterns: None,
         };
         let r = fuse(&req).unwrap();
         let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
