@@ -12,7 +12,7 @@ const CHARTED = ["central", "ci", "nmci", "ici"];
 
 // Tabs.
 function showTab(name) {
-  for (const [tab, panel] of [["explorer", $("#explorer")], ["study", $("#study")], ["fig2", $("#fig2")]]) {
+  for (const [tab, panel] of [["explorer", $("#explorer")], ["study", $("#study")], ["fig2", $("#fig2")], ["nway", $("#nway")]]) {
     const on = tab === name;
     $(`#tab-${tab}`).setAttribute("aria-selected", String(on));
     panel.hidden = !on;
@@ -21,6 +21,7 @@ function showTab(name) {
 $("#tab-explorer").addEventListener("click", () => showTab("explorer"));
 $("#tab-study").addEventListener("click", () => showTab("study"));
 $("#tab-fig2").addEventListener("click", () => showTab("fig2"));
+$("#tab-nway").addEventListener("click", () => showTab("nway"));
 
 let worker = null;
 let running = false;

@@ -313,6 +313,44 @@ test("the fig. 2 tab runs the sample-size study: non-conservative at N = 1, nmCI
   await page.click("#tab-explorer");
 });
 
+test("the N-way tab fuses three estimates: nmCI per block, CI one weight set; bad input inline", async () => {
+  await page.click("#tab-nway");
+  assert.equal(await page.locator("#nway").isVisible(), true);
+  await page.waitForFunction(() => document.body.dataset.nway === "ready", null, { timeout: 60_000 });
+  assert.equal(await page.locator("#nway-inputs tbody tr").count(), 3);
+  // Fully unknown pairs: one block, nmCI = CI.
+  assert.equal(await text("#nway-row-nmci .trace"), await text("#nway-row-ci .trace"));
+  // Diagonal cross-covariances: two blocks, x₁ from e1 and x₂ from e2 (trace 1 + 1).
+  await page.selectOption("#nway-pattern", "diagonal");
+  await page.waitForFunction(() => document.querySelector("#nway-row-nmci .trace")?.textContent === "2.000");
+  assert.equal(await text("#nway-row-nmci .weights"), "{x1}: [1.000, 0.000, 0.000] · {x2}: [0.000, 1.000, 0.000]");
+  assert.ok((await num("#nway-row-ci .trace")) > 2);
+  const ciWeights = (await text("#nway-row-ci .weights")).match(/\[(.*)\]/)[1].split(",").map(Number);
+  assert.equal(ciWeights.length, 3);
+  assert.ok(Math.abs(ciWeights.reduce((a, b) => a + b, 0) - 1) < 2e-3 && ciWeights.every((w) => w >= 0));
+  assert.equal(await page.locator("#nway-plot path.nway-estimate").count(), 3);
+  assert.equal(await page.locator("#nway-layer-nmci").count(), 1);
+  await page.screenshot({ path: join(out, "nway.png"), fullPage: true });
+  // A fourth estimate, then removed again.
+  await page.click("#nway-add");
+  assert.equal(await page.locator("#nway-inputs tbody tr").count(), 4);
+  await page.waitForFunction(() => document.querySelectorAll("#nway-plot path.nway-estimate").length === 4);
+  await page.locator("#nway-inputs tbody tr").nth(3).locator("button").click();
+  assert.equal(await page.locator("#nway-inputs tbody tr").count(), 3);
+  // Bad input: named inline, the input marked; a covariance that is not positive definite
+  // gets the core's typed error.
+  const p11 = page.locator('#nway-inputs input[aria-label="e1 p11"]');
+  await p11.fill("abc");
+  assert.equal(await text("#err-nway"), 'e1 p11: "abc" is not a number');
+  assert.equal(await page.locator("#nway-inputs input.bad").count(), 1);
+  await p11.fill("-1");
+  await page.waitForFunction(() => /estimates\[0\]\.p/.test(document.querySelector("#err-nway").textContent));
+  await p11.fill("1");
+  await page.waitForFunction(() => document.querySelector("#err-nway").textContent === "" && document.body.dataset.nway === "ready");
+  assert.equal(await text("#nway-row-nmci .trace"), "2.000");
+  await page.click("#tab-explorer");
+});
+
 test("no page errors or console errors along the way", () => {
   assert.deepEqual(problems, []);
 });

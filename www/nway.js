@@ -1,0 +1,137 @@
+// The "N-way fusion" tab: k ≥ 2 two-dimensional estimates fused at once by N-way CI and
+// nmCI through the wasm `fuse` (the same JSON contract as `nmci fuse` with `estimates`),
+// on the main thread (a fusion takes well under a millisecond). Invalid input is shown inline.
+import init, { fuse } from "./pkg/nmci.js";
+import { el, ellipsePath, frame } from "./plot.js";
+
+const $ = (s) => document.querySelector(s);
+const COLORS = ["#1f77b4", "#e07b00", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22"];
+const RULES = { ci: { label: "N-way CI", color: "#7b3fa0" }, nmci: { label: "N-way nmCI", color: "#d62728" } };
+const MAX = 8;
+const FIELDS = ["x1", "x2", "p11", "p12", "p22"];
+// Three estimates, each good along one direction: nmCI takes x₁ from the first and x₂ from
+// the second when the pairs' cross-covariances are diagonal.
+let rows = [
+  { x1: "1", x2: "0", p11: "1", p12: "0", p22: "9" },
+  { x1: "0", x2: "1", p11: "9", p12: "0", p22: "1" },
+  { x1: "0", x2: "0", p11: "4", p12: "0", p22: "4" },
+];
+const ready = init();
+
+function buildInputs() {
+  const body = $("#nway-inputs tbody");
+  body.replaceChildren();
+  rows.forEach((row, k) => {
+    const tr = document.createElement("tr");
+    const name = document.createElement("td");
+    name.innerHTML = `<span class="swatch" style="border-color:${COLORS[k]}"></span> e${k + 1}`;
+    tr.append(name);
+    for (const f of FIELDS) {
+      const td = document.createElement("td");
+      const input = document.createElement("input");
+      input.value = row[f];
+      input.setAttribute("aria-label", `e${k + 1} ${f}`);
+      input.addEventListener("input", () => {
+        row[f] = input.value;
+        update();
+      });
+      td.append(input);
+      tr.append(td);
+    }
+    const td = document.createElement("td");
+    const remove = document.createElement("button");
+    remove.textContent = "remove";
+    remove.disabled = rows.length <= 2;
+    remove.addEventListener("click", () => {
+      rows.splice(k, 1);
+      buildInputs();
+      update();
+    });
+    td.append(remove);
+    tr.append(td);
+    body.append(tr);
+  });
+  $("#nway-add").disabled = rows.length >= MAX;
+}
+
+/** The estimates as numbers; marks and names the first entry that is not a number. */
+function readEstimates() {
+  const inputs = [...document.querySelectorAll("#nway-inputs input")];
+  inputs.forEach((i) => i.classList.remove("bad"));
+  return rows.map((row, k) => {
+    const v = {};
+    for (const [f, input] of FIELDS.map((f, j) => [f, inputs[k * FIELDS.length + j]])) {
+      const raw = row[f].trim();
+      v[f] = Number(raw);
+      if (raw === "" || !Number.isFinite(v[f])) {
+        input.classList.add("bad");
+        throw new Error(`e${k + 1} ${f}: "${row[f]}" is not a number`);
+      }
+    }
+    return { x: [v.x1, v.x2], p: [[v.p11, v.p12], [v.p12, v.p22]] };
+  });
+}
+
+function request(method, estimates) {
+  const criterion = $("#nway-criterion").value;
+  const req = { estimates, method, criterion };
+  if (method === "nmci" && $("#nway-pattern").value === "diagonal") {
+    req.patterns = [];
+    for (let i = 0; i < estimates.length; i++) {
+      for (let j = i + 1; j < estimates.length; j++) req.patterns.push({ i, j, pab_unknown: [[true, false], [false, true]] });
+    }
+  }
+  return req;
+}
+
+const f3 = (v) => (Math.abs(v) >= 1e4 || (Math.abs(v) < 1e-3 && v !== 0) ? v.toExponential(2) : v.toFixed(3));
+
+async function update() {
+  await ready;
+  $("#err-nway").textContent = "";
+  let estimates, results;
+  try {
+    estimates = readEstimates();
+    results = { ci: fuse(request("ci", estimates)), nmci: fuse(request("nmci", estimates)) };
+  } catch (err) {
+    $("#err-nway").textContent = err && err.message ? err.message : String(err);
+    document.body.dataset.nway = "error";
+    return;
+  }
+  const body = $("#nway-table tbody");
+  body.replaceChildren();
+  for (const [key, r] of Object.entries(results)) {
+    const tr = document.createElement("tr");
+    tr.id = `nway-row-${key}`;
+    const weights = r.weights.map((w, b) => `{${r.blocks[b].map((s) => "x" + (s + 1)).join(", ")}}: [${w.map(f3).join(", ")}]`).join(" · ");
+    tr.innerHTML = `<td><span class="swatch" style="border-color:${RULES[key].color}"></span> ${RULES[key].label}</td><td class="trace">${f3(r.trace)}</td><td class="det">${f3(r.det)}</td><td class="x">(${r.x.map(f3).join(", ")})</td><td class="weights">${weights}</td>`;
+    body.append(tr);
+  }
+  draw(estimates, results);
+  document.body.dataset.nway = "ready";
+}
+
+function draw(estimates, results) {
+  const svg = $("#nway-plot");
+  svg.replaceChildren();
+  const all = [...estimates, ...Object.values(results)];
+  const extent = Math.max(...all.flatMap((e) => [Math.abs(e.x[0]) + Math.sqrt(e.p[0][0]), Math.abs(e.x[1]) + Math.sqrt(e.p[1][1])]), 1e-9) * 1.1;
+  const { toPx } = frame(svg, extent, ["x₁", "x₂"]);
+  const at = (x) => (u, v) => toPx(x[0] + u, x[1] + v);
+  estimates.forEach((e, k) => {
+    el("path", { d: ellipsePath(e.p, at(e.x)), fill: "none", stroke: COLORS[k], "stroke-width": 1.5, class: "nway-estimate" }, svg);
+  });
+  for (const [key, r] of Object.entries(results)) {
+    el("path", { id: `nway-layer-${key}`, d: ellipsePath(r.p, at(r.x)), fill: "none", stroke: RULES[key].color, "stroke-width": key === "nmci" ? 3 : 2.2, "stroke-dasharray": key === "ci" ? "6 3" : "none" }, svg);
+  }
+}
+
+$("#nway-add").addEventListener("click", () => {
+  rows.push({ x1: "0", x2: "0", p11: "2", p12: "0", p22: "2" });
+  buildInputs();
+  update();
+});
+$("#nway-pattern").addEventListener("change", update);
+$("#nway-criterion").addEventListener("change", update);
+buildInputs();
+update();
