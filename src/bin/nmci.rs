@@ -372,21 +372,9 @@ mod cli {
         );
         let started = std::time::Instant::now();
         let model = Model::new(&cfg.scenario).map_err(|e| e.to_string())?;
-        let (traces, coin) = rayon::join(
-            || simulate_runs_parallel(&cfg, &model, || bar.inc(1)),
-            || {
-                cfg.coin
-                    .then(|| coin_parallel(&cfg, &model, || bar.inc(1)))
-                    .transpose()
-            },
-        );
-        let traces = traces.map_err(|e| e.to_string())?;
-        let coin = coin.map_err(|e| e.to_string())?;
+        let (traces, summary) =
+            study_parallel(&cfg, &model, || bar.inc(1)).map_err(|e| e.to_string())?;
         bar.finish_and_clear();
-        let mut summary = summarize(&traces, model.dim());
-        if let Some(coin) = coin {
-            summary.attach_coin(coin);
-        }
         let report = StudyReport::new(&cfg, &summary);
         std::fs::create_dir_all(&out)
             .map_err(|e| format!("cannot create {}: {e}", out.display()))?;

@@ -40,15 +40,27 @@ fn axis(mu: f64, omega: f64) -> (f64, f64) {
     (g, 1.0 / mu + 1.0 - 1.0 / g)
 }
 
-/// The criterion (up to a constant for log-det) summed over `pencils` (the blocks of a
-/// block-diagonal problem share one `ω`), its derivative at `ω` and the size of the terms the
-/// derivative sums.
-fn criterion_and_slope(pencils: &[&Pencil], criterion: Criterion, omega: f64) -> (f64, f64, f64) {
+/// The criterion (up to a constant for log-det) summed over `pencils`, each counted with its
+/// multiplicity (the blocks of a block-diagonal problem share one `ω`; equal blocks share a
+/// pencil), its derivative at `ω` and the size of the terms the derivative sums.
+fn criterion_and_slope(
+    pencils: &[(&Pencil, f64)],
+    criterion: Criterion,
+    omega: f64,
+) -> (f64, f64, f64) {
     let (mut f, mut d, mut size) = (0.0, 0.0, 0.0);
-    let axes = pencils
-        .iter()
-        .flat_map(|p| p.weights.iter().zip(&p.mu));
-    for (&c, &mu) in axes {
+    for (pencil, count) in pencils {
+        let (pf, pd, psize) = pencil_criterion_and_slope(pencil, criterion, omega);
+        f += count * pf;
+        d += count * pd;
+        size += count * psize;
+    }
+    (f, d, size)
+}
+
+fn pencil_criterion_and_slope(pencil: &Pencil, criterion: Criterion, omega: f64) -> (f64, f64, f64) {
+    let (mut f, mut d, mut size) = (0.0, 0.0, 0.0);
+    for (&c, &mu) in pencil.weights.iter().zip(&pencil.mu) {
         let (g, h) = axis(mu, omega);
         let dh = (mu - 1.0) / (g * g);
         match criterion {
@@ -70,7 +82,10 @@ fn criterion_and_slope(pencils: &[&Pencil], criterion: Criterion, omega: f64) ->
 /// Relative derivative below which an endpoint counts as optimal (as CI's tie rule).
 const ENDPOINT_TIE: f64 = 1e-9;
 
-fn optimal_omega(pencil: &[&Pencil], criterion: Criterion) -> f64 {
+/// The minimiser over `[0, 1]`: the best point of a 64-interval grid, then the root of the
+/// derivative in the bracket around it by the Illinois variant of false position (superlinear,
+/// the bracket always kept) to machine precision.
+fn optimal_omega(pencil: &[(&Pencil, f64)], criterion: Criterion) -> f64 {
     const GRID: usize = 64;
     let values: Vec<f64> = (0..=GRID)
         .map(|k| criterion_and_slope(pencil, criterion, k as f64 / GRID as f64).0)
@@ -94,22 +109,45 @@ fn optimal_omega(pencil: &[&Pencil], criterion: Criterion) -> f64 {
             return 1.0;
         }
     }
-    let mut lo = best.saturating_sub(1) as f64 / GRID as f64;
-    let mut hi = (best + 1).min(GRID) as f64 / GRID as f64;
-    if !(slope(lo).0 < 0.0 && slope(hi).0 > 0.0) {
+    let (mut lo, mut hi) = (
+        best.saturating_sub(1) as f64 / GRID as f64,
+        (best + 1).min(GRID) as f64 / GRID as f64,
+    );
+    let (mut g_lo, mut g_hi) = (slope(lo).0, slope(hi).0);
+    if !(g_lo < 0.0 && g_hi > 0.0) {
         // No sign change of the derivative around the best grid point: it is the minimiser
         // to grid resolution only if the criterion is flat there; take the grid point.
         return best as f64 / GRID as f64;
     }
+    let mut last_side = 0;
     for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
+        let secant = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
+        let mid = if secant > lo && secant < hi {
+            secant
+        } else {
+            0.5 * (lo + hi)
+        };
         if mid <= lo || mid >= hi {
             break;
         }
-        if slope(mid).0 < 0.0 {
+        let (g, size) = slope(mid);
+        if g == 0.0 || g.abs() <= 4.0 * f64::EPSILON * size {
+            return mid;
+        }
+        if g < 0.0 {
             lo = mid;
+            g_lo = g;
+            if last_side == -1 {
+                g_hi *= 0.5; // Illinois: the stale end's value halved
+            }
+            last_side = -1;
         } else {
             hi = mid;
+            g_hi = g;
+            if last_side == 1 {
+                g_lo *= 0.5;
+            }
+            last_side = 1;
         }
     }
     0.5 * (lo + hi)
@@ -163,7 +201,7 @@ pub fn inverse_covariance_intersection(
 ) -> Result<IciResult, InputError> {
     let n = problem.dim();
     let pencil = Pencil::new(&problem.P_a, &problem.P_b)?;
-    let omega = optimal_omega(&[&pencil], criterion);
+    let omega = optimal_omega(&[(&pencil, 1.0)], criterion);
     let (P, K_a) = fuse_at(&pencil, &problem.P_a, &problem.P_b, omega);
     let K_b = DMatrix::identity(n, n) - &K_a;
     let x: DVector<f64> = &K_a * &problem.x_a + &K_b * &problem.x_b;
@@ -192,8 +230,15 @@ pub(crate) fn ici_in_place(
         });
     }
     let source = |k: usize| twins[k].unwrap_or(k);
-    let refs: Vec<&Pencil> = (0..a.len())
-        .filter_map(|k| pencils[source(k)].as_ref())
+    // Each distinct pencil once, counted as often as its block occurs.
+    let mut counts = vec![0.0; a.len()];
+    for k in 0..a.len() {
+        counts[source(k)] += 1.0;
+    }
+    let refs: Vec<(&Pencil, f64)> = pencils
+        .iter()
+        .zip(&counts)
+        .filter_map(|(p, &c)| p.as_ref().map(|p| (p, c)))
         .collect();
     let omega = optimal_omega(&refs, criterion);
     let mut done: Vec<Option<(DMatrix<f64>, DMatrix<f64>)>> = vec![None; a.len()];

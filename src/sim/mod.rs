@@ -283,6 +283,33 @@ pub fn coin_parallel(
         .collect()
 }
 
+/// A whole study on every core, as `nmci track` runs it: the Monte Carlo runs
+/// ([`simulate_runs_parallel`]) and, with `config.coin`, every estimator's exact COIN
+/// ([`coin_parallel`]) side by side; `on_piece` is called after each piece
+/// (`runs × RULES.len()` run pieces, plus one per estimator with COIN).
+#[cfg(not(target_arch = "wasm32"))]
+pub fn study_parallel(
+    config: &StudyConfig,
+    model: &Model,
+    on_piece: impl Fn() + Sync,
+) -> Result<(Vec<RunTrace>, StudySummary), SimError> {
+    let (traces, coin) = rayon::join(
+        || simulate_runs_parallel(config, model, &on_piece),
+        || {
+            config
+                .coin
+                .then(|| coin_parallel(config, model, &on_piece))
+                .transpose()
+        },
+    );
+    let traces = traces?;
+    let mut summary = summarize(&traces, model.dim());
+    if let Some(coin) = coin? {
+        summary.attach_coin(coin);
+    }
+    Ok((traces, summary))
+}
+
 /// Runs a whole study sequentially (the CLI runs the same runs in parallel).
 pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), SimError> {
     config.validate()?;
