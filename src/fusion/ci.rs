@@ -159,6 +159,13 @@ impl Pencil {
         })
     }
 
+    /// `W⁻¹ x = Vᵀ L⁻¹ x`: a vector's coordinates in the basis (`O(n²)`, no inverse formed).
+    pub(super) fn coordinates(&self, x: &DVector<f64>) -> DVector<f64> {
+        let mut y = x.clone();
+        solve_lower_in_place(&self.L, y.as_mut_slice());
+        self.V.tr_mul(&y)
+    }
+
     /// `W⁻¹ = Vᵀ L⁻¹`.
     pub(super) fn basis_inv(&self) -> DMatrix<f64> {
         let mut Z = self.V.clone();
@@ -204,12 +211,7 @@ impl Pencil {
     /// `P_b⁻¹ = W⁻ᵀ W⁻¹`, `x = P (ω P_a⁻¹ x_a + (1−ω) P_b⁻¹ x_b)
     /// = W diag(1/dᵢ) (ω λ ∘ W⁻¹x_a + (1−ω) W⁻¹x_b)`.
     fn fused_mean(&self, x_a: &DVector<f64>, x_b: &DVector<f64>, omega: f64) -> DVector<f64> {
-        let to_basis = |x: &DVector<f64>| {
-            let mut y = x.clone();
-            solve_lower_in_place(&self.L, y.as_mut_slice());
-            self.V.tr_mul(&y)
-        };
-        let (u_a, u_b) = (to_basis(x_a), to_basis(x_b));
+        let (u_a, u_b) = (self.coordinates(x_a), self.coordinates(x_b));
         let coords = DVector::from_fn(u_a.len(), |i, _| {
             let s = self.slopes[i];
             (omega * (s + 1.0) * u_a[i] + (1.0 - omega) * u_b[i]) / (1.0 + omega * s)

@@ -168,18 +168,26 @@ fn fuse_at(
     } else if omega == 1.0 {
         (P_b.clone(), DMatrix::zeros(n, n))
     } else {
-        // P = W diag(1/hᵢ) Wᵀ; K_a = P P_a⁻¹ − ω P Γ⁻¹ = W diag((1/μᵢ − ω/gᵢ)/hᵢ) W⁻¹.
-        let (mut p, mut k) = (Vec::with_capacity(n), Vec::with_capacity(n));
-        for &mu in &pencil.mu {
-            let (g, h) = axis(mu, omega);
-            p.push(1.0 / h);
-            k.push((1.0 / mu - omega / g) / h);
-        }
-        let mut P = pencil.scaled_product(p.into_iter(), &pencil.basis.transpose());
-        symmetrize_in_place(&mut P);
-        let K_a = pencil.scaled_product(k.into_iter(), &pencil.basis_inv());
-        (P, K_a)
+        let K_a = pencil.scaled_product(gain_scales(pencil, omega), &pencil.basis_inv());
+        (interior_covariance(pencil, omega), K_a)
     }
+}
+
+/// `P = W diag(1/hᵢ) Wᵀ` at an interior `ω`.
+#[allow(non_snake_case)]
+fn interior_covariance(pencil: &Pencil, omega: f64) -> DMatrix<f64> {
+    let scales = pencil.mu.iter().map(|&mu| 1.0 / axis(mu, omega).1);
+    let mut P = pencil.scaled_product(scales, &pencil.basis.transpose());
+    symmetrize_in_place(&mut P);
+    P
+}
+
+/// `K_a = P P_a⁻¹ − ω P Γ⁻¹ = W diag(kᵢ) W⁻¹` with `kᵢ = (1/μᵢ − ω/gᵢ)/hᵢ`.
+fn gain_scales(pencil: &Pencil, omega: f64) -> impl Iterator<Item = f64> + '_ {
+    pencil.mu.iter().map(move |&mu| {
+        let (g, h) = axis(mu, omega);
+        (1.0 / mu - omega / g) / h
+    })
 }
 
 /// ICI with the weight minimising `criterion` (see the module docs).
@@ -241,17 +249,41 @@ pub(crate) fn ici_in_place(
         .filter_map(|(p, &c)| p.as_ref().map(|p| (p, c)))
         .collect();
     let omega = optimal_omega(&refs, criterion);
-    let mut done: Vec<Option<(DMatrix<f64>, DMatrix<f64>)>> = vec![None; a.len()];
+    if omega == 0.0 {
+        return Ok(omega); // P = P_a, K_a = I: keep `a`
+    }
+    if omega == 1.0 {
+        a.clone_from_slice(b); // P = P_b, K_a = 0
+        return Ok(omega);
+    }
+    let mut covariances: Vec<Option<DMatrix<f64>>> = vec![None; a.len()];
     for k in 0..a.len() {
-        let (P, K_a) = match (twins[k].and_then(|t| done[t].clone()), &pencils[k]) {
-            (Some(shared), _) => shared,
-            (None, Some(pencil)) => fuse_at(pencil, &a[k].P, &b[k].P, omega),
-            // Not reached (a block without a twin has its pencil); kept total without a panic.
-            (None, None) => fuse_at(&Pencil::new(&a[k].P, &b[k].P)?, &a[k].P, &b[k].P, omega),
+        let fresh;
+        let pencil = match pencils[source(k)].as_ref() {
+            Some(p) => p,
+            // Not reached (a block's source always has its pencil); kept total without a panic.
+            None => {
+                fresh = Pencil::new(&a[k].P, &b[k].P)?;
+                &fresh
+            }
         };
-        let x = &K_a * &a[k].x + (DMatrix::identity(K_a.nrows(), K_a.nrows()) - &K_a) * &b[k].x;
-        a[k] = Gaussian { x, P: P.clone() };
-        done[k] = Some((P, K_a));
+        let P = match twins[k].and_then(|t| covariances[t].clone()) {
+            Some(shared) => shared,
+            None => interior_covariance(pencil, omega),
+        };
+        // x = K_a x_a + K_b x_b = W (k ∘ W⁻¹x_a + (1 − k) ∘ W⁻¹x_b): no gain matrix formed.
+        let (u_a, u_b) = (pencil.coordinates(&a[k].x), pencil.coordinates(&b[k].x));
+        let coords = DVector::from_iterator(
+            u_a.len(),
+            gain_scales(pencil, omega)
+                .zip(u_a.iter().zip(u_b.iter()))
+                .map(|(s, (ua, ub))| s * ua + (1.0 - s) * ub),
+        );
+        a[k] = Gaussian {
+            x: &pencil.basis * coords,
+            P: P.clone(),
+        };
+        covariances[k] = Some(P);
     }
     Ok(omega)
 }
