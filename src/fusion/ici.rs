@@ -13,10 +13,16 @@
 //! eigenproblem) everything is diagonal: `Γ = W diag(gᵢ) Wᵀ` with `gᵢ(ω) = 1 + ω(μᵢ − 1)`,
 //! `P = W diag(1/hᵢ) Wᵀ` with `hᵢ = 1/μᵢ + 1 − 1/gᵢ` (between `min(1/μᵢ, 1)` and
 //! `max(1/μᵢ, 1)`, so positive), so `tr P(ω) = Σ ‖wᵢ‖²/hᵢ` and `log det P = log det WWᵀ −
-//! Σ ln hᵢ` cost `O(n)` per `ω`. The weight is found exactly as for CI, without assuming
-//! convexity: the criterion on a 64-interval grid of `[0, 1]`, then the root of its analytic
-//! derivative around the best grid point by safeguarded bisection to machine precision (an
-//! endpoint is returned exactly when the derivative there points outwards).
+//! Σ ln hᵢ` cost `O(n)` per `ω`.
+//!
+//! Both criteria are convex in `ω`: `Γ(ω)` is affine, so `Γ⁻¹` is matrix-convex and
+//! `P⁻¹ = P_a⁻¹ + P_b⁻¹ − Γ⁻¹` matrix-concave; `X ↦ X⁻¹` is matrix-convex and
+//! matrix-decreasing, so `P(ω)` is matrix-convex and `tr P` convex; `log det` is concave and
+//! increasing, so `log det P = −log det P⁻¹` is convex. (Per axis: `hᵢ` is concave and positive,
+//! `1/hᵢ` convex.) The weight is therefore found exactly as for CI: an endpoint when the
+//! derivative there does not point inwards (ties within `1e-9` of the size of its terms go to
+//! the endpoint), otherwise the root of the analytic derivative by the Illinois variant of
+//! false position (superlinear, always bracketed) to machine precision.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -40,85 +46,44 @@ fn axis(mu: f64, omega: f64) -> (f64, f64) {
     (g, 1.0 / mu + 1.0 - 1.0 / g)
 }
 
-/// The criterion (up to a constant for log-det) summed over `pencils`, each counted with its
-/// multiplicity (the blocks of a block-diagonal problem share one `ω`; equal blocks share a
-/// pencil), its derivative at `ω` and the size of the terms the derivative sums.
-fn criterion_and_slope(
-    pencils: &[(&Pencil, f64)],
-    criterion: Criterion,
-    omega: f64,
-) -> (f64, f64, f64) {
-    let (mut f, mut d, mut size) = (0.0, 0.0, 0.0);
+/// The criterion's derivative at `ω` summed over `pencils`, each counted with its multiplicity
+/// (the blocks of a block-diagonal problem share one `ω`; equal blocks share a pencil), and
+/// the size of the terms it sums (its rounding scale). With `hᵢ' = (μᵢ − 1)/gᵢ²`:
+/// trace `−Σ ‖wᵢ‖² hᵢ'/hᵢ²`, log-det `−Σ hᵢ'/hᵢ`.
+fn slope(pencils: &[(&Pencil, f64)], criterion: Criterion, omega: f64) -> (f64, f64) {
+    let (mut d, mut size) = (0.0, 0.0);
     for (pencil, count) in pencils {
-        let (pf, pd, psize) = pencil_criterion_and_slope(pencil, criterion, omega);
-        f += count * pf;
-        d += count * pd;
-        size += count * psize;
-    }
-    (f, d, size)
-}
-
-fn pencil_criterion_and_slope(pencil: &Pencil, criterion: Criterion, omega: f64) -> (f64, f64, f64) {
-    let (mut f, mut d, mut size) = (0.0, 0.0, 0.0);
-    for (&c, &mu) in pencil.weights.iter().zip(&pencil.mu) {
-        let (g, h) = axis(mu, omega);
-        let dh = (mu - 1.0) / (g * g);
-        match criterion {
-            Criterion::Trace => {
-                f += c / h;
-                d -= c * dh / (h * h);
-                size += c * dh.abs() / (h * h);
-            }
-            Criterion::Logdet => {
-                f -= h.ln();
-                d -= dh / h;
-                size += dh.abs() / h;
-            }
+        for (&c, &mu) in pencil.weights.iter().zip(&pencil.mu) {
+            let (g, h) = axis(mu, omega);
+            let dh = (mu - 1.0) / (g * g);
+            let (term, scale) = match criterion {
+                Criterion::Trace => (c * dh / (h * h), c * dh.abs() / (h * h)),
+                Criterion::Logdet => (dh / h, dh.abs() / h),
+            };
+            d -= count * term;
+            size += count * scale;
         }
     }
-    (f, d, size)
+    (d, size)
 }
 
 /// Relative derivative below which an endpoint counts as optimal (as CI's tie rule).
 const ENDPOINT_TIE: f64 = 1e-9;
 
-/// The minimiser over `[0, 1]`: the best point of a 64-interval grid, then the root of the
-/// derivative in the bracket around it by the Illinois variant of false position (superlinear,
-/// the bracket always kept) to machine precision.
+/// The minimiser over `[0, 1]` of the (convex) criterion summed over `pencils`: an endpoint
+/// exactly when the derivative there does not point inwards, otherwise the root of the
+/// derivative by the Illinois variant of false position.
 fn optimal_omega(pencil: &[(&Pencil, f64)], criterion: Criterion) -> f64 {
-    const GRID: usize = 64;
-    let values: Vec<f64> = (0..=GRID)
-        .map(|k| criterion_and_slope(pencil, criterion, k as f64 / GRID as f64).0)
-        .collect();
-    let best = (0..=GRID)
-        .min_by(|&i, &j| values[i].total_cmp(&values[j]))
-        .unwrap_or(0);
-    let slope = |w: f64| {
-        let (_, d, size) = criterion_and_slope(pencil, criterion, w);
-        (d, size)
-    };
-    if best == 0 {
-        let (d, size) = slope(0.0);
-        if d >= -ENDPOINT_TIE * size {
-            return 0.0;
-        }
+    let slope = |w: f64| slope(pencil, criterion, w);
+    let (mut g_lo, size0) = slope(0.0);
+    if g_lo >= -ENDPOINT_TIE * size0 {
+        return 0.0;
     }
-    if best == GRID {
-        let (d, size) = slope(1.0);
-        if d <= ENDPOINT_TIE * size {
-            return 1.0;
-        }
+    let (mut g_hi, size1) = slope(1.0);
+    if g_hi <= ENDPOINT_TIE * size1 {
+        return 1.0;
     }
-    let (mut lo, mut hi) = (
-        best.saturating_sub(1) as f64 / GRID as f64,
-        (best + 1).min(GRID) as f64 / GRID as f64,
-    );
-    let (mut g_lo, mut g_hi) = (slope(lo).0, slope(hi).0);
-    if !(g_lo < 0.0 && g_hi > 0.0) {
-        // No sign change of the derivative around the best grid point: it is the minimiser
-        // to grid resolution only if the criterion is flat there; take the grid point.
-        return best as f64 / GRID as f64;
-    }
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
     let mut last_side = 0;
     for _ in 0..200 {
         let secant = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
