@@ -55,20 +55,26 @@ const fmt = (v) => (!Number.isFinite(v) ? "—" : Math.abs(v) >= 1e5 ? v.toExpon
 function render(view) {
   const n = view.series_len;
   const row = (arr, s) => arr.subarray(s * n, (s + 1) * n);
-  const total = view.runs * view.steps;
-  const done = view.runs_done * view.steps + (view.finished ? 0 : view.step);
+  // Work: the runs' steps, then (with COIN) one step per estimator (5) of the exact COIN.
+  const coinWork = view.coin_enabled ? NAMES.length * view.steps : 0;
+  const total = view.runs * view.steps + coinWork;
+  const runsDone = view.runs_done >= view.runs;
+  const done = view.finished ? total : runsDone ? view.runs * view.steps + NAMES.length * view.coin_len : view.runs_done * view.steps + view.step;
   $("#study-bar").style.width = `${(100 * done) / total}%`;
   const runSeconds = view.run_ms.length ? ` · ${(view.run_ms.reduce((a, b) => a + b, 0) / view.run_ms.length / 1000).toFixed(2)} s per run` : "";
+  const elapsed = `${(view.elapsed_ms / 1000).toFixed(1)} s`;
   $("#study-progress").textContent = view.finished
-    ? `done: ${view.runs} runs × ${view.steps} steps in ${(view.elapsed_ms / 1000).toFixed(1)} s${runSeconds}`
-    : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps} · ${(view.elapsed_ms / 1000).toFixed(1)} s${runSeconds}`;
+    ? `done: ${view.runs} runs × ${view.steps} steps${view.coin_enabled ? " and the exact COIN" : ""} in ${elapsed}${runSeconds}`
+    : runsDone
+      ? `runs done${runSeconds}; exact COIN: step ${view.coin_len} of ${view.steps} · ${elapsed}`
+      : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps} · ${elapsed}${runSeconds}`;
   const body = $("#study-table tbody");
   body.replaceChildren();
   for (const name of TABLE) {
     const e = view.report[name];
     const tr = document.createElement("tr");
     tr.dataset.estimator = name;
-    const coin = (v) => (v === undefined || v === null ? "—" : fmt(v));
+    const coin = (v) => (v === undefined || v === null ? (view.coin_enabled && !view.finished ? "…" : "—") : fmt(v));
     if (e.coin_max > 1 + 1e-9) tr.classList.add("warn");
     const cells = [LABELS[name], fmt(e.rmse_mean), fmt(e.two_sigma_mean), fmt(e.nees_mean), `${(100 * e.nees_frac_above_upper).toFixed(0)}%`, coin(e.coin_mean), coin(e.coin_max)];
     for (const c of cells) {

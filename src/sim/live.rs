@@ -17,7 +17,7 @@ pub struct LiveStudy {
     done: Vec<RunTrace>,
     current: Option<RunState>,
     /// With `config.coin`: each estimator's exact error propagation and its COIN so far,
-    /// advanced alongside the first run.
+    /// advanced after the runs (the paper's numbers come first).
     coin: Vec<(ErrorPropagation, Vec<f64>)>,
 }
 
@@ -56,8 +56,11 @@ pub struct StudyView {
     /// nmCI's per block, then ICI's.
     #[serde(skip)]
     pub omega: Vec<f64>,
-    /// Steps of the exact COIN computed so far (0 without COIN).
+    /// Steps of the exact COIN computed so far for every estimator (0 without COIN; it is
+    /// computed after the runs).
     pub coin_len: usize,
+    /// Whether the exact COIN is part of the study.
+    pub coin_enabled: bool,
     /// Exact COIN per step, `5 × coin_len` row-major (estimators as `nees`).
     #[serde(skip)]
     pub coin: Vec<f64>,
@@ -84,7 +87,7 @@ impl LiveStudy {
         })
     }
 
-    /// Whether every run is done (and the COIN series, which advance with the first run).
+    /// Whether every run is done, and then the COIN series.
     pub fn finished(&self) -> bool {
         self.done.len() >= self.config.runs && self.coin_finished()
     }
@@ -95,22 +98,25 @@ impl LiveStudy {
             .all(|(p, _)| p.steps_done() >= self.config.steps)
     }
 
-    /// Advances by up to `steps` time steps, across run boundaries; returns whether the study
-    /// is finished.
+    /// Advances by up to `steps` units of work: a time step of the run in progress (across run
+    /// boundaries) or, once every run is done, a time step of one estimator's exact COIN (the
+    /// one furthest behind); returns whether the study is finished.
     pub fn advance(&mut self, steps: usize) -> Result<bool, SimError> {
         for _ in 0..steps {
             if self.finished() {
                 break;
             }
-            let agent = self.config.agent - 1;
-            for (propagation, series) in &mut self.coin {
-                if propagation.steps_done() < self.config.steps {
+            if self.done.len() >= self.config.runs {
+                let agent = self.config.agent - 1;
+                let behind = self
+                    .coin
+                    .iter_mut()
+                    .min_by_key(|(p, _)| p.steps_done());
+                if let Some((propagation, series)) = behind {
                     propagation.step(&self.model)?;
                     let filter = if propagation.is_central() { 0 } else { agent };
                     series.push(propagation.coin(filter));
                 }
-            }
-            if self.done.len() >= self.config.runs {
                 continue;
             }
             let run = match &mut self.current {
@@ -139,8 +145,13 @@ impl LiveStudy {
             traces.push(run.trace().clone());
         }
         let mut summary = summarize(&traces, self.model.dim());
-        let coin: Vec<Vec<f64>> = self.coin.iter().map(|(_, s)| s.clone()).collect();
-        let coin_len = coin.first().map_or(0, Vec::len);
+        // Every estimator's series up to the step all of them reached.
+        let coin_len = self.coin.iter().map(|(_, s)| s.len()).min().unwrap_or(0);
+        let coin: Vec<Vec<f64>> = self
+            .coin
+            .iter()
+            .map(|(_, s)| s[..coin_len].to_vec())
+            .collect();
         let coin_flat = coin.concat();
         if !coin.is_empty() {
             summary.attach_coin(coin);
@@ -171,6 +182,7 @@ impl LiveStudy {
             two_sigma: flat(&summary.two_sigma_series),
             omega,
             coin_len,
+            coin_enabled: self.config.coin,
             coin: coin_flat,
         }
     }

@@ -3,7 +3,7 @@
 // (400 steps, all five estimators) in the Study tab's Web Worker in headless Chromium, and
 // prints the wall time of each repeat: `study/one_run` without the exact COIN (the run
 // itself), then `study/one_run_coin` with it (the run plus the five exact error
-// propagations, which advance with the first run). Needs www/pkg (scripts/wasm.sh build).
+// propagations, computed after the run). Needs www/pkg (scripts/wasm.sh build).
 import { serveWww, launchChromium } from "./harness.mjs";
 
 const repeats = Number(process.argv[2] ?? 3);
