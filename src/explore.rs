@@ -12,10 +12,10 @@ use crate::api::{
 use crate::error::RequestError;
 use crate::fusion::check::{fused_coin, worst_margin};
 use crate::fusion::known::known_correlation_fusion;
-use crate::fusion::{Fused, FusionProblem};
 use crate::fusion::sample::{sample_cross_covariances, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::Criterion;
+use crate::fusion::{Fused, FusionProblem};
 
 /// What the explorer asks for.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

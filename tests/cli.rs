@@ -254,5 +254,8 @@ fn fuse_takes_n_estimates() {
     );
     assert_ne!(code, 0);
     assert!(out.is_empty());
-    assert!(err.contains("supports methods \"ci\" and \"nmci\""), "{err}");
+    assert!(
+        err.contains("supports methods \"ci\" and \"nmci\""),
+        "{err}"
+    );
 }

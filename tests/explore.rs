@@ -136,7 +136,10 @@ fn every_rule_with_its_coin_over_the_region() {
             "samples": 50}"#,
     ))
     .unwrap();
-    assert_eq!(a.ici.conservative_for.as_deref(), Some("common information only"));
+    assert_eq!(
+        a.ici.conservative_for.as_deref(),
+        Some("common information only")
+    );
     assert_eq!(a.ei.conservative_for.as_deref(), Some("not guaranteed"));
     assert_eq!(a.naive.conservative_for.as_deref(), Some("not guaranteed"));
     assert!((a.naive.trace - (0.75 + 0.8)).abs() < 1e-12);
@@ -151,7 +154,11 @@ fn every_rule_with_its_coin_over_the_region() {
     for (name, margin, coin) in pairs {
         assert!(coin.median <= coin.max, "{name}");
         if margin.abs() > 1e-9 {
-            assert_eq!(margin < 0.0, coin.max > 1.0, "{name}: margin {margin}, COIN {coin:?}");
+            assert_eq!(
+                margin < 0.0,
+                coin.max > 1.0,
+                "{name}: margin {margin}, COIN {coin:?}"
+            );
         }
     }
     assert!(c.ci.max < 1.0 && c.nmci.max <= 1.0 + 1e-9);

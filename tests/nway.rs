@@ -191,7 +191,10 @@ fn bad_estimate_sets_are_typed_errors() {
 /// `x`, `p`, trace; `weights` = `[ω, 1 − ω]` per block), for CI and nmCI.
 #[test]
 fn json_two_estimates_equal_the_pairwise_request() {
-    for (method, pattern) in [("ci", "true,true],[true,true"), ("nmci", "true,false],[false,true")] {
+    for (method, pattern) in [
+        ("ci", "true,true],[true,true"),
+        ("nmci", "true,false],[false,true"),
+    ] {
         let pairwise = fuse_json(&format!(
             r#"{{"pa": [[3,0.5],[0.5,1]], "pb": [[1,0],[0,4]], "xa": [1,2], "xb": [3,-1],
                 "pab_unknown": [[{pattern}]], "method": "{method}"}}"#
@@ -239,7 +242,10 @@ fn json_three_estimates() {
     assert_eq!(ci.blocks.as_ref().unwrap().len(), 1);
     assert_eq!(nm.blocks.as_ref().unwrap(), &vec![vec![0], vec![1]]);
     // Per block, the best single estimate: x1 from estimate 0, x2 from estimate 1.
-    assert_eq!(nm.weights.as_ref().unwrap(), &vec![vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0]]);
+    assert_eq!(
+        nm.weights.as_ref().unwrap(),
+        &vec![vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0]]
+    );
     assert!((nm.trace - 2.0).abs() < 1e-12 && ci.trace > nm.trace);
     for r in [&ci, &nm] {
         for w in r.weights.as_ref().unwrap() {
@@ -247,13 +253,15 @@ fn json_three_estimates() {
         }
         let gains = r.gains.as_ref().unwrap();
         let xs = [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]];
-        for row in 0..2 {
-            let sum: f64 = (0..3).map(|k| gains[k][row][row]).sum();
+        for (row, fused) in r.x.iter().enumerate() {
+            let sum: f64 = gains.iter().map(|g| g[row][row]).sum();
             assert!((sum - 1.0).abs() < 1e-12);
-            let x: f64 = (0..3)
-                .map(|k| (0..2).map(|c| gains[k][row][c] * xs[k][c]).sum::<f64>())
+            let x: f64 = gains
+                .iter()
+                .zip(&xs)
+                .map(|(g, x)| g[row].iter().zip(x).map(|(k, v)| k * v).sum::<f64>())
                 .sum();
-            assert!((x - r.x[row]).abs() < 1e-12);
+            assert!((x - fused).abs() < 1e-12);
         }
     }
 }
@@ -263,22 +271,32 @@ fn json_three_estimates() {
 fn json_nway_errors() {
     let e = |json: &str| fuse_json(json).unwrap_err().to_string();
     let two = r#"[{"p": [[1]]}, {"p": [[2]]}]"#;
-    assert!(e(&format!(r#"{{"estimates": {two}, "pa": [[1]], "method": "ci"}}"#))
-        .contains("not both"));
+    assert!(e(&format!(
+        r#"{{"estimates": {two}, "pa": [[1]], "method": "ci"}}"#
+    ))
+    .contains("not both"));
     assert!(e(&format!(r#"{{"estimates": {two}, "method": "sdp"}}"#))
         .contains("supports methods \"ci\" and \"nmci\""));
-    assert!(e(r#"{"pa": [[1]], "pb": [[1]], "patterns": [], "method": "ci"}"#)
-        .contains("`patterns` applies to N-way fusion only"));
+    assert!(
+        e(r#"{"pa": [[1]], "pb": [[1]], "patterns": [], "method": "ci"}"#)
+            .contains("`patterns` applies to N-way fusion only")
+    );
     assert!(e(r#"{"method": "ci"}"#).contains("`pa` and `pb` are required"));
     assert!(e(r#"{"estimates": [{"p": [[1]]}], "method": "ci"}"#).contains("at least 2 estimates"));
-    assert!(e(r#"{"estimates": [{"p": [[1]]}, {"p": [[1,0],[0,1]]}], "method": "ci"}"#)
-        .contains("estimates[1] has size 2"));
-    assert!(e(r#"{"estimates": [{"p": [[1]]}, {"p": [[-1]]}], "method": "ci"}"#)
-        .contains("estimates[1].p"));
+    assert!(
+        e(r#"{"estimates": [{"p": [[1]]}, {"p": [[1,0],[0,1]]}], "method": "ci"}"#)
+            .contains("estimates[1] has size 2")
+    );
+    assert!(
+        e(r#"{"estimates": [{"p": [[1]]}, {"p": [[-1]]}], "method": "ci"}"#)
+            .contains("estimates[1].p")
+    );
     assert!(e(&format!(
         r#"{{"estimates": {two}, "patterns": [{{"i": 0, "j": 3, "pab_unknown": [[true]]}}], "method": "nmci"}}"#
     ))
     .contains("pair (0, 3)"));
-    assert!(e(r#"{"estimates": [{"p": [[1]], "q": 1}, {"p": [[1]]}], "method": "ci"}"#)
-        .contains("unknown field `q`"));
+    assert!(
+        e(r#"{"estimates": [{"p": [[1]], "q": 1}, {"p": [[1]]}], "method": "ci"}"#)
+            .contains("unknown field `q`")
+    );
 }

@@ -209,7 +209,10 @@ fn live_study_equals_the_batch_study_and_the_golden_file() {
         assert!(v.coin_len == 0 || v.runs_done == 2);
         assert!(v.coin_enabled);
     }
-    assert_eq!(chunks, 16, "24 run steps and 5 × 12 COIN steps in chunks of 5");
+    assert_eq!(
+        chunks, 16,
+        "24 run steps and 5 × 12 COIN steps in chunks of 5"
+    );
     let view = live.view();
     assert!(view.finished);
     assert_eq!((view.runs_done, view.step, view.series_len), (2, 12, 12));

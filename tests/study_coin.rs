@@ -107,7 +107,10 @@ fn coin_of_the_paper_study() {
     let (ci, nmci) = (series(Some(Rule::Ci)), series(Some(Rule::Nmci)));
     for (name, s) in [("ci", &ci), ("nmci", &nmci)] {
         assert!(s.iter().all(|c| *c <= 1.0 + 1e-9), "{name}: {s:?}");
-        assert!(s.iter().any(|c| *c < 0.99), "{name} is strictly conservative somewhere");
+        assert!(
+            s.iter().any(|c| *c < 0.99),
+            "{name} is strictly conservative somewhere"
+        );
     }
     let naive = series(Some(Rule::Naive));
     assert!(naive.iter().all(|c| *c > 1.0 + 1e-6), "{naive:?}");
@@ -127,7 +130,10 @@ fn summary_attaches_coin() {
     let (summary, report) = run_study(&config).unwrap();
     assert_eq!(summary.coin_series.len(), 5);
     let ci = &summary.coin_series[1];
-    assert_eq!(report.ci.coin_max, Some(ci.iter().copied().fold(f64::MIN, f64::max)));
+    assert_eq!(
+        report.ci.coin_max,
+        Some(ci.iter().copied().fold(f64::MIN, f64::max))
+    );
     assert!(report.central.coin_mean.is_some() && report.ici.coin_mean.is_some());
     let (without, report) = run_study(&StudyConfig {
         coin: false,

@@ -76,7 +76,9 @@ impl ErrorPropagation {
                 DMatrix::from_fn(count * m, count * m, |i, j| P0[(i % m, j % m)])
             })
             .collect();
-        let local = |k: usize| -> Vec<Vec<(Vec<(usize, f64)>, f64)>> {
+        // Each agent's measurements of block k: (local row, variance).
+        type Local = Vec<Vec<(Vec<(usize, f64)>, f64)>>;
+        let local = |k: usize| -> Local {
             part.measurements
                 .iter()
                 .map(|ms| {
@@ -144,8 +146,7 @@ impl ErrorPropagation {
                 for j in 0..count {
                     for (r, row) in F.iter().enumerate() {
                         for &(l, f) in row {
-                            Y.column_mut(j * m + r)
-                                .axpy(f, &X.column(j * m + l), 1.0);
+                            Y.column_mut(j * m + r).axpy(f, &X.column(j * m + l), 1.0);
                         }
                     }
                 }
@@ -226,13 +227,7 @@ impl ErrorPropagation {
             for &b in &self.neighbours[a] {
                 let before: Vec<DMatrix<f64>> =
                     self.filters[a].iter().map(|g| g.P.clone()).collect();
-                let omega = fuse(
-                    model,
-                    Storage::Blocks,
-                    rule,
-                    &mut self.filters[a],
-                    &sent[b],
-                )?;
+                let omega = fuse(model, Storage::Blocks, rule, &mut self.filters[a], &sent[b])?;
                 for k in (0..blocks).filter(|&k| self.twin[k].is_none()) {
                     let gain = gain_b(
                         rule,
@@ -367,10 +362,8 @@ fn gain_b(
     };
     // Endpoints exactly: CI/nmCI ω = 1 and ICI ω = 0 keep `a`; CI ω = 0 and ICI ω = 1 take `b`.
     match (rule, weight) {
-        (Rule::Ci | Rule::Nmci, Some(w)) if w == 1.0 => return Ok(Gain::Keep),
-        (Rule::Ci | Rule::Nmci, Some(w)) if w == 0.0 => return Ok(Gain::Take),
-        (Rule::Ici, Some(w)) if w == 0.0 => return Ok(Gain::Keep),
-        (Rule::Ici, Some(w)) if w == 1.0 => return Ok(Gain::Take),
+        (Rule::Ci | Rule::Nmci, Some(1.0)) | (Rule::Ici, Some(0.0)) => return Ok(Gain::Keep),
+        (Rule::Ci | Rule::Nmci, Some(0.0)) | (Rule::Ici, Some(1.0)) => return Ok(Gain::Take),
         _ => {}
     }
     let not_pd = |name: &str, M: &DMatrix<f64>| InputError::NotPositiveDefinite {

@@ -108,10 +108,7 @@ impl LiveStudy {
             }
             if self.done.len() >= self.config.runs {
                 let agent = self.config.agent - 1;
-                let behind = self
-                    .coin
-                    .iter_mut()
-                    .min_by_key(|(p, _)| p.steps_done());
+                let behind = self.coin.iter_mut().min_by_key(|(p, _)| p.steps_done());
                 if let Some((propagation, series)) = behind {
                     propagation.step(&self.model)?;
                     let filter = if propagation.is_central() { 0 } else { agent };
