@@ -313,18 +313,25 @@ impl FuseRequest {
     }
 }
 
-pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> FuseResponse {
+/// A response with the estimate and its bound only (every optional field absent).
+#[allow(non_snake_case)]
+fn bare_response(
+    method: Method,
+    criterion: Criterion,
+    x: &DVector<f64>,
+    P: &DMatrix<f64>,
+) -> FuseResponse {
     FuseResponse {
         method,
         criterion,
-        x: fused.x.iter().copied().collect(),
-        p: matrix_to_rows(&fused.P),
-        ka: Some(matrix_to_rows(&fused.K_a)),
-        kb: Some(matrix_to_rows(&fused.K_b)),
+        x: x.iter().copied().collect(),
+        p: matrix_to_rows(P),
+        ka: None,
+        kb: None,
         gains: None,
         weights: None,
-        trace: fused.trace(),
-        det: fused.P.determinant(),
+        trace: P.trace(),
+        det: P.determinant(),
         omega: None,
         blocks: None,
         samples: None,
@@ -341,6 +348,15 @@ pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> F
         violation: None,
         converged: None,
         conservative_for: None,
+    }
+}
+
+/// The response of a two-estimate rule: estimate, bound and both gains.
+pub(crate) fn response(method: Method, criterion: Criterion, fused: &Fused) -> FuseResponse {
+    FuseResponse {
+        ka: Some(matrix_to_rows(&fused.K_a)),
+        kb: Some(matrix_to_rows(&fused.K_b)),
+        ..bare_response(method, criterion, &fused.x, &fused.P)
     }
 }
 
@@ -441,32 +457,11 @@ fn fuse_nway(
         non_monolithic_ci_nway(&estimates, &pairs, criterion)?
     };
     Ok(FuseResponse {
-        method,
-        criterion,
-        x: result.x.iter().copied().collect(),
-        p: matrix_to_rows(&result.P),
-        ka: None,
-        kb: None,
         gains: Some(result.gains.iter().map(matrix_to_rows).collect()),
         weights: Some(result.omega.clone()),
-        trace: result.P.trace(),
-        det: result.P.determinant(),
-        omega: None,
         blocks: Some(result.blocks.clone()),
-        samples: None,
-        status: None,
         iterations: Some(result.iterations as u32),
-        acceptance_rate: None,
-        lmis: None,
-        worst_sample_margin: None,
-        lower_bound: None,
-        upper_bound: None,
-        upper_bound_rule: None,
-        gap: None,
-        gap_relative: None,
-        violation: None,
-        converged: None,
-        conservative_for: None,
+        ..bare_response(method, criterion, &result.x, &result.P)
     })
 }
 
