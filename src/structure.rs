@@ -121,7 +121,23 @@ pub fn independent_blocks(
     P_b: &DMatrix<f64>,
     cross_pattern: &CrossPattern,
 ) -> Vec<Vec<usize>> {
-    let n = P_a.nrows();
+    connected_components(P_a.nrows(), |i, j| {
+        P_a[(i, j)] != 0.0
+            || P_a[(j, i)] != 0.0
+            || P_b[(i, j)] != 0.0
+            || P_b[(j, i)] != 0.0
+            || cross_pattern.is_unknown(i, j)
+            || cross_pattern.is_unknown(j, i)
+    })
+}
+
+/// The connected components of the graph on `0..n` with an edge where `linked(i, j)` (asked
+/// for `i < j`; `linked` must be symmetric), by union-find: blocks ordered by their first
+/// state, states ascending. Shared by [`independent_blocks`] and non-monolithic N-way CI.
+pub(crate) fn connected_components(
+    n: usize,
+    linked: impl Fn(usize, usize) -> bool,
+) -> Vec<Vec<usize>> {
     let mut parent: Vec<usize> = (0..n).collect();
     fn find(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
@@ -132,13 +148,7 @@ pub fn independent_blocks(
     }
     for i in 0..n {
         for j in i + 1..n {
-            let linked = P_a[(i, j)] != 0.0
-                || P_a[(j, i)] != 0.0
-                || P_b[(i, j)] != 0.0
-                || P_b[(j, i)] != 0.0
-                || cross_pattern.is_unknown(i, j)
-                || cross_pattern.is_unknown(j, i);
-            if linked {
+            if linked(i, j) {
                 let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
                 if ri != rj {
                     parent[ri.max(rj)] = ri.min(rj);

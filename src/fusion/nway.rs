@@ -27,7 +27,7 @@ use super::ci::covariance_intersection;
 use super::{validate_covariance, validate_vector, Criterion, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::{cholesky, symmetrize};
-use crate::structure::CrossPattern;
+use crate::structure::{connected_components, CrossPattern};
 
 /// One estimate `(x, P)` of an N-way fusion, validated like the two-estimate inputs.
 #[allow(non_snake_case)]
@@ -197,34 +197,6 @@ pub fn non_monolithic_ci_nway(
         result.blocks.push(block);
     }
     Ok(result)
-}
-
-/// Connected components of the graph on `0..n` with edges `linked(i, j)`, ordered by first
-/// state, states ascending.
-fn connected_components(n: usize, linked: impl Fn(usize, usize) -> bool) -> Vec<Vec<usize>> {
-    let mut block_of = vec![usize::MAX; n];
-    let mut blocks: Vec<Vec<usize>> = Vec::new();
-    for start in 0..n {
-        if block_of[start] != usize::MAX {
-            continue;
-        }
-        let b = blocks.len();
-        let mut stack = vec![start];
-        let mut members = Vec::new();
-        block_of[start] = b;
-        while let Some(i) = stack.pop() {
-            members.push(i);
-            for (j, slot) in block_of.iter_mut().enumerate() {
-                if *slot == usize::MAX && linked(i, j) {
-                    *slot = b;
-                    stack.push(j);
-                }
-            }
-        }
-        members.sort_unstable();
-        blocks.push(members);
-    }
-    blocks
 }
 
 /// N-way CI of the estimates restricted to `block` (as one monolithic problem).

@@ -128,6 +128,18 @@ impl ErrorPropagation {
         if let Some(rule) = self.rule {
             self.exchange(model, rule)?;
         }
+        // A twin block shares its source's joint covariance; that is exact only while every
+        // filter's covariances of the two blocks are equal (same recursion, same operations:
+        // bit for bit). Checked, never assumed.
+        for (k, twin) in self.twin.iter().enumerate() {
+            if let Some(t) = *twin {
+                if self.filters.iter().any(|f| f[k].P != f[t].P) {
+                    return Err(SimError::Diverged(format!(
+                        "exact COIN: model blocks {t} and {k} no longer evolve identically"
+                    )));
+                }
+            }
+        }
         self.done += 1;
         Ok(())
     }
