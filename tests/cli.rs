@@ -128,6 +128,26 @@ fn track_writes_the_summary_and_csvs() {
     assert_eq!(coin.lines().count(), 7);
     assert!(dir.join("coin.svg").exists());
     assert!(summary["omega_7_11"]["ici"].is_number());
+    // --no-coin: the same study without the exact COIN.
+    let (code, _, err) = nmci(
+        &[
+            "track",
+            "--runs",
+            "1",
+            "--steps",
+            "4",
+            "--no-coin",
+            "--out",
+            dir.join("no-coin").to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("no-coin/summary.json")).unwrap())
+            .unwrap();
+    assert!(summary["ci"]["coin_mean"].is_null() && summary["ci"]["nees_mean"].is_number());
+    assert!(!dir.join("no-coin/coin.csv").exists());
     assert_eq!(
         std::fs::read_to_string(dir.join("omega.csv"))
             .unwrap()

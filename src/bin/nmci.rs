@@ -44,7 +44,10 @@ mod cli {
             /// Seed (overrides the configuration).
             #[arg(long)]
             seed: Option<u64>,
-            /// Output folder: summary.json, nees/rmse/two_sigma/omega CSVs, nees/rmse/omega SVGs.
+            /// Skip the exact COIN (overrides `coin = true` of the configuration).
+            #[arg(long)]
+            no_coin: bool,
+            /// Output folder: summary.json, nees/rmse/two_sigma/omega/coin CSVs, nees/rmse/omega/coin SVGs.
             #[arg(long, default_value = "out/track")]
             out: PathBuf,
         },
@@ -344,6 +347,7 @@ mod cli {
         runs: Option<usize>,
         steps: Option<usize>,
         seed: Option<u64>,
+        no_coin: bool,
         out: PathBuf,
     ) -> Result<String, String> {
         use indicatif::{ProgressBar, ProgressStyle};
@@ -362,6 +366,7 @@ mod cli {
         cfg.runs = runs.unwrap_or(cfg.runs);
         cfg.steps = steps.unwrap_or(cfg.steps);
         cfg.seed = seed.unwrap_or(cfg.seed);
+        cfg.coin &= !no_coin;
         cfg.validate().map_err(|e| e.to_string())?;
         let coin_pieces = if cfg.coin { estimators().count() } else { 0 };
         let bar = ProgressBar::new((cfg.runs * RULES.len() + coin_pieces) as u64).with_style(
@@ -572,8 +577,9 @@ mod cli {
                 runs,
                 steps,
                 seed,
+                no_coin,
                 out,
-            } => track(config, runs, steps, seed, out),
+            } => track(config, runs, steps, seed, no_coin, out),
             Command::Fig2 {
                 runs,
                 sizes,
