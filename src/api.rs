@@ -265,7 +265,8 @@ impl FuseRequest {
             if self.patterns.is_some() {
                 return invalid("`patterns` applies to N-way fusion only (with `estimates`); two estimates take `pab_unknown`");
             }
-            if self.pa.is_empty() || self.pb.is_empty() {
+            // Both missing: say what a request needs; one empty: the problem builder names it.
+            if self.pa.is_empty() && self.pb.is_empty() {
                 return invalid("`pa` and `pb` are required (or `estimates` for N-way fusion)");
             }
         }
