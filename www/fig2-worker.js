@@ -1,6 +1,6 @@
 // The fig. 2 study off the main thread: run after run of the wasm `fig2_run` (the same code
-// as `nmci fig2`), the summary rows (`fig2_summary`) posted back after every run. A "stop"
-// message is seen between runs.
+// as `nmci fig2`), the summary rows (`fig2_summary`) posted back at most every 100 ms and at
+// the end. A "stop" message is seen between runs.
 import init, { fig2_run, fig2_summary } from "./pkg/nmci.js";
 
 const ready = init();
@@ -18,12 +18,22 @@ self.onmessage = async (event) => {
   const runs = [];
   try {
     await ready;
-    for (let r = 0; r < config.runs && !stopped; r++) {
-      runs.push(fig2_run(config, r));
+    // Summarising hands every run so far to wasm: done at most every 100 ms (and at the
+    // end), not after each of up to 1000 runs.
+    let posted = 0;
+    let lastPost = -Infinity;
+    const post = () => {
       const rows = fig2_summary(config, runs);
       self.postMessage({ type: "rows", rows, runsDone: runs.length, elapsedMs: performance.now() - t0 });
+      posted = runs.length;
+      lastPost = performance.now();
+    };
+    for (let r = 0; r < config.runs && !stopped; r++) {
+      runs.push(fig2_run(config, r));
+      if (performance.now() - lastPost >= 100) post();
       await new Promise((resolve) => setTimeout(resolve, 0));
     }
+    if (posted < runs.length) post();
     self.postMessage({ type: stopped ? "stopped" : "done" });
   } catch (err) {
     self.postMessage({ type: "error", error: String(err && err.message ? err.message : err) });

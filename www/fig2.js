@@ -1,25 +1,13 @@
 // The "Fig. 2" tab: the paper's sample-size study (wasm `fig2_run`, one run at a time in a
-// Web Worker), redrawn after every run as a table and two band charts.
+// Web Worker), redrawn as the runs come in as a table and two band charts.
 import { bandChart } from "./chart.js";
+import { readWholeNumbers, workerTab } from "./worker-tab.js";
 
 const $ = (s) => document.querySelector(s);
-let worker = null;
-let running = false;
 let total = 0;
 
 function readConfig() {
-  const config = {};
-  for (const [key, min, max] of [["runs", 1, 1000], ["seed", 0, Number.MAX_SAFE_INTEGER]]) {
-    const input = $(`#fig2-${key}`);
-    const raw = input.value.trim();
-    const v = Number(raw);
-    if (raw === "" || !Number.isInteger(v) || v < min || v > max) {
-      input.classList.add("bad");
-      throw new Error(`${key} must be a whole number in ${min}…${max === Number.MAX_SAFE_INTEGER ? "2⁵³" : max} (got "${raw}")`);
-    }
-    input.classList.remove("bad");
-    config[key] = v;
-  }
+  const config = readWholeNumbers("fig2", [["runs", 1, 1000], ["seed", 0, Number.MAX_SAFE_INTEGER]]);
   const input = $("#fig2-sizes");
   const parts = input.value.split(",").map((p) => p.trim());
   const sizes = parts.map(Number);
@@ -30,12 +18,6 @@ function readConfig() {
   input.classList.remove("bad");
   config.sizes = sizes;
   return config;
-}
-
-function setRunning(on) {
-  running = on;
-  $("#fig2-start").disabled = on;
-  $("#fig2-stop").disabled = !on;
 }
 
 const fmt = (v) => (v === null || v === undefined || !Number.isFinite(v) ? "—" : v.toExponential(2));
@@ -67,39 +49,14 @@ function render(rows, runsDone, elapsedMs) {
   });
 }
 
-function start() {
-  $("#err-fig2").textContent = "";
-  let config;
-  try {
-    config = readConfig();
-  } catch (err) {
-    $("#err-fig2").textContent = err.message;
-    return;
-  }
-  total = config.runs;
-  if (!worker) {
-    worker = new Worker(new URL("./fig2-worker.js", import.meta.url), { type: "module" });
-    worker.onmessage = (event) => {
-      const msg = event.data;
-      if (msg.type === "rows") render(msg.rows, msg.runsDone, msg.elapsedMs);
-      else if (msg.type === "error") {
-        $("#err-fig2").textContent = msg.error;
-        setRunning(false);
-        document.body.dataset.fig2 = "error";
-      } else {
-        setRunning(false);
-        document.body.dataset.fig2 = msg.type;
-      }
-    };
-    worker.onerror = (event) => {
-      $("#err-fig2").textContent = `the fig. 2 worker failed: ${event.message || "unknown error"}`;
-      setRunning(false);
-    };
-  }
-  document.body.dataset.fig2 = "running";
-  setRunning(true);
-  worker.postMessage({ type: "start", config });
-}
-
-$("#fig2-start").addEventListener("click", start);
-$("#fig2-stop").addEventListener("click", () => worker && worker.postMessage({ type: "stop" }));
+workerTab({
+  name: "fig2",
+  label: "fig. 2",
+  url: new URL("./fig2-worker.js", import.meta.url),
+  readConfig: () => {
+    const config = readConfig();
+    total = config.runs;
+    return config;
+  },
+  onProgress: (msg) => render(msg.rows, msg.runsDone, msg.elapsedMs),
+});

@@ -1,6 +1,7 @@
 // The "Tracking study" tab: runs the paper's 16-agent study in a Web Worker (wasm `Study`)
 // and redraws the headline table and three charts after every chunk of steps.
 import { lineChart } from "./chart.js";
+import { readWholeNumbers, workerTab } from "./worker-tab.js";
 
 const $ = (s) => document.querySelector(s);
 const NAMES = ["central", "ci", "nmci", "naive", "ici"];
@@ -23,31 +24,10 @@ $("#tab-study").addEventListener("click", () => showTab("study"));
 $("#tab-fig2").addEventListener("click", () => showTab("fig2"));
 $("#tab-nway").addEventListener("click", () => showTab("nway"));
 
-let worker = null;
-let running = false;
-
 function readConfig() {
-  const fields = [["runs", 1, 100], ["steps", 2, 2000], ["seed", 0, Number.MAX_SAFE_INTEGER]];
-  const config = {};
-  for (const [key, min, max] of fields) {
-    const input = $(`#study-${key}`);
-    const raw = input.value.trim();
-    const v = Number(raw);
-    if (raw === "" || !Number.isInteger(v) || v < min || v > max) {
-      input.classList.add("bad");
-      throw new Error(`${key} must be a whole number in ${min}…${max === Number.MAX_SAFE_INTEGER ? "2⁵³" : max} (got "${raw}")`);
-    }
-    input.classList.remove("bad");
-    config[key] = v;
-  }
+  const config = readWholeNumbers("study", [["runs", 1, 100], ["steps", 2, 2000], ["seed", 0, Number.MAX_SAFE_INTEGER]]);
   config.coin = $("#study-coin").checked;
   return config;
-}
-
-function setRunning(on) {
-  running = on;
-  $("#study-start").disabled = on;
-  $("#study-stop").disabled = !on;
 }
 
 const fmt = (v) => (!Number.isFinite(v) ? "—" : Math.abs(v) >= 1e5 ? v.toExponential(2) : v.toFixed(3));
@@ -117,40 +97,13 @@ function render(view) {
   });
 }
 
-function start() {
-  $("#err-study").textContent = "";
-  let config;
-  try {
-    config = readConfig();
-  } catch (err) {
-    $("#err-study").textContent = err.message;
-    return;
-  }
-  if (!worker) {
-    worker = new Worker(new URL("./study-worker.js", import.meta.url), { type: "module" });
-    worker.onmessage = (event) => {
-      const msg = event.data;
-      if (msg.type === "view") render(msg.view);
-      else if (msg.type === "error") {
-        $("#err-study").textContent = msg.error;
-        setRunning(false);
-      } else if (msg.type === "done" || msg.type === "stopped") {
-        setRunning(false);
-        document.body.dataset.study = msg.type;
-      }
-    };
-    worker.onerror = (event) => {
-      $("#err-study").textContent = `the study worker failed: ${event.message || "unknown error"}`;
-      setRunning(false);
-    };
-  }
-  document.body.dataset.study = "running";
-  setRunning(true);
-  worker.postMessage({ type: "start", config });
-}
-
-$("#study-start").addEventListener("click", start);
-$("#study-stop").addEventListener("click", () => worker && worker.postMessage({ type: "stop" }));
+const tab = workerTab({
+  name: "study",
+  label: "study",
+  url: new URL("./study-worker.js", import.meta.url),
+  readConfig,
+  onProgress: (msg) => render(msg.view),
+});
 for (const key of ["runs", "steps", "seed"]) {
-  $(`#study-${key}`).addEventListener("keydown", (e) => { if (e.key === "Enter" && !running) start(); });
+  $(`#study-${key}`).addEventListener("keydown", (e) => { if (e.key === "Enter" && !tab.running()) tab.start(); });
 }

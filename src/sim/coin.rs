@@ -44,7 +44,7 @@ pub struct ErrorPropagation {
     neighbours: Vec<Vec<usize>>,
     /// The filters' covariances (means stay at zero: nothing here depends on them).
     filters: Vec<Estimate>,
-    /// Per model block, the joint covariance of all filters' errors.
+    /// Per model block, the joint covariance of all filters' errors (empty for a twin block).
     joint: Vec<DMatrix<f64>>,
     /// Per model block, an earlier block whose recursion is the same (equal transition, process
     /// noise, prior and, agent by agent, the same measurements in local coordinates — the
@@ -65,17 +65,6 @@ impl ErrorPropagation {
                 .map(|_| part.prior(model))
                 .collect(),
         };
-        let count = filters.len();
-        let joint = part
-            .blocks
-            .iter()
-            .enumerate()
-            .map(|(k, b)| {
-                let m = b.len();
-                let P0 = &filters[0][k].P;
-                DMatrix::from_fn(count * m, count * m, |i, j| P0[(i % m, j % m)])
-            })
-            .collect();
         // Each agent's measurements of block k: (local row, variance).
         type Local = Vec<Vec<(Vec<(usize, f64)>, f64)>>;
         let local = |k: usize| -> Local {
@@ -89,7 +78,7 @@ impl ErrorPropagation {
                 })
                 .collect()
         };
-        let twin = (0..part.blocks.len())
+        let twin: Vec<Option<usize>> = (0..part.blocks.len())
             .map(|k| {
                 (0..k).find(|&t| {
                     part.F[t] == part.F[k]
@@ -97,6 +86,18 @@ impl ErrorPropagation {
                         && filters[0][t].P == filters[0][k].P
                         && local(t) == local(k)
                 })
+            })
+            .collect();
+        // Twin blocks keep no joint covariance of their own (empty): they read their source's.
+        let count = filters.len();
+        let joint = part
+            .blocks
+            .iter()
+            .enumerate()
+            .map(|(k, b)| {
+                let m = if twin[k].is_some() { 0 } else { b.len() };
+                let P0 = &filters[0][k].P;
+                DMatrix::from_fn(count * m, count * m, |i, j| P0[(i % m, j % m)])
             })
             .collect();
         Self {
@@ -188,18 +189,12 @@ impl ErrorPropagation {
             for a in sources {
                 for m_index in 0..self.part.measurements[a].len() {
                     let (b, row, r) = &self.part.measurements[a][m_index];
-                    let P = &self.filters[i][*b].P;
-                    let m = P.nrows();
-                    // K = P h / (hᵀ P h + r), from the covariance before the update.
-                    let Ph = DVector::from_fn(m, |l, _| {
-                        row.iter().map(|&(j, c)| c * P[(l, j)]).sum::<f64>()
-                    });
-                    let s = row.iter().map(|&(j, c)| c * Ph[j]).sum::<f64>() + r;
-                    let K = Ph.unscale(s);
-                    self.part.update(&mut self.filters[i], a, m_index, 0.0);
+                    // The filter's own update, which returns its gain K = P h / (hᵀ P h + r).
+                    let K = self.part.update(&mut self.filters[i], a, m_index, 0.0);
                     if self.twin[*b].is_some() {
                         continue;
                     }
+                    let m = K.len();
                     let S = &mut self.joint[*b];
                     // Rows of filter i: Σ[i, :] ← Σ[i, :] − K (hᵀ Σ[i, :]).
                     let hS: Vec<f64> = (0..S.ncols())

@@ -186,8 +186,9 @@ impl Partition {
     /// Joseph-form scalar update with agent `a`'s measurement `m` and value `z`:
     /// `P ← (I − K hᵀ) P (I − K hᵀ)ᵀ + r K Kᵀ`, evaluated exactly through its rank-one factors
     /// (`(I − K hᵀ) P = P − K (P h)ᵀ`, then `Y (I − h Kᵀ) = Y − (Y h) Kᵀ`): O(n²) instead of
-    /// two dense products.
-    pub(super) fn update(&self, e: &mut Estimate, a: usize, m: usize, z: f64) {
+    /// two dense products. Returns the gain `K` (the exact COIN propagation applies it to the
+    /// joint error covariance).
+    pub(super) fn update(&self, e: &mut Estimate, a: usize, m: usize, z: f64) -> DVector<f64> {
         let (b, row, r) = &self.measurements[a][m];
         let Gaussian { x, P } = &mut e[*b];
         let sparse_dot = |v: &DMatrix<f64>, col: usize| -> f64 {
@@ -205,6 +206,7 @@ impl Partition {
         P.ger(-1.0, &Yh, &K, 1.0); // Y (I − h Kᵀ)
         P.ger(*r, &K, &K, 1.0);
         symmetrize_in_place(P);
+        K
     }
 }
 
