@@ -142,6 +142,14 @@ pub enum SolveError {
         /// Their worst `λ_min(P̄ − K P' Kᵀ)`.
         worst: f64,
     },
+    /// A block too large for the certified bound's program (its cone has `2n² + 1` rows).
+    #[error("the certified bound is limited to independent blocks of at most {limit} states (this one has {dim}): its program has one PSD cone of size 2n² + 1")]
+    BlockTooLarge {
+        /// States in the block.
+        dim: usize,
+        /// The limit (`CertifySettings::max_block_dim`).
+        limit: usize,
+    },
     /// Drawing the sample set failed.
     #[error(transparent)]
     Sample(#[from] SampleError),

@@ -6,12 +6,15 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{
-    ci_response, ei_response, ici_response, naive_response, nmci_response, problem_from_parts,
-    sdp_response, FuseResponse,
+    bracket_certificate, certificate_response, ci_response, ei_response, ici_response,
+    naive_response, nmci_response, problem_from_parts, sdp_response, FuseResponse, UpperBounds,
+    BRACKET_CERTIFY_MAX_BLOCK,
 };
 use crate::error::RequestError;
 use crate::fusion::check::{fused_coin, worst_margin};
+use crate::fusion::ci::covariance_intersection;
 use crate::fusion::known::known_correlation_fusion;
+use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::sample::{sample_cross_covariances, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::Criterion;
@@ -63,7 +66,7 @@ pub struct Gap {
     pub lower: f64,
     /// `tr P` of the best certified conservative rule (an upper bound).
     pub upper: f64,
-    /// Which rule gives `upper` (`ci` or `nmci`).
+    /// Which rule gives `upper` (`ci`, `nmci` or `certified`).
     pub upper_rule: crate::api::Method,
     /// `upper − lower`.
     pub absolute: f64,
@@ -80,6 +83,8 @@ pub struct Margins {
     pub nmci: f64,
     /// Sampled SDP (absent when it failed). Negative = not conservative for some drawn `P'`.
     pub sdp: Option<f64>,
+    /// The certified rule (absent when not computed).
+    pub certified: Option<f64>,
     /// ICI (conservative for common-information correlation only).
     pub ici: f64,
     /// EI (not guaranteed conservative).
@@ -108,6 +113,8 @@ pub struct Coins {
     pub nmci: CoinStats,
     /// Sampled SDP (absent when it failed).
     pub sdp: Option<CoinStats>,
+    /// The certified rule (absent when not computed).
+    pub certified: Option<CoinStats>,
     /// ICI.
     pub ici: CoinStats,
     /// EI.
@@ -135,6 +142,11 @@ pub struct Exploration {
     pub sdp: Option<FuseResponse>,
     /// Why it could not (sampler budget, solver status).
     pub sdp_error: Option<String>,
+    /// The certified rule (proven conservative; blocks of at most
+    /// [`BRACKET_CERTIFY_MAX_BLOCK`] states).
+    pub certified: Option<FuseResponse>,
+    /// Why it was not computed (a larger block, or the solver).
+    pub certified_error: Option<String>,
     /// SDP lower bound vs nmCI upper bound.
     pub gap: Option<Gap>,
     /// Region samples drawn.
@@ -206,9 +218,32 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         sampler,
         ..SdpSettings::default()
     };
-    // CI and nmCI are already computed; for the trace criterion they are the bracket's upper bound.
-    let traces = (criterion == Criterion::Trace).then_some((ci.trace, nmci.trace));
-    let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings, traces) {
+    let (certified, certified_fused, certified_error) = match bracket_certificate(&problem) {
+        Ok(Some(cert)) => (Some(certificate_response(&cert)), Some(cert.fused), None),
+        Ok(None) => (
+            None,
+            None,
+            Some(format!(
+                "computed in the explorer for independent blocks of at most {BRACKET_CERTIFY_MAX_BLOCK} states (its program grows as (2n² + 1)²); use method \"certified\" of the CLI for up to 6"
+            )),
+        ),
+        Err(e) => (None, None, Some(e.to_string())),
+    };
+    // CI and nmCI are already computed; for the trace criterion they bound the optimum above.
+    let uppers = UpperBounds {
+        ci: match criterion {
+            Criterion::Trace => ci.trace,
+            _ => covariance_intersection(&problem, Criterion::Trace)?
+                .fused
+                .trace(),
+        },
+        nmci: match criterion {
+            Criterion::Trace => nmci.trace,
+            _ => non_monolithic_ci(&problem, Criterion::Trace)?.fused.trace(),
+        },
+        certified: certified.as_ref().map(|c| c.trace),
+    };
+    let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings, Some(uppers)) {
         Ok((r, f)) => (Some(r), Some(f), None),
         Err(e) => (None, None, Some(e.to_string())),
     };
@@ -239,6 +274,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
                     ci: worst(&ci_fused),
                     nmci: worst(&nm_fused),
                     sdp: sdp_fused.as_ref().map(worst),
+                    certified: certified_fused.as_ref().map(worst),
                     ici: worst(&ici_fused),
                     ei: worst(&ei_fused),
                     naive: worst(&naive_fused),
@@ -248,6 +284,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
                     ci: stats(&ci_fused)?,
                     nmci: stats(&nm_fused)?,
                     sdp: sdp_fused.as_ref().map(stats).transpose()?,
+                    certified: certified_fused.as_ref().map(stats).transpose()?,
                     ici: stats(&ici_fused)?,
                     ei: stats(&ei_fused)?,
                     naive: stats(&naive_fused)?,
@@ -267,6 +304,8 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         naive,
         sdp,
         sdp_error,
+        certified,
+        certified_error,
         gap,
         region_count,
         region_acceptance_rate,

@@ -48,10 +48,14 @@ mod structure;
 #[cfg(target_arch = "wasm32")]
 pub mod wasm;
 
-pub use api::{fuse, fuse_json, FuseRequest, FuseResponse, Method, NwayEstimate, NwayPair};
+pub use api::{
+    fuse, fuse_json, FuseRequest, FuseResponse, Method, NwayEstimate, NwayPair,
+    BRACKET_CERTIFY_MAX_BLOCK,
+};
 pub use error::{InputError, RequestError, SampleError, SolveError};
 pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
 pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
+pub use fusion::certify::{certified_fusion, certify_gain, CertifiedResult, CertifySettings};
 pub use fusion::check::{
     conservativeness_index, conservativeness_margin, fused_coin, fused_error_covariance,
     worst_margin,

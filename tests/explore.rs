@@ -172,3 +172,30 @@ fn every_rule_with_its_coin_over_the_region() {
     .unwrap();
     assert!(none.coin.is_none() && none.margins.is_none());
 }
+
+#[test]
+fn the_certified_rule_in_the_explorer() {
+    // 2-D, one known zero: the certified rule is below nmCI, conservative over the region,
+    // and closes the bracket from above.
+    let a = explore(&request(
+        r#"{"pa": [[2.7, -1.5], [-1.5, 1.25]], "pb": [[3.75, 0.05], [0.05, 4.1]],
+            "pab_unknown": [[true, true], [false, true]], "sampler": "hit_and_run"}"#,
+    ))
+    .unwrap();
+    let cert = a.certified.as_ref().expect("certified");
+    assert!(cert.trace < a.nmci.trace - 1e-3);
+    assert!(a.margins.as_ref().unwrap().certified.unwrap() >= -1e-12 * cert.trace);
+    assert!(a.coin.as_ref().unwrap().certified.unwrap().max <= 1.0 + 1e-12);
+    let gap = a.gap.unwrap();
+    assert_eq!(gap.upper_rule, Method::Certified);
+    assert_eq!(gap.upper, cert.trace);
+    // A 5-state block is beyond the explorer's limit: said, not silently skipped.
+    let eye = "[[1,0,0,0,0],[0,1,0,0,0],[0,0,1,0,0],[0,0,0,1,0],[0,0,0,0,1]]";
+    let a = explore(&request(&format!(
+        r#"{{"pa": {eye}, "pb": {eye}, "samples": 20, "region_samples": 0, "sampler": "hit_and_run"}}"#
+    )))
+    .unwrap();
+    assert!(a.certified.is_none());
+    assert!(a.certified_error.unwrap().contains("at most 4 states"));
+    assert_ne!(a.gap.unwrap().upper_rule, Method::Certified);
+}

@@ -3,7 +3,7 @@
 #![cfg(target_arch = "wasm32")]
 
 use js_sys::{Reflect, JSON};
-use nmci::FuseResponse;
+use nmci::{fuse_json, FuseResponse, Method};
 use wasm_bindgen::{JsCast, JsValue};
 use wasm_bindgen_test::*;
 
@@ -67,6 +67,19 @@ fn paper_example_sdp() {
     assert!(status == "Solved" || status == "AlmostSolved", "{status}");
     assert!(r.iterations.unwrap() > 0);
     assert!(r.omega.is_none());
+}
+
+#[wasm_bindgen_test]
+fn certified_rule_in_wasm_matches_native() {
+    // One known zero (P_ab[2,1]): nmCI = CI = 3.088; the certified rule proves diag(1, 1).
+    let body = r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
+        "pab_unknown": [[true, true], [false, true]], "method": "certified"}"#;
+    let r = call(JSON::parse(body).unwrap()).unwrap();
+    assert!((r.trace - 2.0).abs() < 1e-6, "trace {}", r.trace);
+    assert_eq!(r.upper_bound_rule, Some(Method::Certified));
+    let native: FuseResponse = serde_json::from_str(&fuse_json(body).unwrap()).unwrap();
+    assert!((r.trace - native.trace).abs() < 1e-6);
+    assert!(r.repair.unwrap() >= 0.0);
 }
 
 #[wasm_bindgen_test]

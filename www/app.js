@@ -10,6 +10,7 @@ const STYLE = {
   ci: { label: "CI", color: "#7b3fa0" },
   nmci: { label: "nmCI", color: "#d62728" },
   sdp: { label: "optimal (sampled SDP)", color: "#2a9d3f" },
+  certified: { label: "certified (proven conservative)", color: "#000000" },
   ici: { label: "ICI (common information only)", color: "#17becf" },
   ei: { label: "EI (not guaranteed conservative)", color: "#8c564b" },
   naive: { label: "naive (not guaranteed conservative)", color: "#999999" },
@@ -285,6 +286,7 @@ function render() {
     ci: last.ci.p,
     nmci: last.nmci.p,
     sdp: last.sdp ? last.sdp.p : null,
+    certified: last.certified ? last.certified.p : null,
     ici: last.ici.p,
     ei: last.ei.p,
     naive: last.naive.p,
@@ -305,9 +307,9 @@ function render() {
     const rg = el("g", { opacity: 0.32, id: "layer-region" }, g);
     for (const m of region) el("path", { d: ellipsePath(m, toPx, 40), fill: STYLE.region.color, stroke: "none" }, rg);
   }
-  const widths = { pa: 2, pb: 2, ci: 2.2, nmci: 2.6, sdp: 2, ici: 1.8, ei: 1.8, naive: 1.8 };
-  const dashes = { sdp: "7 4", ci: "none", ici: "2 3", ei: "2 3", naive: "2 3" };
-  for (const k of ["pa", "pb", "ci", "nmci", "sdp", ...UNGUARANTEED]) {
+  const widths = { pa: 2, pb: 2, ci: 2.2, nmci: 2.6, sdp: 2, certified: 1.4, ici: 1.8, ei: 1.8, naive: 1.8 };
+  const dashes = { sdp: "7 4", ci: "none", certified: "12 3 2 3", ici: "2 3", ei: "2 3", naive: "2 3" };
+  for (const k of ["pa", "pb", "ci", "nmci", "certified", "sdp", ...UNGUARANTEED]) {
     if (!state.layers[k] || !mats[k]) continue;
     el("path", {
       id: `layer-${k}`, d: ellipsePath(marginal(mats[k], i, j), toPx), fill: "none",
@@ -412,6 +414,7 @@ function renderNumbers() {
     ["pb", "P_b", tr(s.pb), det2(s.pb), "", null, null],
     rule("ci", "CI", a.ci),
     rule("nmci", "nmCI", a.nmci),
+    "certified",
     "sdp",
     rule("ici", "ICI <small>(common information only)</small>", a.ici),
     rule("ei", "EI <small>(not guaranteed conservative)</small>", a.ei),
@@ -419,8 +422,16 @@ function renderNumbers() {
   ];
   const body = document.querySelector("#table tbody");
   body.replaceChildren();
-  for (const row of rows) {
+  for (let row of rows) {
     const tr_ = document.createElement("tr");
+    if (row === "certified" && !a.certified) {
+      tr_.id = "row-certified";
+      tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.certified.color}"></span> certified</td><td class="na" colspan="5"></td>`;
+      tr_.querySelector(".na").textContent = `not computed: ${a.certified_error}`;
+      body.appendChild(tr_);
+      continue;
+    }
+    if (row === "certified") row = rule("certified", "certified <small>(proven conservative)</small>", a.certified);
     if (row === "sdp") {
       tr_.id = "row-sdp";
       if (a.sdp) {
@@ -458,7 +469,10 @@ function renderNumbers() {
     parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${a.sdp.status}</b>, ${a.sdp.iterations} iterations, ${a.sdp.lmis} LMIs in the final working set of ${a.sdp.samples} samples, ${state.sampler === "hit_and_run" ? "hit-and-run sampler (no rejections)" : `sampler acceptance ${(a.sdp.acceptance_rate * 100).toPrecision(3)} %`}</div>`);
   }
   if (a.gap) {
-    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(certified: SDP dual objective below, ${a.gap.upper_rule === "nmci" ? "nmCI" : "CI"} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative</span></div>`);
+    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(certified: SDP dual objective below, ${{ nmci: "nmCI", ci: "CI", certified: "the certified rule" }[a.gap.upper_rule]} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative</span></div>`);
+  }
+  if (a.certified) {
+    parts.push(`<div id="certified-status"><span class="k">certified rule:</span> tr P̄ ${a.certified.trace.toFixed(6)}${a.certified.trace < Math.min(a.ci.trace, a.nmci.trace) - 1e-9 ? ` — ${((1 - a.certified.trace / Math.min(a.ci.trace, a.nmci.trace)) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here"}, proven to dominate K P' Kᵀ for every admissible P' (status ${a.certified.status}, ${a.certified.iterations} iterations, repair ${a.certified.repair.toExponential(1)})</div>`);
   }
   if (a.region_error) {
     parts.push(`<div class="err" id="region-status">region: ${a.region_error}</div>`);

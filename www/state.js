@@ -1,6 +1,6 @@
 // The explorer's state: presets, resizing, and the URL hash that makes a view shareable.
 
-export const LAYERS = ["region", "pa", "pb", "ci", "nmci", "sdp", "ici", "ei", "naive"];
+export const LAYERS = ["region", "pa", "pb", "ci", "nmci", "certified", "sdp", "ici", "ei", "naive"];
 // Drawn by default: the conservative rules; ICI, EI and naive fusion are a click away.
 const DEFAULT_OFF = ["ici", "ei", "naive"];
 

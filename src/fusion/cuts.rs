@@ -38,6 +38,7 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use super::certify::{certification_blocks, certified_fusion, CertifySettings};
 use super::check::fused_error_covariance;
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
 use super::sdp::{optimal_fusion_for_samples, SdpSettings, SdpStatus};
@@ -67,6 +68,11 @@ pub struct CutsSettings {
     pub tolerance: f64,
     /// Settings of each SDP solve (its sample and working-set fields are ignored).
     pub sdp: SdpSettings,
+    /// Guide the loop with the certified rule (default `true`; blocks of at most
+    /// [`CertifySettings::max_block_dim`] states): seed it with the worst cases at the
+    /// certified bound, and stop as soon as the lower bound reaches the certified upper bound
+    /// within `tolerance` — a proven optimum.
+    pub certify: bool,
 }
 
 impl Default for CutsSettings {
@@ -78,6 +84,7 @@ impl Default for CutsSettings {
             restarts: 4,
             tolerance: 1e-7,
             sdp: SdpSettings::default(),
+            certify: true,
         }
     }
 }
@@ -114,8 +121,14 @@ pub struct CutsResult {
     /// The worst `λ_max(K P' Kᵀ − P̄)` the search found at the end (≤ the stopping threshold
     /// when `converged`).
     pub violation: f64,
-    /// Whether the loop stopped on the tolerance (otherwise on `max_iterations`).
+    /// Whether the loop stopped on the tolerance or a closed gap (otherwise on
+    /// `max_iterations`).
     pub converged: bool,
+    /// The certified rule's `tr P̄` (an upper bound on the robust optimum), when computed.
+    pub certified_trace: Option<f64>,
+    /// Whether the loop stopped because `dual_objective` reached `certified_trace` within
+    /// the tolerance: the optimum is then proven, and the certified rule attains it.
+    pub gap_closed: bool,
     /// Dual objective of the last program: a lower bound on the robust optimum.
     pub dual_objective: f64,
     /// The cross-covariances of the last program.
@@ -148,6 +161,32 @@ pub fn optimal_fusion_cuts(
     )?
     .cross;
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0x5EED_C075);
+    let certify_settings = CertifySettings::default();
+    let certified = if settings.certify
+        && certification_blocks(problem, None)
+            .iter()
+            .all(|b| b.len() <= certify_settings.max_block_dim)
+    {
+        Some(certified_fusion(problem, &certify_settings)?)
+    } else {
+        None
+    };
+    // The worst cases at the certified bound are where it is tight: the likely active
+    // constraints of the robust optimum.
+    if let Some(cert) = &certified {
+        let eig = SymmetricEigen::new(cert.fused.P.clone());
+        for k in 0..settings.restarts.max(n) {
+            let v = if k < n {
+                eig.eigenvectors.column(k).into_owned()
+            } else {
+                DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0)).normalize()
+            };
+            let (_, P_ab) = worst_case_search(problem, &cert.fused, v, settings)?;
+            if !cross.iter().any(|c| (c - &P_ab).amax() <= 1e-12 * P_ab.amax().max(1.0)) {
+                cross.push(P_ab);
+            }
+        }
+    }
     // Every constraint here is a worst case, so nearly all are active: one program with all
     // of them beats the sampled SDP's working-set loop (which re-solves to add 8 at a time).
     let sdp = SdpSettings {
@@ -184,7 +223,11 @@ pub fn optimal_fusion_cuts(
             found.push(worst_case_search(problem, &opt.fused, start, settings)?);
         }
         let violation = found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
-        let converged = violation <= threshold;
+        let certified_trace = certified.as_ref().map(|c| c.fused.trace());
+        let gap_closed = certified_trace.is_some_and(|upper| {
+            opt.dual_objective >= upper - settings.tolerance * upper.max(1.0)
+        });
+        let converged = violation <= threshold || gap_closed;
         if converged || iterations >= settings.max_iterations {
             return Ok(CutsResult {
                 fused: opt.fused,
@@ -193,6 +236,8 @@ pub fn optimal_fusion_cuts(
                 constraints: cross.len(),
                 violation,
                 converged,
+                certified_trace,
+                gap_closed,
                 dual_objective: opt.dual_objective,
                 cross,
             });

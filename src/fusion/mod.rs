@@ -1,5 +1,6 @@
 //! Fusion rules for two estimates with partially known cross-covariance.
 
+pub(crate) mod certify;
 pub(crate) mod check;
 pub(crate) mod ci;
 pub(crate) mod cuts;

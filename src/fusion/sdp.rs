@@ -372,6 +372,40 @@ const KKT_SOLVER: &str = "faer";
 #[cfg(target_arch = "wasm32")]
 const KKT_SOLVER: &str = "qdldl";
 
+/// Builds and solves a Clarabel program with the platform's KKT solver; natively, when faer's
+/// factorization breaks down (status `NumericalError` or `InsufficientProgress`: seen on
+/// certificate programs, where faer's first solve returned NaN), solves again with QDLDL.
+/// The caller reads the status.
+#[allow(non_snake_case)]
+pub(super) fn solve_program(
+    P: &CscMatrix<f64>,
+    q: &[f64],
+    A: &CscMatrix<f64>,
+    b: &[f64],
+    cones: &[SupportedConeT<f64>],
+    settings: DefaultSettings<f64>,
+) -> Result<DefaultSolver<f64>, SolveError> {
+    let run = |method: &str| -> Result<DefaultSolver<f64>, SolveError> {
+        let settings = DefaultSettings {
+            direct_solve_method: method.into(),
+            ..settings.clone()
+        };
+        let mut solver = DefaultSolver::new(P, q, A, b, cones, settings)
+            .map_err(|e| SolveError::Setup(e.to_string()))?;
+        solver.solve();
+        Ok(solver)
+    };
+    let solver = run(KKT_SOLVER)?;
+    let broke_down = matches!(
+        solver.solution.status,
+        SolverStatus::NumericalError | SolverStatus::InsufficientProgress
+    );
+    if broke_down && KKT_SOLVER != "qdldl" {
+        return run("qdldl");
+    }
+    Ok(solver)
+}
+
 /// svec index of `(r, c)`, `r ≤ c`, in Clarabel's column-major upper-triangle order.
 fn svec_index(r: usize, c: usize) -> usize {
     c * (c + 1) / 2 + r
@@ -445,7 +479,6 @@ fn solve_lmis(
         .collect();
     let clarabel_settings = DefaultSettings {
         verbose: false,
-        direct_solve_method: KKT_SOLVER.into(),
         max_threads: 1,
         max_iter: settings.max_iter,
         tol_gap_abs: settings.tolerance,
@@ -453,9 +486,7 @@ fn solve_lmis(
         tol_feas: settings.tolerance,
         ..DefaultSettings::default()
     };
-    let mut solver = DefaultSolver::new(&P, &q, &A, &b, &cones, clarabel_settings)
-        .map_err(|e| SolveError::Setup(e.to_string()))?;
-    solver.solve();
+    let solver = solve_program(&P, &q, &A, &b, &cones, clarabel_settings)?;
     let sol = &solver.solution;
     let status = match sol.status {
         SolverStatus::Solved => SdpStatus::Solved,

@@ -116,9 +116,16 @@ test("toggling a pattern cell changes the detected blocks", async () => {
   await page.locator('#grid-pattern button[aria-label="P_ab[1,2]"]').click();
   await settle();
   assert.match(await text("#blocks"), /nmCI blocks \(1\)/);
-  // One block: nmCI falls back to CI; the optimal bound is still below.
+  // One block: nmCI falls back to CI; the optimal bound is still below, and the certified
+  // rule — proven conservative — recovers most of it and closes the bracket from above.
   assert.equal(await text("#row-nmci .trace"), await text("#row-ci .trace"));
   assert.ok((await num("#row-sdp .trace")) < (await num("#row-nmci .trace")));
+  assert.ok((await num("#row-certified .trace")) < (await num("#row-nmci .trace")) - 0.01);
+  assert.match(await text("#row-certified"), /proven conservative/);
+  assert.match(await text("#certified-status"), /% below the best of CI and nmCI, proven to dominate/);
+  assert.match(await text("#gap"), /certified: SDP dual objective below, the certified rule above/);
+  assert.equal(await page.locator("#row-certified .coin.neg").count(), 0);
+  assert.equal(await page.locator("#layer-certified").count(), 1);
   await page.screenshot({ path: join(out, "explorer-not-separable.png"), fullPage: true });
 });
 
@@ -131,7 +138,7 @@ test("a fully unknown 4-D P_ab defeats the rejection sampler; hit-and-run gives 
   await page.selectOption("#sampler", "hit_and_run");
   await settle();
   assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved).*hit-and-run sampler/);
-  assert.match(await text("#gap"), /certified: SDP dual objective below, (nmCI|CI) above/);
+  assert.match(await text("#gap"), /certified: SDP dual objective below, (nmCI|CI|the certified rule) above/);
   assert.match(await text("#region-status"), /300 admissible P\s*ab drawn \(hit-and-run\)/);
   // The sampler is part of the shareable state.
   assert.match(decodeURIComponent(await page.evaluate(() => location.hash)), /"sampler":"hit_and_run"/);

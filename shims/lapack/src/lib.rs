@@ -89,15 +89,33 @@ fn syevr<T: RealField + Copy>(
         let (r, c) = if (i <= j) == up { (i, j) } else { (j, i) };
         a[r + c * lda]
     });
+    if full.iter().any(|x| !x.is_finite()) {
+        // What LAPACK gives for an invalid input: NaN (no error code), without iterating.
+        *m = n;
+        let nan = T::zero() / T::zero();
+        w.iter_mut().take(nu).for_each(|x| *x = nan);
+        if vectors {
+            z.iter_mut().for_each(|x| *x = nan);
+        }
+        return;
+    }
     let Some(eig) = SymmetricEigen::try_new(full, T::default_epsilon(), 0) else {
         *info = 1;
         return;
     };
     let mut order: Vec<usize> = (0..nu).collect();
+    // A total order even with NaN (sorted last, as an invalid input gives; LAPACK returns
+    // NaN too): `partial_cmp(..).unwrap_or(Equal)` is not one, and the standard sort panics
+    // on such comparators — a panic inside the solver would kill a wasm module.
     order.sort_by(|&p, &q| {
-        eig.eigenvalues[p]
-            .partial_cmp(&eig.eigenvalues[q])
-            .unwrap_or(core::cmp::Ordering::Equal)
+        let (a, b) = (eig.eigenvalues[p], eig.eigenvalues[q]);
+        let nan = |x: T| x.partial_cmp(&x).is_none();
+        match (nan(a), nan(b)) {
+            (true, true) => core::cmp::Ordering::Equal,
+            (true, false) => core::cmp::Ordering::Greater,
+            (false, true) => core::cmp::Ordering::Less,
+            (false, false) => a.partial_cmp(&b).unwrap_or(core::cmp::Ordering::Equal),
+        }
     });
     *m = n;
     for (k, &p) in order.iter().enumerate() {

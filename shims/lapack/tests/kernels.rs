@@ -321,3 +321,20 @@ fn single_precision_variants() {
     assert_eq!(info, 0);
     assert_eq!((c[0], c[2]), (2.0, 1.0));
 }
+
+#[test]
+fn dsyevr_non_finite_input_gives_nan_without_panicking() {
+    // A solver that produced NaN gets NaN back (as from LAPACK), not a panic or a hang.
+    let mut a = DMatrix::from_row_slice(
+        4,
+        4,
+        &[
+            4., 1., 0., 0., 1., 3., 0., 0., 0., 0., 2., 0., 0., 0., 0., 1.,
+        ],
+    );
+    a[(0, 2)] = f64::NAN;
+    a[(2, 0)] = f64::NAN;
+    let (info, w, _) = syevr(&a, b'N', b'U');
+    assert_eq!(info, 0);
+    assert!(w.iter().all(|x| x.is_nan()), "{w:?}");
+}

@@ -1,0 +1,221 @@
+//! The certified rule: exactly CI with a fully unknown `P_ab`, exactly nmCI on separable
+//! patterns, tighter on non-separable ones, conservative against fresh samples whatever the
+//! solver's accuracy, and never below a valid lower bound.
+#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
+
+mod common;
+
+use common::*;
+use nalgebra::DMatrix;
+use nmci::*;
+
+fn fresh_margin(p: &FusionProblem, fused: &Fused) -> f64 {
+    let fresh = sample_cross_covariances(p, 10_000, 99, SamplerSettings::hit_and_run()).unwrap();
+    worst_margin(p, fused, &fresh.cross)
+}
+
+#[test]
+fn paper_example_is_diag_1_1() {
+    let cert = certified_fusion(&paper_example(), &CertifySettings::default()).unwrap();
+    assert!(
+        (&cert.fused.P - diag(&[1.0, 1.0])).amax() < 1e-6,
+        "{}",
+        cert.fused.P
+    );
+    assert_eq!(cert.blocks, vec![vec![0], vec![1]]);
+    assert!(cert.repair >= 0.0 && cert.repair < 1e-6);
+    // nmCI's gain ω = [0, 1] certifies its own bound.
+    let nm = non_monolithic_ci(&paper_example(), Criterion::Trace).unwrap();
+    let own = certify_gain(&paper_example(), &nm.fused.K_a, &CertifySettings::default()).unwrap();
+    assert!((&own.fused.P - &nm.fused.P).amax() < 1e-6);
+}
+
+#[test]
+fn fully_unknown_gives_ci_and_separable_gives_nmci() {
+    let mut r = rng(5);
+    for n in [2usize, 3] {
+        let p = random_problem(n, CrossPattern::fully_unknown(n), &mut r);
+        let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+        let cert = certified_fusion(&p, &CertifySettings::default()).unwrap();
+        let (c, t) = (cert.fused.trace(), ci.fused.trace());
+        assert!((c - t).abs() <= 1e-6 * t, "n={n}: certified {c} vs CI {t}");
+    }
+    // Two independent 2-state blocks with a fully unknown cross term inside each.
+    let groups = vec![vec![0, 2], vec![1, 3]];
+    let p = FusionProblem::from_covariances(
+        block_spd(4, &groups, &mut r),
+        block_spd(4, &groups, &mut r),
+        CrossPattern::from_fn(4, |i, j| i % 2 == j % 2),
+    )
+    .unwrap();
+    let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap();
+    let cert = certified_fusion(&p, &CertifySettings::default()).unwrap();
+    assert_eq!(cert.blocks, groups);
+    let (c, t) = (cert.fused.trace(), nm.fused.trace());
+    assert!((c - t).abs() <= 1e-6 * t, "certified {c} vs nmCI {t}");
+}
+
+#[test]
+fn tighter_than_nmci_on_non_separable_patterns_and_conservative() {
+    let mut r = rng(55);
+    let (mut strictly_tighter, mut closed) = (0, 0);
+    for (n, prob) in [
+        (2usize, 0.6),
+        (2, 0.6),
+        (2, 0.6),
+        (2, 0.6),
+        (2, 0.6),
+        (3, 0.6),
+        (3, 0.6),
+        (4, 0.6),
+    ] {
+        let p = random_problem(n, random_pattern(n, prob, &mut r), &mut r);
+        let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap();
+        let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+        let cert = certified_fusion(&p, &CertifySettings::default()).unwrap();
+        let c = cert.fused.trace();
+        let best = nm.fused.trace().min(ci.fused.trace());
+        assert!(
+            c <= best + 1e-6 * best,
+            "n={n}: certified {c} above nmCI/CI {best}"
+        );
+        if c < best - 1e-3 {
+            strictly_tighter += 1;
+        }
+        // Proven, so conservative for every fresh sample (no tolerance beyond rounding).
+        let margin = fresh_margin(&p, &cert.fused);
+        assert!(margin >= -1e-12 * c, "n={n}: margin {margin}");
+        // A certified upper bound is never below a valid lower bound (the cuts' dual).
+        let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+        assert!(
+            cuts.dual_objective <= c + 1e-7 * c,
+            "n={n}: lower {} above certified {c}",
+            cuts.dual_objective
+        );
+        if c < best - 1e-3 && c - cuts.dual_objective <= 1e-6 * c {
+            closed += 1; // tighter than nmCI and proven optimal by the bracket
+        }
+    }
+    assert!(
+        strictly_tighter >= 2,
+        "{strictly_tighter} cases tighter than nmCI"
+    );
+    assert!(closed >= 1, "no bracket closed");
+}
+
+#[test]
+fn certified_whatever_the_solver_accuracy() {
+    // A loose solve leaves the certificate infeasible by far more than rounding; the repair
+    // C ← C + δI makes it exact again (at the price of `repair`), so the bound still holds.
+    let mut r = rng(8);
+    let p = random_problem(3, random_pattern(3, 0.7, &mut r), &mut r);
+    let loose = CertifySettings {
+        tolerance: 1e-3,
+        ..CertifySettings::default()
+    };
+    let cert = certified_fusion(&p, &loose).unwrap();
+    let tight = certified_fusion(&p, &CertifySettings::default()).unwrap();
+    assert!(
+        cert.repair > 1e3 * tight.repair,
+        "{} vs {}",
+        cert.repair,
+        tight.repair
+    );
+    let margin = fresh_margin(&p, &cert.fused);
+    assert!(margin >= -1e-12 * cert.fused.trace(), "margin {margin}");
+}
+
+#[test]
+fn the_sampled_sdp_gain_certified() {
+    // For the SDP's own gain, the tightest certified bound lies above the SDP's (relaxed)
+    // trace and is conservative.
+    let mut r = rng(21);
+    let p = random_problem(3, random_pattern(3, 0.6, &mut r), &mut r);
+    let opt = optimal_fusion(
+        &p,
+        &SdpSettings {
+            samples: 300,
+            sampler: SamplerSettings::hit_and_run(),
+            ..SdpSettings::default()
+        },
+    )
+    .unwrap();
+    let cert = certify_gain(&p, &opt.fused.K_a, &CertifySettings::default()).unwrap();
+    assert_eq!(cert.fused.K_a, opt.fused.K_a);
+    assert!(cert.fused.trace() >= opt.dual_objective - 1e-7);
+    assert!(fresh_margin(&p, &cert.fused) >= -1e-12 * cert.fused.trace());
+}
+
+#[test]
+fn typed_errors() {
+    let big = FusionProblem::from_covariances(
+        DMatrix::identity(7, 7),
+        DMatrix::identity(7, 7) * 2.0,
+        CrossPattern::fully_unknown(7),
+    )
+    .unwrap();
+    assert_eq!(
+        certified_fusion(&big, &CertifySettings::default()).unwrap_err().to_string(),
+        "the certified bound is limited to independent blocks of at most 6 states (this one has 7): its program has one PSD cone of size 2n² + 1"
+    );
+    // Seven independent states are fine: blocks of one.
+    let split = FusionProblem::from_covariances(
+        DMatrix::identity(7, 7),
+        DMatrix::identity(7, 7) * 2.0,
+        CrossPattern::diagonal(7),
+    )
+    .unwrap();
+    assert!(certified_fusion(&split, &CertifySettings::default()).is_ok());
+    let p = paper_example();
+    assert!(
+        certify_gain(&p, &DMatrix::identity(3, 3), &CertifySettings::default())
+            .unwrap_err()
+            .to_string()
+            .contains("2×2")
+    );
+    let bad = CertifySettings {
+        tolerance: 0.0,
+        ..CertifySettings::default()
+    };
+    assert!(certified_fusion(&p, &bad)
+        .unwrap_err()
+        .to_string()
+        .contains("tolerance"));
+}
+
+#[test]
+fn through_the_json_contract() {
+    // 2-D, only P_ab[1][0] known to be zero: not separable, so nmCI = CI.
+    let body = r#""pa": [[2.7, -1.5], [-1.5, 1.25]], "pb": [[3.75, 0.05], [0.05, 4.1]],
+        "pab_unknown": [[true, true], [false, true]]"#;
+    let run = |extra: &str| fuse_json(&format!("{{{body}, {extra}}}"));
+    let cert: serde_json::Value =
+        serde_json::from_str(&run(r#""method": "certified""#).unwrap()).unwrap();
+    assert_eq!(cert["method"], "certified");
+    assert_eq!(cert["upper_bound_rule"], "certified");
+    assert!(cert["repair"].as_f64().unwrap() >= 0.0);
+    let nm: serde_json::Value = serde_json::from_str(&run(r#""method": "nmci""#).unwrap()).unwrap();
+    let (c, t) = (
+        cert["trace"].as_f64().unwrap(),
+        nm["trace"].as_f64().unwrap(),
+    );
+    assert!(c < t - 1e-3, "certified {c} vs nmCI {t}");
+    // The SDP's bracket now closes from above with the certified rule.
+    let sdp: serde_json::Value =
+        serde_json::from_str(&run(r#""method": "sdp_cuts""#).unwrap()).unwrap();
+    assert_eq!(sdp["upper_bound_rule"], "certified");
+    assert!((sdp["upper_bound"].as_f64().unwrap() - c).abs() < 1e-12);
+    assert!(sdp["gap"].as_f64().unwrap() <= 1e-6 * c, "{}", sdp["gap"]);
+    // The cuts' own gain, proven: never below the lower bound.
+    let own = sdp["gain_certified_trace"].as_f64().unwrap();
+    assert!(own >= sdp["lower_bound"].as_f64().unwrap() - 1e-7, "{own}");
+    let sampled: serde_json::Value = serde_json::from_str(
+        &run(r#""method": "sdp", "samples": 50, "sampler": "hit_and_run""#).unwrap(),
+    )
+    .unwrap();
+    assert!(sampled["gain_certified_trace"].as_f64().unwrap() >= c - 1e-7);
+    assert_eq!(
+        run(r#""method": "certified", "criterion": "logdet""#).unwrap_err().to_string(),
+        "invalid request: methods \"sdp\", \"sdp_cuts\" and \"certified\" minimise the trace; criterion \"logdet\" is not available for them"
+    );
+}
