@@ -7,7 +7,8 @@
 //! Issue 6: `ici/trace/112`, `ci_nway/5x14`.
 //! Issue 5: `sample/hit_and_run/14x1000` (≥ 1000 samples/s), `sdp_cuts/paper` (the paper's
 //! example by cutting planes) and `sdp_cuts/random6` (a random 6-D problem, each entry of
-//! `P_ab` unknown with probability 0.6: no independent blocks).
+//! `P_ab` unknown with probability 0.6: no independent blocks); the certified rule
+//! `certified/paper_one_zero`, `certified/random4`.
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};

@@ -213,10 +213,14 @@ pub struct FuseResponse {
     /// `sdp_cuts`: the worst `λ_max(K P' Kᵀ − P̄)` the last worst-case search found.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub violation: Option<f64>,
-    /// `sdp_cuts`: whether that violation is below the tolerance (otherwise the iteration limit
-    /// stopped the loop).
+    /// `sdp_cuts`: whether that violation is below the tolerance or the gap closed (otherwise
+    /// the iteration limit stopped the loop).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub converged: Option<bool>,
+    /// `sdp_cuts`: whether the loop stopped because its lower bound reached the certified
+    /// rule's trace: the robust optimum is then proven (and attained by method `certified`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap_closed: Option<bool>,
     /// `ici`, `ei`, `naive`: what the bound is guaranteed for — `"common information only"`
     /// (ICI) or `"not guaranteed"` (EI, naive). CI, nmCI and the certified SDP bracket hold
     /// for every admissible `P_ab`.
@@ -375,6 +379,7 @@ fn bare_response(
         gain_certified_trace: None,
         violation: None,
         converged: None,
+        gap_closed: None,
         conservative_for: None,
     }
 }
@@ -444,7 +449,13 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             r.violation = Some(cuts.violation);
             r.converged = Some(cuts.converged);
             r.gain_certified_trace = own_gain_certified(&problem, &cuts.fused.K_a)?;
-            certified_bracket(&problem, cuts.dual_objective, None, &mut r)?;
+            r.gap_closed = Some(cuts.gap_closed);
+            // The loop computed the certified rule already (blocks of up to 6 states).
+            let uppers = UpperBounds {
+                certified: cuts.certified_trace,
+                ..UpperBounds::conservative(&problem)?
+            };
+            certified_bracket(&problem, cuts.dual_objective, Some(uppers), &mut r)?;
             Ok(r)
         }
     }
@@ -510,11 +521,19 @@ impl UpperBounds {
     /// CI, nmCI and (for small blocks) the certified rule, computed.
     pub(crate) fn of(problem: &FusionProblem) -> Result<Self, SolveError> {
         Ok(Self {
+            certified: bracket_certificate(problem)?.map(|c| c.fused.trace()),
+            ..Self::conservative(problem)?
+        })
+    }
+
+    /// Trace-optimal CI and nmCI only.
+    fn conservative(problem: &FusionProblem) -> Result<Self, SolveError> {
+        Ok(Self {
             ci: covariance_intersection(problem, Criterion::Trace)?
                 .fused
                 .trace(),
             nmci: non_monolithic_ci(problem, Criterion::Trace)?.fused.trace(),
-            certified: bracket_certificate(problem)?.map(|c| c.fused.trace()),
+            certified: None,
         })
     }
 

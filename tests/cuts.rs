@@ -53,6 +53,7 @@ fn an_unconverged_loop_says_so() {
     let p = random_problem(3, random_pattern(3, 0.6, &mut r), &mut r);
     let settings = CutsSettings {
         max_iterations: 2,
+        certify: false, // no seeds from the certified rule: 4 samples, then the cuts
         ..CutsSettings::default()
     };
     let cuts = optimal_fusion_cuts(&p, &settings).unwrap();
@@ -67,6 +68,14 @@ fn an_unconverged_loop_says_so() {
         cuts.constraints > 4 && cuts.constraints <= 4 + 4,
         "{}",
         cuts.constraints
+    );
+    let in_out = CutsSettings {
+        in_out: 1.0,
+        ..CutsSettings::default()
+    };
+    assert_eq!(
+        optimal_fusion_cuts(&p, &in_out).unwrap_err().to_string(),
+        "invalid SDP setting: in_out must be in [0, 1) (got 1)"
     );
     let bad = CutsSettings {
         restarts: 0,
@@ -103,4 +112,31 @@ fn sdp_cuts_through_the_json_contract() {
         fuse(&bad).unwrap_err().to_string(),
         "invalid request: `samples` applies to method \"sdp\" only"
     );
+}
+
+#[test]
+fn guided_by_the_certified_rule_the_gap_closes_and_proves_the_optimum() {
+    // The paper's example with only P_ab[2,1] known to be zero: one block, nmCI = CI = 3.088.
+    let p = FusionProblem::from_covariances(
+        diag(&[3.0, 1.0]),
+        diag(&[1.0, 4.0]),
+        CrossPattern::from_fn(2, |i, j| !(i == 1 && j == 0)),
+    )
+    .unwrap();
+    let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+    assert!(cuts.converged && cuts.gap_closed, "{cuts:?}");
+    let upper = cuts.certified_trace.unwrap();
+    assert!((upper - 2.0).abs() < 1e-6 && (cuts.dual_objective - 2.0).abs() < 1e-6);
+    assert!(cuts.constraints <= 20, "{} constraints", cuts.constraints);
+    // Without the guide the loop still converges, on "no violation found" only.
+    let plain = optimal_fusion_cuts(
+        &p,
+        &CutsSettings {
+            certify: false,
+            ..CutsSettings::default()
+        },
+    )
+    .unwrap();
+    assert!(plain.converged && !plain.gap_closed && plain.certified_trace.is_none());
+    assert!((plain.fused.trace() - 2.0).abs() < 1e-6);
 }

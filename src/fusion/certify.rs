@@ -53,8 +53,8 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use super::sdp::{solve_program, SdpStatus};
-use super::{Fused, FusionProblem};
+use super::sdp::{solve_program, svec_index, SdpStatus};
+use super::{scatter_block, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::symmetrize;
 use crate::structure::independent_blocks;
@@ -216,12 +216,8 @@ fn certify(
         }
         iterations += solved.iterations;
         repair += solved.repair;
-        for (bi, &i) in block.iter().enumerate() {
-            for (bj, &j) in block.iter().enumerate() {
-                K_a[(i, j)] = solved.K_a[(bi, bj)];
-                P[(i, j)] = solved.P[(bi, bj)];
-            }
-        }
+        scatter_block(&mut K_a, block, &solved.K_a);
+        scatter_block(&mut P, block, &solved.P);
     }
     let K_b = DMatrix::identity(n, n) - &K_a;
     let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
@@ -241,11 +237,6 @@ struct BlockCertificate {
     status: SdpStatus,
     iterations: u32,
     repair: f64,
-}
-
-/// svec index of `(r, c)`, `r ≤ c`, in Clarabel's column-major upper-triangle order.
-fn svec_index(r: usize, c: usize) -> usize {
-    c * (c + 1) / 2 + r
 }
 
 #[allow(non_snake_case)]

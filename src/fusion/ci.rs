@@ -21,7 +21,7 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
-use super::{covariance_twins, Criterion, Fused, FusionProblem, Gaussian};
+use super::{covariance_twins, scatter_block, Criterion, Fused, FusionProblem, Gaussian};
 use crate::error::InputError;
 use crate::linalg::{
     cholesky, min_eigenvalue, solve_lower_in_place, solve_lower_rows, symmetrize,
@@ -438,12 +438,8 @@ pub fn covariance_intersection_blocks(
     let mut P = DMatrix::zeros(n, n);
     let mut K_a = DMatrix::zeros(n, n);
     for (block, part) in blocks.iter().zip(&parts) {
-        for (bi, &i) in block.iter().enumerate() {
-            for (bj, &j) in block.iter().enumerate() {
-                P[(i, j)] = part.P[(bi, bj)];
-                K_a[(i, j)] = part.K_a[(bi, bj)];
-            }
-        }
+        scatter_block(&mut P, block, &part.P);
+        scatter_block(&mut K_a, block, &part.K_a);
     }
     let K_b = DMatrix::identity(n, n) - &K_a;
     let x = &K_a * &problem.x_a + &K_b * &problem.x_b;

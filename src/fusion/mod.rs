@@ -262,6 +262,17 @@ pub(crate) fn covariance_twins(a: &[Gaussian], b: &[Gaussian]) -> Vec<Option<usi
         .collect()
 }
 
+/// Writes `part` into the rows and columns `block` of `whole` — the inverse of restricting
+/// a matrix to `block`: how per-block results (nmCI, the split SDP, the certified rule,
+/// N-way nmCI) are assembled.
+pub(crate) fn scatter_block(whole: &mut DMatrix<f64>, block: &[usize], part: &DMatrix<f64>) {
+    for (bj, &j) in block.iter().enumerate() {
+        for (bi, &i) in block.iter().enumerate() {
+            whole[(i, j)] = part[(bi, bj)];
+        }
+    }
+}
+
 /// The result of a linear fusion rule `x = K_a x_a + K_b x_b` with its covariance bound `P`.
 #[allow(non_snake_case)]
 #[derive(Debug, Clone, PartialEq)]

@@ -9,7 +9,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::ci::covariance_intersection;
-use super::{Criterion, Fused, FusionProblem};
+use super::{scatter_block, Criterion, Fused, FusionProblem};
 use crate::error::InputError;
 use crate::structure::independent_blocks;
 
@@ -53,12 +53,10 @@ pub fn non_monolithic_ci(
         let ci = covariance_intersection(&sub, criterion)?;
         for (bi, &i) in block.iter().enumerate() {
             x[i] = ci.fused.x[bi];
-            for (bj, &j) in block.iter().enumerate() {
-                P[(i, j)] = ci.fused.P[(bi, bj)];
-                K_a[(i, j)] = ci.fused.K_a[(bi, bj)];
-                K_b[(i, j)] = ci.fused.K_b[(bi, bj)];
-            }
         }
+        scatter_block(&mut P, block, &ci.fused.P);
+        scatter_block(&mut K_a, block, &ci.fused.K_a);
+        scatter_block(&mut K_b, block, &ci.fused.K_b);
         omega.push(ci.omega);
     }
     Ok(NmciResult {

@@ -24,7 +24,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::ci::covariance_intersection;
-use super::{validate_covariance, validate_vector, Criterion, FusionProblem};
+use super::{scatter_block, validate_covariance, validate_vector, Criterion, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::{cholesky, symmetrize};
 use crate::structure::{connected_components, CrossPattern};
@@ -183,12 +183,10 @@ pub fn non_monolithic_ci_nway(
         let part = fuse_block(estimates, &block, criterion)?;
         for (bi, &i) in block.iter().enumerate() {
             result.x[i] = part.x[bi];
-            for (bj, &j) in block.iter().enumerate() {
-                result.P[(i, j)] = part.P[(bi, bj)];
-                for (g, pg) in result.gains.iter_mut().zip(&part.gains) {
-                    g[(i, j)] = pg[(bi, bj)];
-                }
-            }
+        }
+        scatter_block(&mut result.P, &block, &part.P);
+        for (g, pg) in result.gains.iter_mut().zip(&part.gains) {
+            scatter_block(g, &block, pg);
         }
         result
             .omega

@@ -48,7 +48,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::check::{conservativeness_margin, worst_margin};
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
-use super::{Fused, FusionProblem};
+use super::{scatter_block, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::symmetrize;
 use crate::structure::independent_blocks;
@@ -229,12 +229,8 @@ pub fn optimal_fusion_for_samples(
         rounds += solved.rounds;
         lmis += solved.lmis;
         dual_objective += solved.dual_objective;
-        for (bi, &i) in block.iter().enumerate() {
-            for (bj, &j) in block.iter().enumerate() {
-                K_a[(i, j)] = solved.fused.K_a[(bi, bj)];
-                P_bar[(i, j)] = solved.fused.P[(bi, bj)];
-            }
-        }
+        scatter_block(&mut K_a, block, &solved.fused.K_a);
+        scatter_block(&mut P_bar, block, &solved.fused.P);
     }
     let K_b = DMatrix::identity(n, n) - &K_a;
     let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
@@ -407,7 +403,7 @@ pub(super) fn solve_program(
 }
 
 /// svec index of `(r, c)`, `r ≤ c`, in Clarabel's column-major upper-triangle order.
-fn svec_index(r: usize, c: usize) -> usize {
+pub(super) fn svec_index(r: usize, c: usize) -> usize {
     c * (c + 1) / 2 + r
 }
 
