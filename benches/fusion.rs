@@ -168,9 +168,10 @@ fn cut_benches(c: &mut Bench) {
         let run = optimal_fusion_cuts(problem, &settings).unwrap();
         assert!(run.converged, "{name}: violation {}", run.violation);
         eprintln!(
-            "{name}: {} iterations, {} constraints, tr {:.9}",
+            "{name}: {} iterations, {} constraints ({} generated), tr {:.9}",
             run.iterations,
             run.constraints,
+            run.constraints_generated,
             run.fused.trace()
         );
         c.bench_function(name, |b| {

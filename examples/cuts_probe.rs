@@ -51,7 +51,7 @@ fn main() {
                     },
                 )
                 .unwrap();
-                println!("n={n} certify={certify}: tr {:.6} lb {:.6} cert {:?} closed {} conv {} it {} cons {} viol {:.1e} ({:.1}s)", c.fused.trace(), c.dual_objective, c.certified_trace, c.gap_closed, c.converged, c.iterations, c.constraints, c.violation, t.elapsed().as_secs_f64());
+                println!("n={n} certify={certify}: tr {:.6} lb {:.6} cert {:?} closed {} conv {} it {} cons {} of {} viol {:.1e} ({:.1}s)", c.fused.trace(), c.dual_objective, c.certified_trace, c.gap_closed, c.converged, c.iterations, c.constraints, c.constraints_generated, c.violation, t.elapsed().as_secs_f64());
             }
         }
     }

@@ -564,7 +564,6 @@ pub(crate) fn bracket_certificate(
 
 /// Whether every block a certificate would be computed on has at most
 /// [`BRACKET_CERTIFY_MAX_BLOCK`] states.
-#[allow(non_snake_case)]
 fn small_enough(problem: &FusionProblem, gain: Option<&DMatrix<f64>>) -> bool {
     certification_blocks(problem, gain)
         .iter()

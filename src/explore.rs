@@ -147,7 +147,7 @@ pub struct Exploration {
     pub certified: Option<FuseResponse>,
     /// Why it was not computed (a larger block, or the solver).
     pub certified_error: Option<String>,
-    /// SDP lower bound vs nmCI upper bound.
+    /// SDP lower bound vs the best certified upper bound (CI, nmCI or the certified rule).
     pub gap: Option<Gap>,
     /// Region samples drawn.
     pub region_count: usize,
@@ -224,7 +224,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
             None,
             None,
             Some(format!(
-                "computed in the explorer for independent blocks of at most {BRACKET_CERTIFY_MAX_BLOCK} states (its program grows as (2n² + 1)²); use method \"certified\" of the CLI for up to 6"
+                "the explorer certifies independent blocks of at most {BRACKET_CERTIFY_MAX_BLOCK} states (the program grows as (2n² + 1)²); method \"certified\" of the CLI takes up to 6"
             )),
         ),
         Err(e) => (None, None, Some(e.to_string())),

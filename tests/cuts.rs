@@ -128,6 +128,7 @@ fn guided_by_the_certified_rule_the_gap_closes_and_proves_the_optimum() {
     let upper = cuts.certified_trace.unwrap();
     assert!((upper - 2.0).abs() < 1e-6 && (cuts.dual_objective - 2.0).abs() < 1e-6);
     assert!(cuts.constraints <= 20, "{} constraints", cuts.constraints);
+    assert!(cuts.constraints <= cuts.constraints_generated);
     // Without the guide the loop still converges, on "no violation found" only.
     let plain = optimal_fusion_cuts(
         &p,

@@ -9,10 +9,12 @@
 //! (`w_(k,p) = K_{kp}`). Suppose
 //!
 //! 1. `C ⪰ w wᵀ`, and
-//! 2. the cross part `(C_kl)_{i, n+j}` of every block is zero wherever `(i, j)` is **not** in
-//!    `I` (where `P_ab` may be non-zero).
+//! 2. `C[(k,i),(l,n+j)] + C[(l,i),(k,n+j)] = 0` for all `k, l` wherever `(i, j)` is **not**
+//!    in `I` (where `P_ab` may be non-zero),
 //!
-//! For `v ∈ ℝⁿ` put `Y(v) = (v ⊗ I₂ₙ)ᵀ C (v ⊗ I₂ₙ) = Σ_kl v_k v_l C_kl`. Since
+//! indexing `C` by `(k, p)`, `k < n`, `p < 2n`. For `v ∈ ℝⁿ` put
+//! `Y(v) = (v ⊗ I₂ₙ)ᵀ C (v ⊗ I₂ₙ) = Σ_kl v_k v_l C_kl`; condition 2 says exactly that the
+//! cross block of `Y(v)` vanishes off `I`, for every `v`. Since
 //! `(v ⊗ I₂ₙ)ᵀ w = Kᵀ v`, condition 1 gives `Y(v) ⪰ Kᵀ v vᵀ K`, and with `J ⪰ 0`
 //!
 //! `vᵀ K J Kᵀ v = ⟨J, Kᵀ v vᵀ K⟩ ≤ ⟨J, Y(v)⟩ = ⟨J₀, Y(v)⟩ = vᵀ Q v`,
@@ -21,28 +23,31 @@
 //! be non-zero, and `X` vanishes on `I`) and `Q_kl = ⟨J₀, C_kl⟩`. As `v` is arbitrary,
 //! **`Q ⪰ K J Kᵀ` for every admissible `J`**: `(K, Q)` is a conservative fusion rule, whatever
 //! solver produced `C`. (This is weak SDP duality of the inner problem `max_J ⟨J, KᵀvvᵀK⟩`,
-//! with a dual certificate `Y(v)` quadratic in `v`; `C ⪰ wwᵀ` is complete positivity of the
-//! map `vvᵀ ↦ Y(v) − Kᵀ v vᵀ K`.)
+//! with a dual certificate `Y(v)` quadratic in `v`; `C ⪰ wwᵀ` is a sum-of-squares proof that
+//! the biquadratic form `uᵀ(Y(v) − Kᵀ v vᵀ K)u` is nonnegative — a relaxation: a tighter
+//! certificate may exist where this family has none.)
 //!
-//! CI is the special case `C = blkdiag over k of diag(ω⁻¹ a_k a_kᵀ, (1−ω)⁻¹ b_k b_kᵀ)` rearranged
-//! (one `ω`, `a_k`, `b_k` the rows of `K_a`, `K_b`), nmCI the block-wise one, so the best
-//! certificate is never looser than either; with a fully unknown `P_ab` it equals CI (which
-//! is optimal there), on separable patterns nmCI (the paper's theorem).
+//! CI with weight `ω` and its gain is the certificate `C = ω⁻¹ w_a w_aᵀ + (1−ω)⁻¹ w_b w_bᵀ`
+//! (`w_a`, `w_b`: `w` with its `b`-, resp. `a`-entries zeroed; `C − wwᵀ ⪰ 0` because
+//! `(ω⁻¹ − 1)((1−ω)⁻¹ − 1) = 1`), giving `Q = ω⁻¹K_aP_aK_aᵀ + (1−ω)⁻¹K_bP_bK_bᵀ`; nmCI is the
+//! block-wise one. So the best certificate is never looser than either; with a fully unknown
+//! `P_ab` it equals CI (optimal there), on separable patterns nmCI (the paper's theorem).
 //!
 //! ## The program
-//! `min tr Q = Σ_k ⟨J₀, C_kk⟩` over `C` (with the structural zeros of condition 2 as
-//! absent variables) and, for [`certified_fusion`], the gain `K_a` (`K_b = I − K_a`), subject
-//! to `[[C, w], [wᵀ, 1]] ⪰ 0` (condition 1 by a Schur complement, linear in `K`): one PSD
-//! cone of size `2n² + 1` (Clarabel). [`certify_gain`] keeps `K` fixed — e.g. the sampled
+//! `min tr Q = Σ_k ⟨J₀, C_kk⟩` over `C` and, for [`certified_fusion`], the gain `K_a`
+//! (`K_b = I − K_a`), subject to condition 2 (equalities) and `[[C, w], [wᵀ, 1]] ⪰ 0`
+//! (condition 1 by a Schur complement, linear in `K`): one PSD cone of size `2n² + 1`
+//! (Clarabel). [`certify_gain`] keeps `K` fixed — e.g. the sampled
 //! SDP's — and gives the tightest certified `P̄` for that gain.
 //!
 //! ## Exact in floating point, whatever the solver's accuracy
-//! The solver's `C` satisfies condition 1 only to its tolerance. After the solve,
-//! `μ = λ_min(C − wwᵀ)` is computed and `C` is replaced by `C + δ I` with
-//! `δ = max(0, −μ) + 10⁻¹² ‖C‖_F` (the second term covers the rounding of the eigenvalue and
-//! of `Q`); `δ I` has no cross part, so condition 2 still holds, and `Q` grows by
-//! `δ tr(J₀) I`. Condition 2 holds exactly (absent variables). So the reported bound rests on
-//! one eigenvalue computation, not on the solver; `repair` reports how much trace this added.
+//! The solver's `C` satisfies both conditions only to its tolerance. After the solve, each
+//! pair `(a, b)` of condition 2 is replaced by `((a − b)/2, (b − a)/2)`, whose sum is exactly
+//! zero in floating point; then `μ = λ_min(C − wwᵀ)` is computed and `C` is replaced by
+//! `C + δ I` with `δ = max(0, −μ) + 10⁻¹² ‖C‖_F` (the second term covers the rounding of the
+//! eigenvalue and of `Q`); `δ I` has no cross part, so condition 2 still holds, and `Q` grows
+//! by `δ tr(J₀) I`. So the reported bound rests on one eigenvalue computation, not on the
+//! solver; `repair` reports how much trace this added.
 //!
 //! When `P_a`, `P_b` and the pattern split the state into independent blocks, each block is
 //! certified on its own (the joint covariance is block diagonal, so a block-diagonal gain's
