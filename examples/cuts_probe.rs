@@ -51,7 +51,12 @@ fn main() {
                     },
                 )
                 .unwrap();
-                println!("n={n} certify={certify}: tr {:.6} lb {:.6} cert {:?} closed {} conv {} it {} cons {} of {} viol {:.1e} ({:.1}s)", c.fused.trace(), c.dual_objective, c.certified_trace, c.gap_closed, c.converged, c.iterations, c.constraints, c.constraints_generated, c.violation, t.elapsed().as_secs_f64());
+                let seconds = t.elapsed().as_secs_f64();
+                let fresh =
+                    sample_cross_covariances(&p, 10_000, 99, SamplerSettings::hit_and_run())
+                        .unwrap();
+                let margin = worst_margin(&p, &c.fused, &fresh.cross) / c.fused.trace();
+                println!("n={n} certify={certify}: tr {:.6} lb {:.6} cert {:?} closed {} conv {} it {} cons {} of {} viol {:.1e} ({seconds:.1}s) fresh margin/tr {margin:.1e}", c.fused.trace(), c.dual_objective, c.certified_trace, c.gap_closed, c.converged, c.iterations, c.constraints, c.constraints_generated, c.violation);
             }
         }
     }
