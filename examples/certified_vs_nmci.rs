@@ -3,19 +3,15 @@
 //!
 //! `cargo run --release --example certified_vs_nmci`
 #![allow(non_snake_case)]
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 use nmci::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// A random SPD matrix with eigenvalues in [0.2, 5] and a random orientation.
-fn random_spd(n: usize, rng: &mut ChaCha8Rng) -> DMatrix<f64> {
-    let g = DMatrix::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
-    let q = g.qr().q();
-    let d = DVector::from_fn(n, |_, _| rng.random_range(0.2..5.0));
-    let m = &q * DMatrix::from_diagonal(&d) * q.transpose();
-    (&m + m.transpose()) * 0.5
-}
+// The tests' seeded generators (same draws: the documented numbers are unchanged).
+#[path = "../tests/common/mod.rs"]
+mod common;
+use common::random_spd;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut rng = ChaCha8Rng::seed_from_u64(55);
