@@ -9,11 +9,13 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{InputError, RequestError, SolveError};
+use crate::fusion::bracket::{trace_upper_bound, UpperBounds, UpperRule};
 use crate::fusion::certify::{
     certification_blocks, certified_fusion, certify_gain, CertifiedResult, CertifySettings,
+    MAX_LEVEL,
 };
 use crate::fusion::ci::covariance_intersection;
-use crate::fusion::cuts::{optimal_fusion_cuts, CutsSettings};
+use crate::fusion::cuts::{optimal_fusion_cuts, CutsSettings, CutsStop};
 use crate::fusion::ei::ellipsoidal_intersection;
 use crate::fusion::ici::inverse_covariance_intersection;
 use crate::fusion::known::naive_fusion;
@@ -46,8 +48,9 @@ pub enum Method {
     Ei,
     /// Naive fusion (as if independent): not conservative when the estimates are correlated.
     Naive,
-    /// The tightest bound proven conservative by a quadratic certificate (`certified_fusion`):
-    /// never looser than CI or nmCI, tighter on non-separable patterns.
+    /// The tightest bound proven conservative by a sum-of-squares certificate of a chosen level
+    /// (`certified_fusion`): never looser than CI or nmCI in trace (up to solver tolerance),
+    /// tighter on many non-separable patterns.
     Certified,
 }
 
@@ -118,6 +121,15 @@ pub struct FuseRequest {
     /// `sdp`: `rejection` (the paper's, default) or `hit_and_run` (any dimension).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerKind>,
+    /// `sdp`, `sdp_cuts`, `certified`: wall-clock limit in seconds (default none). Past it
+    /// `sdp` and `certified` fail with a time-limit error; `sdp_cuts` returns its best proven
+    /// bracket so far with `converged: false` and `stop: "time_limit"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_limit: Option<f64>,
+    /// `certified`, `sdp`, `sdp_cuts`: the level of the certified rule (`certified` itself,
+    /// and the bracket's upper end); default per block size (`CertifySettings::auto_level`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level: Option<u32>,
     /// N-way fusion (methods `ci`, `nmci`): `k ≥ 2` estimates, instead of `pa`, `pb`, `xa`,
     /// `xb`, `pab_unknown`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -179,30 +191,30 @@ pub struct FuseResponse {
     /// `sdp`: smallest `λ_min(P̄ − K P'_i Kᵀ)` over the samples.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub worst_sample_margin: Option<f64>,
-    /// `sdp`, `sdp_cuts`: a lower bound on the robust optimum of `tr P̄` — Clarabel's dual
-    /// objective of the sampled (or cut) program (summed over blocks). Weak duality makes any dual-feasible value a lower
-    /// bound on the sampled optimum, which is itself below the robust optimum (fewer
-    /// constraints); it does not rely on the primal solution being accurate.
+    /// `sdp`, `sdp_cuts`: a proven lower bound on the robust optimum of `tr P̄`: the solver's
+    /// dual matrices turned into a Lagrangian bound checked in exact arithmetic
+    /// (`fusion::bracket`; summed over blocks, rounded down). It holds whatever the solver's
+    /// accuracy.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lower_bound: Option<f64>,
-    /// `sdp`, `sdp_cuts`, `certified`: an upper bound on the robust optimum — `tr P` of the best
-    /// certified conservative rule: CI, nmCI (each conservative for every admissible `P_ab` by
-    /// construction) or the certified rule (proven by its certificate; in the bracket when
-    /// every independent block has at most [`BRACKET_CERTIFY_MAX_BLOCK`] states).
+    /// `sdp`, `sdp_cuts`, `certified`: a proven upper bound on the robust optimum — the
+    /// rounded-up trace of the best conservative rule: CI, nmCI (recomputed with Young's
+    /// inequality in exact arithmetic) or the certified rule (proven by its certificate; in the
+    /// bracket when every independent block has at most [`BRACKET_CERTIFY_MAX_BLOCK`] states).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub upper_bound: Option<f64>,
     /// Which rule gives `upper_bound` (`ci`, `nmci` or `certified`; ties go to CI / nmCI).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub upper_bound_rule: Option<Method>,
-    /// `sdp`: `upper_bound − lower_bound` (absolute; never clamped: a value below zero, at
-    /// solver-tolerance level, would be reported as it is).
+    /// `sdp`, `sdp_cuts`: `upper_bound − lower_bound`, rounded up (never negative: both ends
+    /// are proven).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gap: Option<f64>,
     /// `sdp`: `gap / upper_bound`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gap_relative: Option<f64>,
-    /// `certified`: the trace its floating-point repair added (the certificate is made exact
-    /// by `C ← C + δI`; see `certified_fusion`).
+    /// `certified`: the trace its floating-point repair added to the solver's (the
+    /// certificate is made exact and proven; see `certified_fusion`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub repair: Option<f64>,
     /// `sdp`, `sdp_cuts`: `tr P̄` of the tightest bound *proven* for this method's own gain
@@ -210,6 +222,14 @@ pub struct FuseResponse {
     /// admissible `P_ab` (blocks of at most [`BRACKET_CERTIFY_MAX_BLOCK`] states).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gain_certified_trace: Option<f64>,
+    /// `certified`: the certificate level used on each block; `sdp`, `sdp_cuts`: those of the
+    /// certified rule in the bracket.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub levels: Option<Vec<u32>>,
+    /// `sdp_cuts`: why the loop stopped: `tolerance`, `gap_closed`, `max_iterations` or
+    /// `time_limit`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop: Option<CutsStop>,
     /// `sdp_cuts`: the worst `λ_max(K P' Kᵀ − P̄)` the last worst-case search found.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub violation: Option<f64>,
@@ -217,8 +237,9 @@ pub struct FuseResponse {
     /// the iteration limit stopped the loop).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub converged: Option<bool>,
-    /// `sdp_cuts`: whether the loop stopped because its lower bound reached the certified
-    /// rule's trace: the robust optimum is then proven (and attained by method `certified`).
+    /// `sdp_cuts`: whether the loop stopped because its proven lower bound reached the
+    /// certified rule's proven trace within the loop's tolerance: the robust optimum is then
+    /// proven to that relative accuracy (and attained to it by method `certified`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gap_closed: Option<bool>,
     /// `ici`, `ei`, `naive`: what the bound is guaranteed for — `"common information only"`
@@ -274,6 +295,15 @@ impl FuseRequest {
         )?)
     }
 
+    /// The certified rule's settings this request asks for.
+    fn certify_settings(&self) -> CertifySettings {
+        CertifySettings {
+            level: self.level,
+            time_limit: self.time_limit,
+            ..CertifySettings::default()
+        }
+    }
+
     fn check_fields(&self) -> Result<(), RequestError> {
         let invalid = |m: &str| Err(RequestError::Invalid(m.into()));
         if self.estimates.is_some() {
@@ -308,6 +338,35 @@ impl FuseRequest {
                         "`{name}` applies to method \"sdp\" only"
                     )));
                 }
+            }
+        }
+        if !matches!(
+            self.method,
+            Method::Sdp | Method::SdpCuts | Method::Certified
+        ) {
+            for (name, set) in [
+                ("time_limit", self.time_limit.is_some()),
+                ("level", self.level.is_some()),
+            ] {
+                if set {
+                    return Err(RequestError::Invalid(format!(
+                        "`{name}` applies to methods \"sdp\", \"sdp_cuts\" and \"certified\" only"
+                    )));
+                }
+            }
+        }
+        if let Some(t) = self.time_limit {
+            if !(t > 0.0 && t.is_finite()) {
+                return Err(RequestError::Invalid(format!(
+                    "`time_limit` must be a positive number of seconds (got {t})"
+                )));
+            }
+        }
+        if let Some(l) = self.level {
+            if !(1..=MAX_LEVEL).contains(&l) {
+                return Err(RequestError::Invalid(format!(
+                    "`level` must be in 1..={MAX_LEVEL} (got {l})"
+                )));
             }
         }
         if !matches!(self.method, Method::Sdp | Method::SdpCuts) && self.seed.is_some() {
@@ -376,6 +435,8 @@ fn bare_response(
         gap: None,
         gap_relative: None,
         repair: None,
+        levels: None,
+        stop: None,
         gain_certified_trace: None,
         violation: None,
         converged: None,
@@ -421,7 +482,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
         Method::Ici => Ok(ici_response(&problem, criterion)?.0),
         Method::Ei => Ok(ei_response(&problem)?.0),
         Method::Naive => Ok(naive_response(&problem).0),
-        Method::Certified => Ok(certified_response(&problem, &CertifySettings::default())?.0),
+        Method::Certified => Ok(certified_response(&problem, &request.certify_settings())?.0),
         Method::Sdp => {
             let defaults = SdpSettings::default();
             let settings = SdpSettings {
@@ -432,13 +493,16 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                     max_trials: request.max_trials.unwrap_or(defaults.sampler.max_trials),
                     ..defaults.sampler
                 },
+                time_limit: request.time_limit,
                 ..defaults
             };
-            Ok(sdp_response(&problem, &settings, None)?.0)
+            Ok(sdp_response(&problem, &settings, &request.certify_settings(), None, true)?.0)
         }
         Method::SdpCuts => {
             let settings = CutsSettings {
                 seed: request.seed.unwrap_or(0),
+                time_limit: request.time_limit,
+                certify_settings: request.certify_settings(),
                 ..CutsSettings::default()
             };
             let cuts = optimal_fusion_cuts(&problem, &settings)?;
@@ -448,14 +512,14 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             r.lmis = Some(cuts.constraints);
             r.violation = Some(cuts.violation);
             r.converged = Some(cuts.converged);
-            r.gain_certified_trace = own_gain_certified(&problem, &cuts.fused.K_a)?;
+            r.stop = Some(cuts.stop);
+            r.gain_certified_trace =
+                own_gain_certified(&problem, &cuts.fused.K_a, &settings.certify_settings)?;
             r.gap_closed = Some(cuts.gap_closed);
+            r.levels = cuts.certified_levels.clone();
             // The loop computed the certified rule already (blocks of up to 6 states).
-            let uppers = UpperBounds {
-                certified: cuts.certified_trace,
-                ..UpperBounds::conservative(&problem)?
-            };
-            certified_bracket(&problem, cuts.dual_objective, Some(uppers), &mut r)?;
+            let uppers = UpperBounds::of(&problem, cuts.certified_trace)?;
+            fill_bracket(cuts.lower_bound, &uppers, &mut r);
             Ok(r)
         }
     }
@@ -506,60 +570,16 @@ fn fuse_nway(
     })
 }
 
-/// The certified upper bounds on the robust optimum of `tr P̄` for one problem.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct UpperBounds {
-    /// Trace-optimal CI.
-    pub ci: f64,
-    /// Trace-optimal nmCI.
-    pub nmci: f64,
-    /// The certified rule, when every block has at most [`BRACKET_CERTIFY_MAX_BLOCK`] states.
-    pub certified: Option<f64>,
-}
-
-impl UpperBounds {
-    /// CI, nmCI and (for small blocks) the certified rule, computed.
-    pub(crate) fn of(problem: &FusionProblem) -> Result<Self, SolveError> {
-        Ok(Self {
-            certified: bracket_certificate(problem)?.map(|c| c.fused.trace()),
-            ..Self::conservative(problem)?
-        })
-    }
-
-    /// Trace-optimal CI and nmCI only.
-    fn conservative(problem: &FusionProblem) -> Result<Self, SolveError> {
-        Ok(Self {
-            ci: covariance_intersection(problem, Criterion::Trace)?
-                .fused
-                .trace(),
-            nmci: non_monolithic_ci(problem, Criterion::Trace)?.fused.trace(),
-            certified: None,
-        })
-    }
-
-    /// The smallest bound and its rule (ties go to nmCI, then CI: the exact rules).
-    fn best(&self) -> (f64, Method) {
-        let mut best = if self.nmci <= self.ci {
-            (self.nmci, Method::Nmci)
-        } else {
-            (self.ci, Method::Ci)
-        };
-        if let Some(c) = self.certified.filter(|&c| c < best.0) {
-            best = (c, Method::Certified);
-        }
-        best
-    }
-}
-
 /// The certified rule for the bracket: `None` when a block exceeds
 /// [`BRACKET_CERTIFY_MAX_BLOCK`] states (too slow for every SDP request).
 pub(crate) fn bracket_certificate(
     problem: &FusionProblem,
+    settings: &CertifySettings,
 ) -> Result<Option<CertifiedResult>, SolveError> {
     if !small_enough(problem, None) {
         return Ok(None);
     }
-    certified_fusion(problem, &CertifySettings::default()).map(Some)
+    certified_fusion(problem, settings).map(Some)
 }
 
 /// Whether every block a certificate would be computed on has at most
@@ -576,37 +596,41 @@ fn small_enough(problem: &FusionProblem, gain: Option<&DMatrix<f64>>) -> bool {
 fn own_gain_certified(
     problem: &FusionProblem,
     K_a: &DMatrix<f64>,
+    settings: &CertifySettings,
 ) -> Result<Option<f64>, SolveError> {
     if !small_enough(problem, Some(K_a)) {
         return Ok(None);
     }
-    Ok(Some(
-        certify_gain(problem, K_a, &CertifySettings::default())?
-            .fused
-            .trace(),
-    ))
+    Ok(Some(trace_upper_bound(
+        &certify_gain(problem, K_a, settings)?.fused.P,
+    )))
 }
 
-/// Fills `lower_bound` (a relaxation's dual objective), `upper_bound` (the best certified
-/// conservative rule, see [`UpperBounds`]) and the gap. `uppers` when the caller already has
-/// them.
-fn certified_bracket(
+/// The proven upper bounds of a problem: CI, nmCI and (for small blocks) the certified rule.
+pub(crate) fn upper_bounds(
     problem: &FusionProblem,
-    lower: f64,
-    uppers: Option<UpperBounds>,
-    r: &mut FuseResponse,
-) -> Result<(), SolveError> {
-    let uppers = match uppers {
-        Some(u) => u,
-        None => UpperBounds::of(problem)?,
-    };
-    let (upper, rule) = uppers.best();
-    r.lower_bound = Some(lower);
-    r.upper_bound = Some(upper);
-    r.upper_bound_rule = Some(rule);
-    r.gap = Some(upper - lower);
-    r.gap_relative = Some((upper - lower) / upper);
-    Ok(())
+    certified: Option<&CertifiedResult>,
+) -> Result<UpperBounds, SolveError> {
+    Ok(UpperBounds::of(
+        problem,
+        certified.map(|c| trace_upper_bound(&c.fused.P)),
+    )?)
+}
+
+/// Fills `lower_bound` and `upper_bound` (both proven: `fusion::bracket`), the rule of the
+/// upper end and the gap.
+fn fill_bracket(lower: f64, uppers: &UpperBounds, r: &mut FuseResponse) {
+    if let Some(b) = uppers.bracket(lower) {
+        r.lower_bound = Some(b.lower);
+        r.upper_bound = Some(b.upper);
+        r.upper_bound_rule = Some(match b.upper_rule {
+            UpperRule::Ci => Method::Ci,
+            UpperRule::Nmci => Method::Nmci,
+            UpperRule::Certified => Method::Certified,
+        });
+        r.gap = Some(b.gap());
+        r.gap_relative = Some(b.gap_relative());
+    }
 }
 
 /// The certified rule's response and the fused result it was made from: its own trace is
@@ -626,7 +650,8 @@ pub(crate) fn certificate_response(cert: &CertifiedResult) -> FuseResponse {
     r.iterations = Some(cert.iterations);
     r.blocks = Some(cert.blocks.clone());
     r.repair = Some(cert.repair);
-    r.upper_bound = Some(cert.fused.trace());
+    r.levels = Some(cert.levels.clone());
+    r.upper_bound = Some(trace_upper_bound(&cert.fused.P));
     r.upper_bound_rule = Some(Method::Certified);
     r
 }
@@ -688,7 +713,9 @@ pub(crate) fn naive_response(problem: &FusionProblem) -> (FuseResponse, Fused) {
 pub(crate) fn sdp_response(
     problem: &FusionProblem,
     settings: &SdpSettings,
+    certify: &CertifySettings,
     uppers: Option<UpperBounds>,
+    own_gain: bool,
 ) -> Result<(FuseResponse, Fused), SolveError> {
     let opt = optimal_fusion(problem, settings)?;
     let mut r = response(Method::Sdp, Criterion::Trace, &opt.fused);
@@ -699,8 +726,20 @@ pub(crate) fn sdp_response(
     r.lmis = Some(opt.lmis);
     r.worst_sample_margin = Some(opt.worst_sample_margin);
     r.blocks = Some(opt.blocks.clone());
-    r.gain_certified_trace = own_gain_certified(problem, &opt.fused.K_a)?;
-    certified_bracket(problem, opt.dual_objective, uppers, &mut r)?;
+    if own_gain {
+        r.gain_certified_trace = own_gain_certified(problem, &opt.fused.K_a, certify)?;
+    }
+    let uppers = match uppers {
+        Some(u) => u,
+        None => {
+            let cert = bracket_certificate(problem, certify)?;
+            if let Some(c) = &cert {
+                r.levels = Some(c.levels.clone());
+            }
+            upper_bounds(problem, cert.as_ref())?
+        }
+    };
+    fill_bracket(opt.lower_bound, &uppers, &mut r);
     Ok((r, opt.fused))
 }
 

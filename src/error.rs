@@ -150,6 +150,33 @@ pub enum SolveError {
         /// The limit (`CertifySettings::max_block_dim`).
         limit: usize,
     },
+    /// A certificate's PSD cone above the limit (`CertifySettings::max_cone`).
+    #[error("the level-{level} certificate of a {dim}-state block needs a PSD cone of {cone} rows, above the limit of {limit} (max_cone); choose a lower level")]
+    ConeTooLarge {
+        /// States in the block.
+        dim: usize,
+        /// The certificate level.
+        level: u32,
+        /// Rows of its PSD cone.
+        cone: usize,
+        /// The limit.
+        limit: usize,
+    },
+    /// A solve that ran past its `time_limit`.
+    #[error("{what} stopped at its time limit of {seconds} s; no bound was produced")]
+    TimeLimit {
+        /// The limit in seconds.
+        seconds: f64,
+        /// What was being solved.
+        what: String,
+    },
+    /// The floating-point repair of a certificate could not prove it (the solver's point
+    /// was too far from feasible); no bound is reported.
+    #[error("the certified bound could not be proven: {what} is not provably positive semidefinite after the repair")]
+    NotProven {
+        /// The matrix that failed the verified test.
+        what: String,
+    },
     /// Drawing the sample set failed.
     #[error(transparent)]
     Sample(#[from] SampleError),

@@ -7,14 +7,14 @@ use serde::{Deserialize, Serialize};
 
 use crate::api::{
     bracket_certificate, certificate_response, ci_response, ei_response, ici_response,
-    naive_response, nmci_response, problem_from_parts, sdp_response, FuseResponse, UpperBounds,
+    naive_response, nmci_response, problem_from_parts, sdp_response, FuseResponse,
     BRACKET_CERTIFY_MAX_BLOCK,
 };
+use crate::fusion::bracket::CLOSED_RTOL;
+use crate::fusion::certify::CertifySettings;
 use crate::error::RequestError;
 use crate::fusion::check::{fused_coin, worst_margin};
-use crate::fusion::ci::covariance_intersection;
 use crate::fusion::known::known_correlation_fusion;
-use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::sample::{sample_cross_covariances, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::Criterion;
@@ -58,20 +58,26 @@ pub struct ExploreRequest {
     pub sampler: Option<SamplerKind>,
 }
 
-/// Certified bounds on the robust optimum of `tr P̄`: the sampled SDP's dual objective below,
-/// the best conservative rule above (the `lower_bound` / `upper_bound` of the SDP response).
+/// Proven bounds on the robust optimum of `tr P̄` (`fusion::bracket`): the sampled SDP's
+/// Lagrangian bound below, the best conservative rule above (the `lower_bound` /
+/// `upper_bound` of the SDP response).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Gap {
-    /// Sampled-SDP dual objective (a lower bound on the robust optimum).
+    /// A proven lower bound on the robust optimum.
     pub lower: f64,
-    /// `tr P` of the best certified conservative rule (an upper bound).
+    /// The rounded-up trace of the best conservative rule (a proven upper bound).
     pub upper: f64,
     /// Which rule gives `upper` (`ci`, `nmci` or `certified`).
     pub upper_rule: crate::api::Method,
-    /// `upper − lower`.
+    /// `upper − lower`, rounded up.
     pub absolute: f64,
     /// `(upper − lower) / upper`.
     pub relative: f64,
+    /// Whether `relative ≤ 10⁻⁶` ([`CLOSED_RTOL`]): the robust optimum is proven to that
+    /// accuracy, and `upper_rule` attains it.
+    pub closed: bool,
+    /// The certified rule's level on each block (when computed).
+    pub levels: Option<Vec<u32>>,
 }
 
 /// Worst `λ_min(P̄ − K P' Kᵀ)` of each rule over the region's cross-covariances.
@@ -165,6 +171,13 @@ pub struct Exploration {
     pub region: Vec<f64>,
 }
 
+fn upper_bounds_with(
+    problem: &FusionProblem,
+    certified: Option<f64>,
+) -> Result<crate::fusion::bracket::UpperBounds, RequestError> {
+    Ok(crate::fusion::bracket::UpperBounds::of(problem, certified)?)
+}
+
 /// Mixes the SDP seed into an independent stream for the region samples.
 fn region_seed(seed: u64) -> u64 {
     seed ^ 0x9E37_79B9_7F4A_7C15
@@ -218,7 +231,8 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         sampler,
         ..SdpSettings::default()
     };
-    let (certified, certified_fused, certified_error) = match bracket_certificate(&problem) {
+    let certify = CertifySettings::default();
+    let (certified, certified_fused, certified_error) = match bracket_certificate(&problem, &certify) {
         Ok(Some(cert)) => (Some(certificate_response(&cert)), Some(cert.fused), None),
         Ok(None) => (
             None,
@@ -229,21 +243,10 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         ),
         Err(e) => (None, None, Some(e.to_string())),
     };
-    // CI and nmCI are already computed; for the trace criterion they bound the optimum above.
-    let uppers = UpperBounds {
-        ci: match criterion {
-            Criterion::Trace => ci.trace,
-            _ => covariance_intersection(&problem, Criterion::Trace)?
-                .fused
-                .trace(),
-        },
-        nmci: match criterion {
-            Criterion::Trace => nmci.trace,
-            _ => non_monolithic_ci(&problem, Criterion::Trace)?.fused.trace(),
-        },
-        certified: certified.as_ref().map(|c| c.trace),
-    };
-    let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings, Some(uppers)) {
+    // The proven upper ends: CI and nmCI (trace criterion) and the certified rule.
+    let uppers = upper_bounds_with(&problem, certified.as_ref().and_then(|c| c.upper_bound))?;
+    // The page never shows the SDP's own-gain certificate: not computed here.
+    let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings, &certify, Some(uppers), false) {
         Ok((r, f)) => (Some(r), Some(f), None),
         Err(e) => (None, None, Some(e.to_string())),
     };
@@ -254,6 +257,8 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
             upper_rule: s.upper_bound_rule?,
             absolute: s.gap?,
             relative: s.gap_relative?,
+            closed: s.gap_relative? <= CLOSED_RTOL,
+            levels: certified.as_ref().and_then(|c| c.levels.clone()),
         })
     });
 

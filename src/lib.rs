@@ -55,7 +55,13 @@ pub use api::{
 pub use error::{InputError, RequestError, SampleError, SolveError};
 pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
 pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
-pub use fusion::certify::{certified_fusion, certify_gain, CertifiedResult, CertifySettings};
+pub use fusion::bracket::{
+    ci_upper_bound, lower_bound as lagrangian_lower_bound, nmci_upper_bound, trace_upper_bound,
+    Bracket, UpperBounds, UpperRule, CLOSED_RTOL,
+};
+pub use fusion::certify::{
+    certified_fusion, certify_gain, CertifiedResult, CertifySettings, MAX_LEVEL,
+};
 pub use fusion::check::{
     conservativeness_index, conservativeness_margin, fused_coin, fused_error_covariance,
     worst_margin,
@@ -63,7 +69,7 @@ pub use fusion::check::{
 pub use fusion::ci::{
     ci_covariance, covariance_intersection, covariance_intersection_blocks, CiResult,
 };
-pub use fusion::cuts::{optimal_fusion_cuts, CutsResult, CutsSettings};
+pub use fusion::cuts::{optimal_fusion_cuts, CutsResult, CutsSettings, CutsStop};
 pub use fusion::ei::ellipsoidal_intersection;
 pub use fusion::ici::{inverse_covariance_intersection, IciResult};
 pub use fusion::known::{known_correlation_fusion, naive_fusion};

@@ -1,67 +1,100 @@
-//! A bound *proven* to dominate `K P' Kᵀ` over the whole admissible set: the certified upper
-//! bound of issue 5, tighter than nmCI where the pattern of `P_ab` is not separable.
+//! A bound *proven* to dominate `K P' Kᵀ` over the whole admissible set, by a hierarchy of
+//! sum-of-squares certificates: the certified rule.
 //!
-//! ## The certificate
-//! Let `K = [K_a, K_b]` (`n × 2n`), `J₀ = blkdiag(P_a, P_b)` and let `J` be any admissible
-//! joint covariance: `J ⪰ 0`, diagonal blocks `P_a`, `P_b`, cross block `X = P_ab` zero on the
-//! known-zero set `I`. Take a symmetric matrix `C` of size `2n² × 2n²`, partitioned into
-//! `n × n` blocks `C_kl ∈ ℝ^{2n×2n}`, and let `w ∈ ℝ^{2n²}` stack the columns of `Kᵀ`
-//! (`w_(k,p) = K_{kp}`). Suppose
+//! ## The certificate of level `r`
+//! Let `K = [K_a, K_b]` (`n × 2n`, `K_b = I − K_a`), `J₀ = blkdiag(P_a, P_b)`, and let `J` be
+//! any admissible joint covariance: `J ⪰ 0`, diagonal blocks `P_a`, `P_b`, cross block
+//! `P_ab` zero on the known-zero set `I`. For `r ≥ 1` let `m_r(v)` be the vector of the
+//! `s = C(n + r − 1, r)` monomials `v^α` of degree `r` in `v ∈ ℝⁿ`, and `c_β = (r−1)!/β!`
+//! the multinomial coefficients of `‖v‖^{2(r−1)} = Σ_{|β| = r−1} c_β v^{2β}`. Take
 //!
-//! 1. `C ⪰ w wᵀ`, and
-//! 2. `C[(k,i),(l,n+j)] + C[(l,i),(k,n+j)] = 0` for all `k, l` wherever `(i, j)` is **not**
-//!    in `I` (where `P_ab` may be non-zero),
+//! - a symmetric `C` of size `2n·s`, in `2n × 2n` blocks `C_{αβ}`, and
+//!   `Z(v) = (m_r(v) ⊗ I₂ₙ)ᵀ C (m_r(v) ⊗ I₂ₙ) = Σ_{α,β} v^α v^β C_{αβ}` (a matrix form of
+//!   degree `2r`),
+//! - a symmetric `Q` (`n × n`) and a symmetric `G` (`s × s`),
 //!
-//! indexing `C` by `(k, p)`, `k < n`, `p < 2n`. For `v ∈ ℝⁿ` put
-//! `Y(v) = (v ⊗ I₂ₙ)ᵀ C (v ⊗ I₂ₙ) = Σ_kl v_k v_l C_kl`; condition 2 says exactly that the
-//! cross block of `Y(v)` vanishes off `I`, for every `v`. Since
-//! `(v ⊗ I₂ₙ)ᵀ w = Kᵀ v`, condition 1 gives `Y(v) ⪰ Kᵀ v vᵀ K`, and with `J ⪰ 0`
+//! such that
 //!
-//! `vᵀ K J Kᵀ v = ⟨J, Kᵀ v vᵀ K⟩ ≤ ⟨J, Y(v)⟩ = ⟨J₀, Y(v)⟩ = vᵀ Q v`,
+//! 1. `C ⪰ Σ_β c_β w_β w_βᵀ`, where `w_β[(α, p)] = K[k, p]` if `α = β + e_k`, else 0
+//!    (so `(m_r ⊗ I)ᵀ w_β = v^β Kᵀ v` and condition 1 gives
+//!    `Z(v) ⪰ ‖v‖^{2(r−1)} Kᵀ v vᵀ K`);
+//! 2. the cross entries of `Z(v)` vanish where `P_ab` may be non-zero: for every monomial
+//!    `γ` of degree `2r` and every unknown `(i, j)`, `Σ_{α+β=γ} C[(α,i),(β,n+j)] = 0`;
+//! 3. `‖v‖^{2(r−1)} vᵀ Q v − ⟨J₀, Z(v)⟩ = m_r(v)ᵀ G m_r(v)` (equal coefficients), and
+//! 4. `G ⪰ 0`.
 //!
-//! where the middle equality is condition 2 (`Y(v)`'s cross block vanishes wherever `X` can
-//! be non-zero, and `X` vanishes on `I`) and `Q_kl = ⟨J₀, C_kl⟩`. As `v` is arbitrary,
-//! **`Q ⪰ K J Kᵀ` for every admissible `J`**: `(K, Q)` is a conservative fusion rule, whatever
-//! solver produced `C`. (This is weak SDP duality of the inner problem `max_J ⟨J, KᵀvvᵀK⟩`,
-//! with a dual certificate `Y(v)` quadratic in `v`; `C ⪰ wwᵀ` is a sum-of-squares proof that
-//! the biquadratic form `uᵀ(Y(v) − Kᵀ v vᵀ K)u` is nonnegative — a relaxation: a tighter
-//! certificate may exist where this family has none.)
+//! Then for every admissible `J` and every `v ≠ 0`
 //!
-//! CI with weight `ω` and its gain is the certificate `C = ω⁻¹ w_a w_aᵀ + (1−ω)⁻¹ w_b w_bᵀ`
-//! (`w_a`, `w_b`: `w` with its `b`-, resp. `a`-entries zeroed; `C − wwᵀ ⪰ 0` because
-//! `(ω⁻¹ − 1)((1−ω)⁻¹ − 1) = 1`), giving `Q = ω⁻¹K_aP_aK_aᵀ + (1−ω)⁻¹K_bP_bK_bᵀ`; nmCI is the
-//! block-wise one. So the best certificate is never looser than either; with a fully unknown
-//! `P_ab` it equals CI (optimal there), on separable patterns nmCI (the paper's theorem).
+//! `‖v‖^{2(r−1)} vᵀ K J Kᵀ v = ⟨J, ‖v‖^{2(r−1)} Kᵀ v vᵀ K⟩ ≤ ⟨J, Z(v)⟩ = ⟨J₀, Z(v)⟩ ≤ ‖v‖^{2(r−1)} vᵀ Q v`
+//!
+//! (1 and `J ⪰ 0`; 2, since `J − J₀` lives on the unknown cross entries; 3 and 4), so
+//! **`Q ⪰ K J Kᵀ` for every admissible `J`**: `(K, Q)` is a conservative fusion rule,
+//! whoever produced `C`, `Q` and `G`. This is weak duality of the inner problem
+//! `max_J ⟨J, Kᵀ v vᵀ K⟩` with a dual certificate polynomial in `v`, and conditions 1 and 4
+//! are sum-of-squares proofs (the Positivstellensatz with the multiplier `‖v‖^{2(r−1)}`,
+//! as in Reznick's and Parrilo's hierarchies): a relaxation at every level. Multiplying a
+//! level-`r` certificate by `‖v‖²` gives one of level `r + 1`, so the bound never grows
+//! with the level (up to solver tolerance) and may fall.
+//!
+//! Level 1 is the quadratic certificate (`Z(v) = Σ_kl v_k v_l C_kl`, `G = Q − (⟨J₀, C_kl⟩)`).
+//! CI with weight `ω` and its gain is the level-1 certificate
+//! `C = ω⁻¹ w_a w_aᵀ + (1−ω)⁻¹ w_b w_bᵀ` (`w_a`, `w_b`: `w` with its `b`-, resp.
+//! `a`-entries zeroed; `C − wwᵀ ⪰ 0` because `(ω⁻¹ − 1)((1−ω)⁻¹ − 1) = 1`); nmCI is the
+//! block-wise one. So the certified trace is **never above CI's or nmCI's in trace** (up
+//! to the solver's tolerance, since the solver finds the optimum only to that tolerance);
+//! this is a statement about traces, not the Loewner order: the certified `P̄` may be
+//! larger than CI's along some direction. It equals CI where `P_ab` is fully unknown (CI
+//! is optimal there), nmCI on separable patterns (each independent block is then a CI
+//! problem with a fully unknown cross-covariance, where CI is optimal: Reinhardt, Noack,
+//! Arambel, Hanebeck, "Minimum covariance bounds for the fusion under unknown
+//! correlations", IEEE SPL 22(9), 2015), and is tighter on many non-separable patterns —
+//! equal where CI or nmCI is already the robust optimum.
 //!
 //! ## The program
-//! `min tr Q = Σ_k ⟨J₀, C_kk⟩` over `C` and, for [`certified_fusion`], the gain `K_a`
-//! (`K_b = I − K_a`), subject to condition 2 (equalities) and `[[C, w], [wᵀ, 1]] ⪰ 0`
-//! (condition 1 by a Schur complement, linear in `K`): one PSD cone of size `2n² + 1`
-//! (Clarabel). [`certify_gain`] keeps `K` fixed — e.g. the sampled
-//! SDP's — and gives the tightest certified `P̄` for that gain.
+//! `min tr Q` over `C`, `Q`, `G` and, for [`certified_fusion`], the gain `K_a`, subject to
+//! 2 and 3 (equalities), 4 (a PSD cone of size `s`) and 1 as `[[C, W D^{1/2}], [·, I]] ⪰ 0`
+//! (Schur complement, linear in `K`; `W = [w_β]`, `D = diag(c_β)`): one PSD cone of size
+//! `2n·s + C(n + r − 2, r − 1)` (Clarabel). [`certify_gain`] keeps `K` fixed — e.g. the
+//! sampled SDP's — and gives the tightest bound of the level for that gain.
 //!
 //! ## Exact in floating point, whatever the solver's accuracy
-//! The solver's `C` satisfies both conditions only to its tolerance. After the solve, each
-//! pair `(a, b)` of condition 2 is replaced by `((a − b)/2, (b − a)/2)`, whose sum is exactly
-//! zero in floating point; then `μ = λ_min(C − wwᵀ)` is computed and `C` is replaced by
-//! `C + δ I` with `δ = max(0, −μ) + 10⁻¹² ‖C‖_F` (the second term covers the rounding of the
-//! eigenvalue and of `Q`); `δ I` has no cross part, so condition 2 still holds, and `Q` grows
-//! by `δ tr(J₀) I`. So the reported bound rests on one eigenvalue computation, not on the
-//! solver; `repair` reports how much trace this added.
+//! The solver's point satisfies 1–4 only to its tolerance. The reported bound is made to
+//! satisfy them exactly, for the reported floats `K_a`, `P̄ = Q` and `K_b = I − K_a` taken
+//! exactly (the stored `K_b` is that difference rounded), by three steps whose arithmetic is
+//! accounted for in `fusion::verify`:
+//!
+//! - **Condition 2 exactly.** Each group of entries that must sum to zero is rounded to a
+//!   grid `g = 2^{e−b}` (`2^e` bounds the group, `b` leaves room for the group's length
+//!   within 53 bits), and its last entry is set to minus the sum of the others: sums of
+//!   grid multiples below `2⁵³ g` are exact in floating point, so the group sums to exactly 0.
+//! - **Condition 1 proven.** `C ← C + δ I` (no cross entries: condition 2 still holds) with
+//!   `δ` the smallest of a doubling sequence for which `fusion::verify::is_psd` proves
+//!   `C − W D Wᵀ ⪰ 0`, every rounding of forming it (including `K_b = I − K_a`) in the radius.
+//! - **Conditions 3–4 proven.** With `C` fixed, the coefficients of
+//!   `p(v) = ‖v‖^{2(r−1)} vᵀQv − ⟨J₀, Z(v)⟩ − m_rᵀ G m_r` are enclosed in balls and written
+//!   as a Gram matrix `E` (each coefficient on one entry pair), so `p + m_rᵀGm_r = m_rᵀ(G + E)m_r`
+//!   exactly; `Q ← Q + η I` (which adds `η (r!/α!) ≥ η` to the diagonal of `G + E`) with the
+//!   smallest `η` of a doubling sequence for which `G + E ⪰ 0` is proven.
+//!
+//! So the proof of `P̄ ⪰ K J Kᵀ` rests on the floating-point model of `fusion::verify`
+//! (IEEE binary64, round to nearest, no overflow), not on the solver. `repair` reports the
+//! trace these steps added to the solver's `tr Q`.
 //!
 //! When `P_a`, `P_b` and the pattern split the state into independent blocks, each block is
 //! certified on its own (the joint covariance is block diagonal, so a block-diagonal gain's
-//! `K J Kᵀ` is too). The cone grows as `2n²` per block: blocks above
-//! [`CertifySettings::max_block_dim`] states are refused with a typed error.
+//! `K J Kᵀ` is too). Blocks above [`CertifySettings::max_block_dim`] states, or whose cone
+//! would exceed [`CertifySettings::max_cone`], are refused with a typed error.
+
+use std::collections::{BTreeMap, HashMap};
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, SolverStatus, SupportedConeT};
-use nalgebra::{DMatrix, SymmetricEigen};
+use nalgebra::DMatrix;
 
 use super::sdp::{solve_program, svec_index, SdpStatus};
+use super::verify::{is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::{scatter_block, Fused, FusionProblem};
 use crate::error::SolveError;
-use crate::linalg::symmetrize;
 use crate::structure::independent_blocks;
 
 /// Settings of the certified bound, with defaults and [`CertifySettings::validate`].
@@ -70,10 +103,19 @@ pub struct CertifySettings {
     /// Interior-point iteration limit (default 200).
     pub max_iter: u32,
     /// Clarabel's gap and feasibility tolerances (default `1e-9`; they affect how tight the
-    /// bound is, never whether it is certified).
+    /// bound is, never whether it is proven).
     pub tolerance: f64,
-    /// Largest independent block certified (default 6: one cone of size 73, 6–9 s natively).
+    /// Largest independent block certified (default 6).
     pub max_block_dim: usize,
+    /// The certificate's level `r ≥ 1` (module docs); `None` (default) chooses per block:
+    /// [`CertifySettings::auto_level`].
+    pub level: Option<u32>,
+    /// Largest PSD cone accepted (default 200 rows: the level-1 cone of a 6-state block is
+    /// 73, level 3 of a 3-state block 66, level 2 of a 4-state block 84).
+    pub max_cone: usize,
+    /// Wall-clock limit of each block's solve in seconds (default none); past it the solve
+    /// ends with [`SolveError::TimeLimit`].
+    pub time_limit: Option<f64>,
 }
 
 impl Default for CertifySettings {
@@ -82,6 +124,9 @@ impl Default for CertifySettings {
             max_iter: 200,
             tolerance: 1e-9,
             max_block_dim: 6,
+            level: None,
+            max_cone: 200,
+            time_limit: None,
         }
     }
 }
@@ -89,9 +134,9 @@ impl Default for CertifySettings {
 impl CertifySettings {
     /// Checks every value.
     pub fn validate(&self) -> Result<(), SolveError> {
-        if self.max_iter == 0 || self.max_block_dim == 0 {
+        if self.max_iter == 0 || self.max_block_dim == 0 || self.max_cone == 0 {
             return Err(SolveError::InvalidSettings(
-                "max_iter and max_block_dim must be at least 1".into(),
+                "max_iter, max_block_dim and max_cone must be at least 1".into(),
             ));
         }
         if !(self.tolerance > 0.0 && self.tolerance < 1.0) {
@@ -100,7 +145,50 @@ impl CertifySettings {
                 self.tolerance
             )));
         }
-        Ok(())
+        if let Some(level) = self.level {
+            if !(1..=MAX_LEVEL).contains(&level) {
+                return Err(SolveError::InvalidSettings(format!(
+                    "level must be in 1..={MAX_LEVEL} (got {level})"
+                )));
+            }
+        }
+        check_time_limit(self.time_limit)
+    }
+
+    /// The level used for a block of `dim` states: the setting, or by default the level
+    /// chosen from the measured gap-and-time curves (README, `examples/certify_levels.rs`):
+    /// 4 for blocks of at most 2 states (where it closed every measured bracket), 2 for 3
+    /// states (the highest level below a second), 1 above.
+    pub fn level_for(&self, dim: usize) -> u32 {
+        self.level.unwrap_or_else(|| Self::auto_level(dim))
+    }
+
+    /// The default level for a block of `dim` states (see [`CertifySettings::level_for`]).
+    pub fn auto_level(dim: usize) -> u32 {
+        match dim {
+            0..=2 => 4,
+            3 => 2,
+            _ => 1,
+        }
+    }
+
+    /// Rows of the level-`level` PSD cone for a block of `dim` states.
+    pub fn cone_size(dim: usize, level: u32) -> usize {
+        let r = level as usize;
+        2 * dim * binomial(dim + r - 1, r) + binomial(dim + r - 2, r - 1)
+    }
+}
+
+/// Highest certificate level accepted.
+pub const MAX_LEVEL: u32 = 6;
+
+/// Checks an optional wall-clock limit (positive and finite).
+pub(crate) fn check_time_limit(limit: Option<f64>) -> Result<(), SolveError> {
+    match limit {
+        Some(t) if !(t > 0.0 && t.is_finite()) => Err(SolveError::InvalidSettings(format!(
+            "time_limit must be a positive number of seconds (got {t})"
+        ))),
+        _ => Ok(()),
     }
 }
 
@@ -113,14 +201,16 @@ pub struct CertifiedResult {
     pub status: SdpStatus,
     /// Interior-point iterations, summed over blocks.
     pub iterations: u32,
-    /// Trace added by the floating-point repair `C ← C + δ I` (≥ 0, summed over blocks).
+    /// Trace added by the floating-point repair (≥ 0, summed over blocks).
     pub repair: f64,
     /// The independent blocks certified separately.
     pub blocks: Vec<Vec<usize>>,
+    /// The level used on each block.
+    pub levels: Vec<u32>,
 }
 
 /// The tightest certified bound over gain and certificate: a conservative fusion rule never
-/// looser than CI or nmCI.
+/// looser than CI or nmCI in trace (up to solver tolerance).
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
@@ -202,9 +292,6 @@ fn certify(
     settings.validate()?;
     let n = problem.dim();
     let blocks = certification_blocks(problem, gain);
-    let mut K_a = DMatrix::zeros(n, n);
-    let mut P = DMatrix::zeros(n, n);
-    let (mut status, mut iterations, mut repair) = (SdpStatus::Solved, 0, 0.0);
     for block in &blocks {
         if block.len() > settings.max_block_dim {
             return Err(SolveError::BlockTooLarge {
@@ -212,15 +299,33 @@ fn certify(
                 limit: settings.max_block_dim,
             });
         }
+        let level = settings.level_for(block.len());
+        let cone = CertifySettings::cone_size(block.len(), level);
+        if cone > settings.max_cone {
+            return Err(SolveError::ConeTooLarge {
+                dim: block.len(),
+                level,
+                cone,
+                limit: settings.max_cone,
+            });
+        }
+    }
+    let mut K_a = DMatrix::zeros(n, n);
+    let mut P = DMatrix::zeros(n, n);
+    let (mut status, mut iterations, mut repair) = (SdpStatus::Solved, 0, 0.0);
+    let mut levels = Vec::with_capacity(blocks.len());
+    for block in &blocks {
         let sub = problem.restrict(block);
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
-        let solved = certify_block(&sub, sub_gain.as_ref(), settings)?;
+        let level = settings.level_for(block.len());
+        let solved = certify_block(&sub, sub_gain.as_ref(), level, settings)?;
         if solved.status == SdpStatus::AlmostSolved {
             status = SdpStatus::AlmostSolved;
         }
         iterations += solved.iterations;
         repair += solved.repair;
+        levels.push(level);
         scatter_block(&mut K_a, block, &solved.K_a);
         scatter_block(&mut P, block, &solved.P);
     }
@@ -232,7 +337,118 @@ fn certify(
         iterations,
         repair,
         blocks,
+        levels,
     })
+}
+
+fn binomial(n: usize, k: usize) -> usize {
+    (0..k).fold(1, |acc, i| acc * (n - i) / (i + 1))
+}
+
+/// The exponent vectors of degree `d` in `n` variables (graded, lexicographic).
+fn monomials(n: usize, d: usize) -> Vec<Vec<usize>> {
+    fn rec(n: usize, d: usize, prefix: &mut Vec<usize>, out: &mut Vec<Vec<usize>>) {
+        if prefix.len() == n - 1 {
+            prefix.push(d);
+            out.push(prefix.clone());
+            prefix.pop();
+            return;
+        }
+        for e in (0..=d).rev() {
+            prefix.push(e);
+            rec(n, d - e, prefix, out);
+            prefix.pop();
+        }
+    }
+    let mut out = Vec::new();
+    rec(n, d, &mut Vec::with_capacity(n), &mut out);
+    out
+}
+
+/// `d! / β!` for an exponent vector `β` of degree `d`.
+fn multinomial(beta: &[usize]) -> f64 {
+    let mut num = 1.0;
+    let mut k = 0;
+    for &b in beta {
+        for i in 1..=b {
+            k += 1;
+            num = num * k as f64 / i as f64;
+        }
+    }
+    num.round()
+}
+
+/// The index layout of one block's level-`r` program.
+struct Layout {
+    n: usize,
+    /// Rows of `Kᵀ`: `2n`.
+    m: usize,
+    /// Degree-`r` monomials (`s` of them).
+    mons: Vec<Vec<usize>>,
+    /// Degree-`(r − 1)` monomials and their multinomial coefficients.
+    lower: Vec<(Vec<usize>, f64)>,
+    /// Degree-`2r` monomials, by exponent.
+    products: HashMap<Vec<usize>, usize>,
+    /// `α + β` as an index of `products`, for `α`, `β` indices of `mons`.
+    sum: Vec<Vec<usize>>,
+}
+
+impl Layout {
+    fn new(n: usize, r: usize) -> Self {
+        let mons = monomials(n, r);
+        let lower = monomials(n, r - 1)
+            .into_iter()
+            .map(|b| {
+                let c = multinomial(&b);
+                (b, c)
+            })
+            .collect();
+        let products: HashMap<Vec<usize>, usize> = monomials(n, 2 * r)
+            .into_iter()
+            .enumerate()
+            .map(|(i, g)| (g, i))
+            .collect();
+        let add = |a: &[usize], b: &[usize]| a.iter().zip(b).map(|(x, y)| x + y).collect::<Vec<_>>();
+        let sum = mons
+            .iter()
+            .map(|a| mons.iter().map(|b| products[&add(a, b)]).collect())
+            .collect();
+        Self {
+            n,
+            m: 2 * n,
+            mons,
+            lower,
+            products,
+            sum,
+        }
+    }
+
+    /// Size of `C`.
+    fn big(&self) -> usize {
+        self.m * self.mons.len()
+    }
+
+    /// The monomial index `k` with `α = β + e_k`, if any.
+    fn step(&self, alpha: usize, beta: &[usize]) -> Option<usize> {
+        let a = &self.mons[alpha];
+        let mut k = None;
+        for i in 0..self.n {
+            match a[i] as isize - beta[i] as isize {
+                0 => {}
+                1 if k.is_none() => k = Some(i),
+                _ => return None,
+            }
+        }
+        k
+    }
+
+    /// Index in `products` of `2β + e_k + e_l`.
+    fn quad(&self, beta: &[usize], k: usize, l: usize) -> usize {
+        let mut g: Vec<usize> = beta.iter().map(|b| 2 * b).collect();
+        g[k] += 1;
+        g[l] += 1;
+        self.products[&g]
+    }
 }
 
 #[allow(non_snake_case)]
@@ -248,92 +464,151 @@ struct BlockCertificate {
 fn certify_block(
     problem: &FusionProblem,
     gain: Option<&DMatrix<f64>>,
+    level: u32,
     settings: &CertifySettings,
 ) -> Result<BlockCertificate, SolveError> {
     let n = problem.dim();
-    let m = 2 * n; // rows of Kᵀ
-    let N = n * m; // size of C; index (k, p) ↦ k·m + p
+    let lay = Layout::new(n, level as usize);
+    let (m, s, N) = (lay.m, lay.mons.len(), lay.big());
+    let nb = lay.lower.len();
     let J0 = |p: usize, q: usize| match (p < n, q < n) {
         (true, true) => problem.P_a[(p, q)],
         (false, false) => problem.P_b[(p - n, q - n)],
         _ => 0.0,
     };
-    // Condition 2: Y(v)'s cross entry (i, n+j) vanishes for every v where P_ab may be
-    // non-zero: C[(k,i),(l,n+j)] + C[(l,i),(k,n+j)] = 0 for all k ≤ l (module docs).
-    let var = |r: usize, c: usize| svec_index(r.min(c), r.max(c));
-    let mut pairs: Vec<(usize, usize)> = Vec::new();
-    for k in 0..n {
-        for l in k..n {
+    // Variables: C (svec of N), Q (svec of n), G (svec of s), then K_a (n², when free).
+    let var_c = |x: usize, y: usize| svec_index(x.min(y), x.max(y));
+    let off_q = N * (N + 1) / 2;
+    let var_q = |k: usize, l: usize| off_q + svec_index(k.min(l), k.max(l));
+    let off_g = off_q + n * (n + 1) / 2;
+    let var_g = |a: usize, b: usize| off_g + svec_index(a.min(b), a.max(b));
+    let off_k = off_g + s * (s + 1) / 2;
+    let var_k = |k: usize, i: usize| off_k + k + i * n;
+    let total_vars = off_k + if gain.is_none() { n * n } else { 0 };
+
+    // Condition 2: one group of C entries per (γ, unknown (i, j)) that must sum to zero.
+    let mut groups: BTreeMap<(usize, usize, usize), Vec<usize>> = BTreeMap::new();
+    for a in 0..s {
+        for b in 0..s {
+            let g = lay.sum[a][b];
             for i in 0..n {
                 for j in 0..n {
                     if problem.cross_pattern.is_unknown(i, j) {
-                        pairs.push((var(k * m + i, l * m + n + j), var(l * m + i, k * m + n + j)));
+                        groups
+                            .entry((g, i, j))
+                            .or_default()
+                            .push(var_c(a * m + i, b * m + n + j));
                     }
                 }
             }
         }
     }
-    let n_vars = N * (N + 1) / 2; // C's upper triangle, in svec order
-    let gain_var = |k: usize, i: usize| n_vars + k + i * n; // K_a[(k, i)]
-    let total_vars = n_vars + if gain.is_none() { n * n } else { 0 };
+    let groups: Vec<Vec<usize>> = groups.into_values().collect();
+    // Condition 3, one row per degree-2r monomial γ.
+    let mut sos: Vec<BTreeMap<usize, f64>> = vec![BTreeMap::new(); lay.products.len()];
+    for (beta, c) in &lay.lower {
+        for k in 0..n {
+            for l in 0..n {
+                *sos[lay.quad(beta, k, l)].entry(var_q(k, l)).or_default() += c;
+            }
+        }
+    }
+    for a in 0..s {
+        for b in 0..s {
+            let row = &mut sos[lay.sum[a][b]];
+            for p in 0..m {
+                for q in 0..m {
+                    let j = J0(p, q);
+                    if j != 0.0 {
+                        *row.entry(var_c(a * m + p, b * m + q)).or_default() -= j;
+                    }
+                }
+            }
+            *row.entry(var_g(a, b)).or_default() -= 1.0;
+        }
+    }
     let sqrt2 = std::f64::consts::SQRT_2;
-    let cone = N + 1;
-    let zeros = pairs.len();
-    let mut b = vec![0.0; zeros + cone * (cone + 1) / 2];
+    let zeros = groups.len() + sos.len();
+    let cone = N + nb;
+    let rows_total = zeros + cone * (cone + 1) / 2 + s * (s + 1) / 2;
+    let mut b = vec![0.0; rows_total];
     let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
-    for (e, &(u, v)) in pairs.iter().enumerate() {
-        if u == v {
-            // k = l: the entry itself, 2·C = 0 (one triplet: no duplicate entries)
+    for (e, group) in groups.iter().enumerate() {
+        let mut coef: BTreeMap<usize, f64> = BTreeMap::new();
+        for &v in group {
+            *coef.entry(v).or_default() += 1.0;
+        }
+        for (v, c) in coef {
             rows.push(e);
-            cols.push(u);
-            vals.push(2.0);
-        } else {
-            rows.extend([e, e]);
-            cols.extend([u, v]);
-            vals.extend([1.0, 1.0]);
+            cols.push(v);
+            vals.push(c);
+        }
+    }
+    for (g, row) in sos.iter().enumerate() {
+        for (&v, &c) in row {
+            if c != 0.0 {
+                rows.push(groups.len() + g);
+                cols.push(v);
+                vals.push(c);
+            }
+        }
+    }
+    // Condition 1: [[C, W D^{1/2}], [·, I]] ⪰ 0.
+    let base = zeros;
+    for c in 0..N {
+        for r in 0..=c {
+            rows.push(base + svec_index(r, c));
+            cols.push(var_c(r, c));
+            vals.push(if r == c { -1.0 } else { -sqrt2 });
+        }
+    }
+    for (t, (beta, cb)) in lay.lower.iter().enumerate() {
+        let scale = sqrt2 * cb.sqrt();
+        for alpha in 0..s {
+            let Some(k) = lay.step(alpha, beta) else {
+                continue;
+            };
+            for p in 0..m {
+                let e = base + svec_index(alpha * m + p, N + t);
+                // K[k, p] = K_a[k, p] (p < n), δ_{k, p−n} − K_a[k, p−n] (p ≥ n).
+                let (constant, coefficient, column) = if p < n {
+                    (0.0, 1.0, p)
+                } else {
+                    (if k == p - n { 1.0 } else { 0.0 }, -1.0, p - n)
+                };
+                match gain {
+                    Some(K_a) => b[e] = scale * (constant + coefficient * K_a[(k, column)]),
+                    None => {
+                        b[e] = scale * constant;
+                        rows.push(e);
+                        cols.push(var_k(k, column));
+                        vals.push(-scale * coefficient);
+                    }
+                }
+            }
+        }
+        b[base + svec_index(N + t, N + t)] = 1.0;
+    }
+    // Condition 4: G ⪰ 0.
+    let base_g = base + cone * (cone + 1) / 2;
+    for c in 0..s {
+        for r in 0..=c {
+            rows.push(base_g + svec_index(r, c));
+            cols.push(var_g(r, c));
+            vals.push(if r == c { -1.0 } else { -sqrt2 });
         }
     }
     let mut q = vec![0.0; total_vars];
-    for c in 0..N {
-        for r in 0..=c {
-            let v = svec_index(r, c);
-            let scale = if r == c { 1.0 } else { sqrt2 };
-            rows.push(zeros + svec_index(r, c));
-            cols.push(v);
-            vals.push(-scale);
-            if r / m == c / m {
-                let weight = J0(r % m, c % m);
-                q[v] = if r == c { weight } else { 2.0 * weight };
-            }
-        }
+    for k in 0..n {
+        q[var_q(k, k)] = 1.0;
     }
-    // The border w: w_(k,p) = K_a[k, p] (p < n), δ_{k, p−n} − K_a[k, p−n] (p ≥ n).
-    for r in 0..N {
-        let (k, p) = (r / m, r % m);
-        let e = zeros + svec_index(r, N);
-        let (constant, coefficient, column) = if p < n {
-            (0.0, 1.0, p)
-        } else {
-            (if k == p - n { 1.0 } else { 0.0 }, -1.0, p - n)
-        };
-        match gain {
-            Some(K_a) => b[e] = sqrt2 * (constant + coefficient * K_a[(k, column)]),
-            None => {
-                b[e] = sqrt2 * constant;
-                rows.push(e);
-                cols.push(gain_var(k, column));
-                vals.push(-sqrt2 * coefficient);
-            }
-        }
-    }
-    b[zeros + svec_index(N, N)] = 1.0;
-    let A = CscMatrix::new_from_triplets(b.len(), total_vars, rows, cols, vals);
+    let A = CscMatrix::new_from_triplets(rows_total, total_vars, rows, cols, vals);
     let P_quad = CscMatrix::zeros((total_vars, total_vars));
-    let mut cones = Vec::with_capacity(2);
-    if zeros > 0 {
-        cones.push(SupportedConeT::ZeroConeT(zeros));
-    }
-    cones.push(SupportedConeT::PSDTriangleConeT(cone));
+    let mut cones = vec![
+        SupportedConeT::ZeroConeT(zeros),
+        SupportedConeT::PSDTriangleConeT(cone),
+    ];
+    cones.push(SupportedConeT::PSDTriangleConeT(s));
     let clarabel_settings = DefaultSettings {
         verbose: false,
         max_threads: 1,
@@ -341,6 +616,7 @@ fn certify_block(
         tol_gap_abs: settings.tolerance,
         tol_gap_rel: settings.tolerance,
         tol_feas: settings.tolerance,
+        time_limit: settings.time_limit.unwrap_or(f64::INFINITY),
         ..DefaultSettings::default()
     };
     let solver = solve_program(&P_quad, &q, &A, &b, &cones, clarabel_settings)?;
@@ -348,6 +624,12 @@ fn certify_block(
     let status = match sol.status {
         SolverStatus::Solved => SdpStatus::Solved,
         SolverStatus::AlmostSolved => SdpStatus::AlmostSolved,
+        SolverStatus::MaxTime => {
+            return Err(SolveError::TimeLimit {
+                seconds: settings.time_limit.unwrap_or(f64::INFINITY),
+                what: "the certified bound's SDP".into(),
+            })
+        }
         other => {
             return Err(SolveError::SolverFailed {
                 status: format!("{other:?}"),
@@ -357,45 +639,219 @@ fn certify_block(
     };
     let K_a = match gain {
         Some(K_a) => K_a.clone(),
-        None => DMatrix::from_fn(n, n, |k, i| sol.x[gain_var(k, i)]),
+        None => DMatrix::from_fn(n, n, |k, i| sol.x[var_k(k, i)]),
     };
-    let mut svec_C = sol.x[..n_vars].to_vec();
-    // Condition 2 exactly: each pair (a, b) becomes ((a − b)/2, (b − a)/2), whose sum is 0
-    // in floating point (fl(b − a) = −fl(a − b), halving is exact).
-    for &(u, v) in &pairs {
-        let half = 0.5 * (svec_C[u] - svec_C[v]);
-        svec_C[u] = half;
-        svec_C[v] = -half; // u = v: half = 0
+    let mut x = sol.x.clone();
+    for group in &groups {
+        exact_zero_sum(&mut x, group);
     }
-    let C = DMatrix::from_fn(N, N, |r, c| svec_C[var(r, c)]);
-    let w = nalgebra::DVector::from_fn(N, |r, _| {
-        let (k, p) = (r / m, r % m);
-        if p < n {
-            K_a[(k, p)]
-        } else {
-            (if k == p - n { 1.0 } else { 0.0 }) - K_a[(k, p - n)]
-        }
-    });
-    // Repair: C ← C + δI with C − wwᵀ ⪰ 0 beyond rounding (module docs).
-    let mut R = C.clone();
-    R.ger(-1.0, &w, &w, 1.0);
-    let mu = SymmetricEigen::new(R).eigenvalues.min();
-    let delta = (-mu).max(0.0) + 1e-12 * C.norm();
-    let trace_J0 = problem.P_a.trace() + problem.P_b.trace();
-    let Q = DMatrix::from_fn(n, n, |k, l| {
-        let mut s = 0.0;
-        for p in 0..m {
-            for qq in 0..m {
-                s += J0(p, qq) * C[(k * m + p, l * m + qq)];
-            }
-        }
-        s + if k == l { delta * trace_J0 } else { 0.0 }
-    });
+    let C = DMatrix::from_fn(N, N, |r, c| x[var_c(r, c)]);
+    let Q = DMatrix::from_fn(n, n, |k, l| x[var_q(k, l)]);
+    let G = DMatrix::from_fn(s, s, |a, b| x[var_g(a, b)]);
+    let (P, repair) = repair(problem, &lay, &K_a, C, Q, &G)?;
     Ok(BlockCertificate {
         K_a,
-        P: symmetrize(&Q),
+        P,
         status,
         iterations: sol.iterations,
-        repair: n as f64 * delta * trace_J0,
+        repair,
     })
+}
+
+/// Makes the entries `group` of `x` sum to exactly zero (module docs: a grid, then the last
+/// entry minus the sum of the others).
+fn exact_zero_sum(x: &mut [f64], group: &[usize]) {
+    // Distinct variables only (a group never repeats one, but be safe).
+    let mut vars: Vec<usize> = group.to_vec();
+    vars.sort_unstable();
+    vars.dedup();
+    let bound = vars.iter().map(|&v| x[v].abs()).fold(0.0, f64::max);
+    if vars.len() == 1 || bound == 0.0 || !bound.is_finite() {
+        for &v in &vars {
+            x[v] = 0.0;
+        }
+        return;
+    }
+    let mut e = bound.log2().ceil() as i32;
+    while 2f64.powi(e) < bound {
+        e += 1;
+    }
+    // len · 2^e < 2^(e + room) ≤ 2^(53) · g with g = 2^(e − bits).
+    let room = (usize::BITS - vars.len().leading_zeros()) as i32 + 1;
+    let bits = 52 - room;
+    let g = 2f64.powi(e - bits);
+    let mut sum = 0.0;
+    let (last, rest) = vars.split_last().expect("two or more");
+    for &v in rest {
+        x[v] = (x[v] / g).round() * g;
+        sum += x[v];
+    }
+    x[*last] = -sum;
+}
+
+/// The verified repair (module docs): `C ← C + δI` until `C − W D Wᵀ ⪰ 0` is proven, then
+/// `Q ← Q + ηI` until `G + E ⪰ 0` is proven. Returns `P̄ = Q` and the trace added.
+#[allow(non_snake_case)]
+fn repair(
+    problem: &FusionProblem,
+    lay: &Layout,
+    K_a: &DMatrix<f64>,
+    mut C: DMatrix<f64>,
+    mut Q: DMatrix<f64>,
+    G: &DMatrix<f64>,
+) -> Result<(DMatrix<f64>, f64), SolveError> {
+    let n = lay.n;
+    let (m, s, N) = (lay.m, lay.mons.len(), lay.big());
+    let K_b = BallMatrix::identity_minus(K_a);
+    let k_entry = |k: usize, p: usize| {
+        if p < n {
+            Ball::exact(K_a[(k, p)])
+        } else {
+            K_b.at(k, p - n)
+        }
+    };
+    // W (N × nb) as balls, with each column scaled by c_β (exact integers) on one side.
+    let nb = lay.lower.len();
+    let W = BallMatrix::from_fn(N, nb, |row, t| {
+        let (alpha, p) = (row / m, row % m);
+        match lay.step(alpha, &lay.lower[t].0) {
+            Some(k) => k_entry(k, p),
+            None => Ball::exact(0.0),
+        }
+    });
+    let WD = BallMatrix::from_fn(N, nb, |row, t| {
+        let c = lay.lower[t].1;
+        let w = W.at(row, t);
+        let mid = c * w.mid;
+        Ball {
+            mid,
+            rad: up(c * w.rad + U * mid.abs(), 3),
+        }
+    });
+    let margin = |C: &DMatrix<f64>| {
+        BallMatrix::from_fn(N, N, |x, y| {
+            let mut d = Dot::new();
+            d.add(Ball::exact(C[(x, y)]));
+            for t in 0..nb {
+                let w = WD.at(y, t);
+                d.add_prod(
+                    W.at(x, t),
+                    Ball {
+                        mid: -w.mid,
+                        rad: w.rad,
+                    },
+                );
+            }
+            d.ball()
+        })
+    };
+    let first = margin(&C).symmetrized();
+    if !is_psd(&first.mid, &first.rad) {
+        let mut delta = psd_shift(&first).ok_or_else(|| repair_failed("C − W D Wᵀ"))?;
+        let scale = C.amax().max(f64::MIN_POSITIVE);
+        let mut proven = false;
+        for _ in 0..60 {
+            let mut Cd = C.clone();
+            for i in 0..N {
+                Cd[(i, i)] += delta;
+            }
+            let b = margin(&Cd).symmetrized();
+            if is_psd(&b.mid, &b.rad) {
+                C = Cd;
+                proven = true;
+                break;
+            }
+            delta = 2.0 * delta + 1e-16 * scale;
+        }
+        if !proven {
+            return Err(repair_failed("C − W D Wᵀ"));
+        }
+    }
+    // T_αβ = ⟨J₀, C_αβ⟩ as balls.
+    let J0 = |p: usize, q: usize| match (p < n, q < n) {
+        (true, true) => problem.P_a[(p, q)],
+        (false, false) => problem.P_b[(p - n, q - n)],
+        _ => 0.0,
+    };
+    let T = BallMatrix::from_fn(s, s, |a, b| {
+        let mut d = Dot::new();
+        for p in 0..m {
+            for q in 0..m {
+                let j = J0(p, q);
+                if j != 0.0 {
+                    d.add_exact_prod(j, C[(a * m + p, b * m + q)]);
+                }
+            }
+        }
+        d.ball()
+    });
+    // Where each degree-2r coefficient goes in the Gram matrix E: (α, α) when γ = 2α, else
+    // half on (α, β) and half on (β, α) for the first α < β with α + β = γ.
+    let mut place: Vec<Option<(usize, usize)>> = vec![None; lay.products.len()];
+    for a in 0..s {
+        place[lay.sum[a][a]] = Some((a, a));
+    }
+    for a in 0..s {
+        for b in a + 1..s {
+            let g = lay.sum[a][b];
+            if place[g].is_none() {
+                place[g] = Some((a, b));
+            }
+        }
+    }
+    let trace_solver = Q.trace();
+    let mut eta = 0.0;
+    for _ in 0..60 {
+        // e_γ = coef_γ(‖v‖^{2(r−1)} vᵀQv) − Σ_{α+β=γ} (T_αβ + G_αβ), as balls.
+        let mut coef = vec![Dot::new(); lay.products.len()];
+        for (beta, c) in &lay.lower {
+            for k in 0..n {
+                for l in 0..n {
+                    coef[lay.quad(beta, k, l)].add_exact_prod(*c, Q[(k, l)]);
+                }
+            }
+        }
+        for a in 0..s {
+            for b in 0..s {
+                let t = T.at(a, b);
+                let d = &mut coef[lay.sum[a][b]];
+                d.add(Ball {
+                    mid: -t.mid,
+                    rad: t.rad,
+                });
+                d.add(Ball::exact(-G[(a, b)]));
+            }
+        }
+        let mut Y = BallMatrix::exact(G);
+        for (g, d) in coef.iter().enumerate() {
+            let e = d.ball();
+            let (a, b) = place[g].expect("every degree-2r monomial splits");
+            if a == b {
+                let mid = Y.mid[(a, a)] + e.mid;
+                Y.rad[(a, a)] = up(e.rad + U * mid.abs(), 3);
+                Y.mid[(a, a)] = mid;
+            } else {
+                for (x, y) in [(a, b), (b, a)] {
+                    let mid = Y.mid[(x, y)] + 0.5 * e.mid;
+                    Y.rad[(x, y)] = up(0.5 * e.rad + U * mid.abs(), 3);
+                    Y.mid[(x, y)] = mid;
+                }
+            }
+        }
+        if is_psd(&Y.mid, &Y.rad) {
+            return Ok((Q.clone(), (Q.trace() - trace_solver).max(0.0)));
+        }
+        let shift = psd_shift(&Y).ok_or_else(|| repair_failed("G + E"))?;
+        let step = if eta == 0.0 { shift } else { shift.max(eta) };
+        let step = step + 1e-16 * Q.amax().max(f64::MIN_POSITIVE);
+        for k in 0..n {
+            Q[(k, k)] += step;
+        }
+        eta += step;
+    }
+    Err(repair_failed("G + E"))
+}
+
+fn repair_failed(what: &str) -> SolveError {
+    SolveError::NotProven { what: what.into() }
 }

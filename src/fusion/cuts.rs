@@ -65,11 +65,12 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::certify::{certification_blocks, certified_fusion, CertifySettings};
+use super::bracket::trace_upper_bound;
+use super::certify::{certification_blocks, certified_fusion, check_time_limit, CertifySettings};
 use super::check::{conservativeness_margin, fused_error_covariance, worst_margin};
 use super::nmci::non_monolithic_ci;
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
-use super::sdp::{optimal_fusion_for_samples, svec_index, SdpResult, SdpSettings, SdpStatus};
+use super::sdp::{solve_samples, svec_index, Deadline, SdpResult, SdpSettings, SdpStatus};
 use super::{Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::symmetrize;
@@ -107,6 +108,26 @@ pub struct CutsSettings {
     /// replace the optimum's when it finds a violation, otherwise it becomes the new
     /// feasible point.
     pub in_out: f64,
+    /// Settings of the certified rule that guides the loop and closes its gap.
+    pub certify_settings: CertifySettings,
+    /// Wall-clock limit in seconds (default none): past it the loop returns the last
+    /// program's result and its proven bracket with `converged: false` and
+    /// `stop: TimeLimit` (an error only if the first program did not finish in time).
+    pub time_limit: Option<f64>,
+}
+
+/// Why the cutting-plane loop stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CutsStop {
+    /// The worst violation found was below the tolerance.
+    Tolerance,
+    /// The proven lower bound reached the certified rule's proven trace within the tolerance.
+    GapClosed,
+    /// `max_iterations` ran out.
+    MaxIterations,
+    /// `time_limit` ran out.
+    TimeLimit,
 }
 
 impl Default for CutsSettings {
@@ -120,6 +141,8 @@ impl Default for CutsSettings {
             sdp: SdpSettings::default(),
             certify: true,
             in_out: 0.5,
+            certify_settings: CertifySettings::default(),
+            time_limit: None,
         }
     }
 }
@@ -138,6 +161,8 @@ impl CutsSettings {
                 self.in_out
             )));
         }
+        self.certify_settings.validate()?;
+        check_time_limit(self.time_limit)?;
         if !(self.tolerance > 0.0 && self.tolerance.is_finite()) {
             return Err(SolveError::InvalidSettings(format!(
                 "tolerance must be positive and finite (got {})",
@@ -166,15 +191,25 @@ pub struct CutsResult {
     /// when `converged`).
     pub violation: f64,
     /// Whether the loop stopped on the tolerance or a closed gap (otherwise on
-    /// `max_iterations`).
+    /// `max_iterations` or `time_limit`).
     pub converged: bool,
-    /// The certified rule's `tr P̄` (an upper bound on the robust optimum), when computed.
+    /// Why the loop stopped.
+    pub stop: CutsStop,
+    /// The certified rule's `tr P̄` rounded up (a proven upper bound on the robust
+    /// optimum), when computed.
     pub certified_trace: Option<f64>,
-    /// Whether the loop stopped because `dual_objective` reached `certified_trace` within
-    /// the tolerance: the optimum is then proven, and the certified rule attains it.
+    /// The certified rule's level on each block, when computed.
+    pub certified_levels: Option<Vec<u32>>,
+    /// Whether the loop stopped because `lower_bound` reached `certified_trace` within the
+    /// tolerance: the optimum is then proven to that relative accuracy, and the certified rule
+    /// attains it to that accuracy.
     pub gap_closed: bool,
-    /// Dual objective of the last program: a lower bound on the robust optimum.
+    /// Clarabel's dual objective of the last program (a lower bound only up to the solver's
+    /// tolerance).
     pub dual_objective: f64,
+    /// A proven lower bound on the robust optimum: the best over the programs solved
+    /// (`fusion::bracket`).
+    pub lower_bound: f64,
     /// The cross-covariances of the last program.
     pub cross: Vec<DMatrix<f64>>,
 }
@@ -196,6 +231,7 @@ pub fn optimal_fusion_cuts(
     settings: &CutsSettings,
 ) -> Result<CutsResult, SolveError> {
     settings.validate()?;
+    let deadline = Deadline::after(settings.time_limit);
     let n = problem.dim();
     let mut cross = sample_cross_covariances(
         problem,
@@ -205,16 +241,21 @@ pub fn optimal_fusion_cuts(
     )?
     .cross;
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0x5EED_C075);
-    let certify_settings = CertifySettings::default();
+    let certify_settings = CertifySettings {
+        time_limit: settings.time_limit.map(|_| deadline.remaining().max(1e-3)),
+        ..settings.certify_settings
+    };
     let certified = if settings.certify
-        && certification_blocks(problem, None)
-            .iter()
-            .all(|b| b.len() <= certify_settings.max_block_dim)
-    {
+        && certification_blocks(problem, None).iter().all(|b| {
+            b.len() <= certify_settings.max_block_dim
+                && CertifySettings::cone_size(b.len(), certify_settings.level_for(b.len()))
+                    <= certify_settings.max_cone
+        }) {
         Some(certified_fusion(problem, &certify_settings)?)
     } else {
         None
     };
+    let certified_trace = certified.as_ref().map(|c| trace_upper_bound(&c.fused.P));
     // The worst cases at the certified bound are where it is tight: the likely active
     // constraints of the robust optimum.
     if let Some(cert) = &certified {
@@ -246,13 +287,15 @@ pub fn optimal_fusion_cuts(
         None => non_monolithic_ci(problem, Criterion::Trace)?.fused,
     };
     let mut iterations = 0;
+    let mut best_lower = 0.0f64;
     loop {
         iterations += 1;
         let set = CrossSamples {
             cross: cross.clone(),
             trials: 0,
         };
-        let opt = optimal_fusion_for_samples(problem, &set, &sdp)?;
+        let opt = solve_samples(problem, &set, &sdp, &deadline)?;
+        best_lower = best_lower.max(opt.lower_bound);
         let threshold = settings.tolerance * opt.fused.trace().max(1.0);
         // Worst-case search from the top eigenvector of the worst current constraint and
         // from random directions.
@@ -275,20 +318,29 @@ pub fn optimal_fusion_cuts(
             found.push(worst_case_search(problem, &opt.fused, start, settings)?);
         }
         let violation = found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
-        let certified_trace = certified.as_ref().map(|c| c.fused.trace());
         let gap_closed = certified_trace
-            .is_some_and(|upper| opt.dual_objective >= upper - settings.tolerance * upper.max(1.0));
+            .is_some_and(|upper| best_lower >= upper - settings.tolerance * upper.max(1.0));
         let converged = violation <= threshold || gap_closed;
-        if converged || iterations >= settings.max_iterations {
+        let timed_out = deadline.passed();
+        if converged || timed_out || iterations >= settings.max_iterations {
+            let stop = if gap_closed {
+                CutsStop::GapClosed
+            } else if violation <= threshold {
+                CutsStop::Tolerance
+            } else if timed_out {
+                CutsStop::TimeLimit
+            } else {
+                CutsStop::MaxIterations
+            };
             let generated = cross.len();
             let (mut opt, mut violation) = (opt, violation);
             if converged {
                 // Only the active cuts matter at the optimum: re-solve with them alone and keep
                 // that program if its solution still satisfies every dropped cut and the
                 // worst-case search finds nothing new (module docs).
-                if let Some((reduced, kept, v)) =
-                    prune(problem, &opt, &cross, &sdp, threshold, violation, settings)?
-                {
+                if let Some((reduced, kept, v)) = prune(
+                    problem, &opt, &cross, &sdp, threshold, violation, settings, &deadline,
+                )? {
                     opt = reduced;
                     cross = kept;
                     violation = v;
@@ -302,9 +354,12 @@ pub fn optimal_fusion_cuts(
                 constraints_generated: generated,
                 violation,
                 converged,
+                stop,
                 certified_trace,
+                certified_levels: certified.as_ref().map(|c| c.levels.clone()),
                 gap_closed,
                 dual_objective: opt.dual_objective,
+                lower_bound: best_lower.max(opt.lower_bound),
                 cross,
             });
         }
@@ -356,6 +411,7 @@ fn prune(
     threshold: f64,
     violation: f64,
     settings: &CutsSettings,
+    deadline: &Deadline,
 ) -> Result<Option<(SdpResult, Vec<DMatrix<f64>>, f64)>, SolveError> {
     let scale = full.fused.trace().max(1.0);
     let (kept, dropped): (Vec<DMatrix<f64>>, Vec<DMatrix<f64>>) = cross
@@ -369,7 +425,12 @@ fn prune(
         cross: kept.clone(),
         trials: 0,
     };
-    let reduced = optimal_fusion_for_samples(problem, &set, sdp)?;
+    let reduced = match solve_samples(problem, &set, sdp, deadline) {
+        Ok(r) => r,
+        // Pruning is optional: out of time, keep the full program.
+        Err(SolveError::TimeLimit { .. }) => return Ok(None),
+        Err(e) => return Err(e),
+    };
     if reduced.fused.trace() < full.fused.trace() - threshold
         || worst_margin(problem, &reduced.fused, &dropped) < -threshold
     {

@@ -1,5 +1,6 @@
 //! Fusion rules for two estimates with partially known cross-covariance.
 
+pub(crate) mod bracket;
 pub(crate) mod certify;
 pub(crate) mod check;
 pub(crate) mod ci;
@@ -11,6 +12,7 @@ pub(crate) mod nmci;
 pub(crate) mod nway;
 pub(crate) mod sample;
 pub(crate) mod sdp;
+pub(crate) mod verify;
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};

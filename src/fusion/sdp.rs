@@ -46,6 +46,8 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, SymmetricEigen};
 
+use super::bracket::lower_bound;
+use super::certify::check_time_limit;
 use super::check::{conservativeness_margin, worst_margin};
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
 use super::{scatter_block, Fused, FusionProblem};
@@ -95,6 +97,9 @@ pub struct SdpSettings {
     pub max_rounds: usize,
     /// Solve one SDP per independent block (default `true`; exact, see the module docs).
     pub split_blocks: bool,
+    /// Wall-clock limit of the whole solve in seconds (default none): past it the solve
+    /// ends with [`SolveError::TimeLimit`].
+    pub time_limit: Option<f64>,
 }
 
 impl Default for SdpSettings {
@@ -110,6 +115,7 @@ impl Default for SdpSettings {
             batch: 8,
             max_rounds: 100,
             split_blocks: true,
+            time_limit: None,
         }
     }
 }
@@ -131,7 +137,56 @@ impl SdpSettings {
             return bad("initial_working_set, batch and max_rounds must be at least 1");
         }
         self.sampler.validate()?;
-        Ok(())
+        check_time_limit(self.time_limit)
+    }
+}
+
+/// A wall-clock deadline (`web_time`: `performance.now()` in the browser).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Deadline {
+    end: Option<web_time::Instant>,
+    limit: f64,
+}
+
+impl Deadline {
+    /// `limit` seconds from now (`None`: never).
+    pub(crate) fn after(limit: Option<f64>) -> Self {
+        Self {
+            end: limit.map(|t| web_time::Instant::now() + web_time::Duration::from_secs_f64(t)),
+            limit: limit.unwrap_or(f64::INFINITY),
+        }
+    }
+
+    /// Seconds left (infinite without a limit; 0 when past).
+    pub(crate) fn remaining(&self) -> f64 {
+        match self.end {
+            None => f64::INFINITY,
+            Some(end) => end
+                .saturating_duration_since(web_time::Instant::now())
+                .as_secs_f64(),
+        }
+    }
+
+    /// Whether the deadline has passed.
+    pub(crate) fn passed(&self) -> bool {
+        self.remaining() <= 0.0
+    }
+
+    /// The error of a solve stopped by this deadline.
+    pub(crate) fn error(&self, what: &str) -> SolveError {
+        SolveError::TimeLimit {
+            seconds: self.limit,
+            what: what.into(),
+        }
+    }
+
+    /// `Err` if the deadline has passed.
+    pub(crate) fn check(&self, what: &str) -> Result<(), SolveError> {
+        if self.passed() {
+            Err(self.error(what))
+        } else {
+            Ok(())
+        }
     }
 }
 
@@ -152,9 +207,13 @@ pub struct SdpResult {
     pub samples: usize,
     /// Sampler acceptance rate (1 when the samples were given).
     pub acceptance_rate: f64,
-    /// Dual objective of the final programs, summed over blocks: a lower bound on the `N`-sample
-    /// optimum (and so on the robust one).
+    /// Clarabel's dual objective of the final programs, summed over blocks: a lower bound on
+    /// the `N`-sample optimum only up to the solver's tolerance (its dual point is feasible
+    /// only to that tolerance); see `lower_bound` for a proven one.
     pub dual_objective: f64,
+    /// A proven lower bound on the robust optimum (`fusion::bracket`: the solver's dual
+    /// matrices checked in exact arithmetic), summed over blocks and rounded down.
+    pub lower_bound: f64,
     /// Smallest `λ_min(P̄ − K P'_i Kᵀ)` over all `N` samples (≈ 0 up to solver tolerance).
     pub worst_sample_margin: f64,
     /// The independent blocks solved separately (one block = the whole state).
@@ -177,9 +236,11 @@ pub fn optimal_fusion(
     settings: &SdpSettings,
 ) -> Result<SdpResult, SolveError> {
     settings.validate()?;
+    let deadline = Deadline::after(settings.time_limit);
     let samples =
         sample_cross_covariances(problem, settings.samples, settings.seed, settings.sampler)?;
-    optimal_fusion_for_samples(problem, &samples, settings)
+    deadline.check("the sampled SDP (while sampling)")?;
+    solve_samples(problem, &samples, settings, &deadline)
 }
 
 /// Solves the sampled SDP for a given sample set (`settings.samples` and `seed` are ignored).
@@ -188,6 +249,21 @@ pub fn optimal_fusion_for_samples(
     problem: &FusionProblem,
     samples: &CrossSamples,
     settings: &SdpSettings,
+) -> Result<SdpResult, SolveError> {
+    solve_samples(
+        problem,
+        samples,
+        settings,
+        &Deadline::after(settings.time_limit),
+    )
+}
+
+#[allow(non_snake_case)]
+pub(crate) fn solve_samples(
+    problem: &FusionProblem,
+    samples: &CrossSamples,
+    settings: &SdpSettings,
+    deadline: &Deadline,
 ) -> Result<SdpResult, SolveError> {
     let settings = SdpSettings {
         samples: samples.len().max(1),
@@ -209,6 +285,7 @@ pub fn optimal_fusion_for_samples(
     let mut P_bar = DMatrix::zeros(n, n);
     let (mut status, mut iterations, mut rounds, mut lmis, mut dual_objective) =
         (SdpStatus::Solved, 0, 0, 0, 0.0);
+    let mut lower = 0.0;
     for block in &blocks {
         let (sub, cross) = if blocks.len() == 1 {
             (problem.clone(), samples.cross.clone())
@@ -221,7 +298,7 @@ pub fn optimal_fusion_for_samples(
                 samples.cross.iter().map(restrict).collect(),
             )
         };
-        let solved = solve_block(&sub, &cross, &settings)?;
+        let solved = solve_block(&sub, &cross, &settings, deadline)?;
         if solved.status == SdpStatus::AlmostSolved {
             status = SdpStatus::AlmostSolved;
         }
@@ -229,6 +306,7 @@ pub fn optimal_fusion_for_samples(
         rounds += solved.rounds;
         lmis += solved.lmis;
         dual_objective += solved.dual_objective;
+        lower += solved.lower_bound;
         scatter_block(&mut K_a, block, &solved.fused.K_a);
         scatter_block(&mut P_bar, block, &solved.fused.P);
     }
@@ -250,6 +328,9 @@ pub fn optimal_fusion_for_samples(
         samples: samples.len(),
         acceptance_rate: samples.acceptance_rate(),
         dual_objective,
+        // A sum of non-negative floats, each a proven bound for its block (module docs of
+        // `fusion::bracket`: per-block bounds add up), rounded down.
+        lower_bound: super::verify::down(lower, 2 * blocks.len() + 2),
         worst_sample_margin,
         blocks,
     })
@@ -263,6 +344,7 @@ struct BlockSolution {
     rounds: usize,
     lmis: usize,
     dual_objective: f64,
+    lower_bound: f64,
 }
 
 #[allow(non_snake_case)]
@@ -270,6 +352,7 @@ fn solve_block(
     problem: &FusionProblem,
     cross: &[DMatrix<f64>],
     settings: &SdpSettings,
+    deadline: &Deadline,
 ) -> Result<BlockSolution, SolveError> {
     let factors: Vec<DMatrix<f64>> = cross
         .iter()
@@ -285,7 +368,8 @@ fn solve_block(
     let mut rounds = 0;
     loop {
         rounds += 1;
-        let solved = solve_lmis(problem, &factors, &active, settings)?;
+        deadline.check("the sampled SDP")?;
+        let solved = solve_lmis(problem, &factors, &active, settings, deadline)?;
         iterations += solved.iterations;
         // Check every sample outside the working set.
         let scale = solved.fused.P.amax().max(1.0);
@@ -305,6 +389,7 @@ fn solve_block(
             .filter(|(m, _)| *m < -viol_tol)
             .collect();
         if violated.is_empty() {
+            let used: Vec<&DMatrix<f64>> = active.iter().map(|&i| &cross[i]).collect();
             return Ok(BlockSolution {
                 fused: solved.fused,
                 status: solved.status,
@@ -312,6 +397,7 @@ fn solve_block(
                 rounds,
                 lmis: active.len(),
                 dual_objective: solved.dual_objective,
+                lower_bound: lower_bound(problem, &used, &solved.duals),
             });
         }
         if rounds >= settings.max_rounds {
@@ -358,6 +444,8 @@ struct Solved {
     status: SdpStatus,
     iterations: u32,
     dual_objective: f64,
+    /// The dual matrix of each LMI's `P̄` block (`Λ_i`, `Σ Λ_i ≈ I`), in `active` order.
+    duals: Vec<DMatrix<f64>>,
 }
 
 /// Clarabel's KKT solver. The KKT system is an arrow of dense PSD-cone blocks around the few
@@ -413,6 +501,7 @@ fn solve_lmis(
     factors: &[DMatrix<f64>],
     active: &[usize],
     settings: &SdpSettings,
+    deadline: &Deadline,
 ) -> Result<Solved, SolveError> {
     let n = problem.dim();
     let ka = |r: usize, k: usize| r + k * n;
@@ -480,6 +569,7 @@ fn solve_lmis(
         tol_gap_abs: settings.tolerance,
         tol_gap_rel: settings.tolerance,
         tol_feas: settings.tolerance,
+        time_limit: deadline.remaining(),
         ..DefaultSettings::default()
     };
     let solver = solve_program(&P, &q, &A, &b, &cones, clarabel_settings)?;
@@ -487,6 +577,7 @@ fn solve_lmis(
     let status = match sol.status {
         SolverStatus::Solved => SdpStatus::Solved,
         SolverStatus::AlmostSolved => SdpStatus::AlmostSolved,
+        SolverStatus::MaxTime => return Err(deadline.error("the sampled SDP")),
         other => {
             return Err(SolveError::SolverFailed {
                 status: format!("{other:?}"),
@@ -498,6 +589,20 @@ fn solve_lmis(
     let K_b = DMatrix::identity(n, n) - &K_a;
     let P_bar = DMatrix::from_fn(n, n, |i, j| sol.x[pbar(i, j)]);
     let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
+    // Clarabel's z in svec form: off-diagonal entries scaled by √2.
+    let duals = (0..active.len())
+        .map(|slot| {
+            let offset = slot * cone_len;
+            DMatrix::from_fn(n, n, |r, c| {
+                let z = sol.z[offset + svec_index(r.min(c), r.max(c))];
+                if r == c {
+                    z
+                } else {
+                    z / sqrt2
+                }
+            })
+        })
+        .collect();
     Ok(Solved {
         fused: Fused {
             x,
@@ -508,5 +613,6 @@ fn solve_lmis(
         status,
         iterations: sol.iterations,
         dual_objective: sol.obj_val_dual,
+        duals,
     })
 }

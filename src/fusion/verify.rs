@@ -1,0 +1,378 @@
+//! Floating-point arithmetic with proven error bounds: what every "proven" number of nmci
+//! stands on (the certified rule's repair, the rigorous ends of the bracket).
+//!
+//! ## The model
+//! IEEE 754 binary64 with round to nearest, as Rust's `f64` does on every target nmci builds
+//! for. For finite operands and a finite result, each `+ − × ÷ √` satisfies
+//! `fl(a ∘ b) = (a ∘ b)(1 + δ) + η`, `|δ| ≤ u = 2⁻⁵³`, `|η| ≤ 2⁻¹⁰⁷⁵` (η only on underflow)
+//! (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed. 2002, §2.2). We write
+//! `γ_k = k u / (1 − k u)`. Nothing here assumes a particular summation order.
+//!
+//! ## Balls
+//! A [`Ball`] `⟨m, r⟩` stands for an exact real number `x` with `|x − m| ≤ r`; `m`, `r` are
+//! floats. A sum of `k` products of balls, `Σ a_i b_i`, computed by [`Dot`] as
+//! `s = fl(Σ m(a_i) m(b_i))`, satisfies (Higham eq. (3.5) for the rounding, the triangle
+//! inequality for the radii)
+//!
+//! `|Σ a_i b_i − s| ≤ γ_k Σ |m(a_i) m(b_i)| + Σ (|m(a_i)| r(b_i) + r(a_i)(|m(b_i)| + r(b_i)))`,
+//!
+//! a non-negative expression that is itself evaluated in floating point and then passed
+//! through [`up`], which returns a float no smaller than the exact value of such an
+//! expression of at most `k` rounded operations: `x̂ (1 + 2γ_{k+2}) + (k + 2)·2⁻¹⁰⁰⁰` (the
+//! relative factor covers `x ≤ x̂ / (1 − γ_k)` and the rounding of the product itself; the
+//! absolute term covers underflow). [`Dot`] charges `2k + 8` operations, more than it uses.
+//!
+//! ## Proving a matrix positive semidefinite
+//! [`is_psd`] proves that **every** symmetric `X` with `|X − M| ≤ R` entrywise is positive
+//! semidefinite (`M` symmetric floats, `R ≥ 0`): with `e ≥ ‖R‖_F ≥ ‖X − M‖₂`,
+//! `t = Σ |M_ii|`, `d = max |M_ii|`, `a = γ_{N+1} / (1 − γ_{N+1})` and the shift
+//! `s = 2 (e + a t + u d) + 64 (N + 2)(2N + d) 2⁻¹⁰²²`, it runs a floating-point Cholesky
+//! factorization of `B = fl(M − s I)`. If it completes with positive pivots, then
+//! `R̃ᵀR̃ = B + ΔB` with `|ΔB| ≤ γ_{N+1} |R̃ᵀ||R̃|` (Demmel 1989; Higham Thm. 10.3), so
+//! `‖ΔB‖₂ ≤ γ_{N+1} ‖R̃‖_F² ≤ a · Σ|B_ii|` (take the trace of `R̃ᵀR̃ = B + ΔB`), and
+//! `B ⪰ −a Σ|B_ii| I`. With `|B_ii − (M_ii − s)| ≤ u |B_ii|` and `Σ |B_ii| ≤ (t + N s)(1 + u)`:
+//!
+//! `X ⪰ M − e I = B + s I + (M − s I − B) − e I ⪰ (s − e − a (t + N s)(1 + u) − u (d + s)(1 + u)) I ⪰ 0`,
+//!
+//! because `a N ≤ 10⁻²` for every size used here, so the bracket is at least
+//! `0.98 s − 1.01 (e + a t + u d) > 0`. The last term of `s` covers underflow, as in Rump,
+//! "Verification of positive definiteness", BIT 46 (2006), whose criterion this is (with
+//! the interval radius `R` added through Weyl's inequality). The test can fail on a matrix
+//! that is positive semidefinite but too close to singular; callers then enlarge a margin
+//! and try again. It never succeeds on one that is not.
+
+use nalgebra::DMatrix;
+
+/// Unit roundoff of `f64` (round to nearest).
+pub(crate) const U: f64 = f64::EPSILON / 2.0;
+
+/// `2⁻¹⁰⁰⁰`: the absolute slack per operation that covers underflow (any underflow error is
+/// at most `2⁻¹⁰⁷⁵`).
+const TINY: f64 = 9.332636185032189e-302;
+
+/// `γ_k = k u / (1 − k u)`.
+pub(crate) fn gamma(k: usize) -> f64 {
+    let ku = k as f64 * U;
+    ku / (1.0 - ku)
+}
+
+/// A float no smaller than the exact value `x ≥ 0` of an expression of at most `k` rounded
+/// operations on non-negative numbers whose computed value is `x_hat` (module docs).
+pub(crate) fn up(x_hat: f64, k: usize) -> f64 {
+    x_hat.max(0.0) * (1.0 + 2.0 * gamma(k + 2)) + (k as f64 + 2.0) * TINY
+}
+
+/// A float no larger than the exact value `x ≥ 0` of such an expression (never negative).
+pub(crate) fn down(x_hat: f64, k: usize) -> f64 {
+    (x_hat * (1.0 - 2.0 * gamma(k + 2)) - (k as f64 + 2.0) * TINY).max(0.0)
+}
+
+/// An exact real number `x` known only to lie in `[mid − rad, mid + rad]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Ball {
+    /// The float the number is computed as.
+    pub mid: f64,
+    /// A proven bound on the distance to the exact number.
+    pub rad: f64,
+}
+
+impl Ball {
+    /// A float, exactly.
+    pub(crate) fn exact(x: f64) -> Self {
+        Self { mid: x, rad: 0.0 }
+    }
+
+    /// A float no smaller than the number.
+    pub(crate) fn upper(self) -> f64 {
+        // mid + rad rounded to nearest can fall below by u|s|; 4u|s| more, rounded, cannot.
+        let s = self.mid + self.rad;
+        s + up(4.0 * U * s.abs(), 1)
+    }
+
+    /// A float no larger than the number.
+    pub(crate) fn lower(self) -> f64 {
+        let s = self.mid - self.rad;
+        s - up(4.0 * U * s.abs(), 1)
+    }
+
+    /// `x · y`.
+    pub(crate) fn mul(self, other: Ball) -> Self {
+        let mid = self.mid * other.mid;
+        Self {
+            mid,
+            rad: up(
+                self.mid.abs() * other.rad + self.rad * (other.mid.abs() + other.rad) + U * mid.abs(),
+                6,
+            ),
+        }
+    }
+
+    /// `1 / x`, when the ball lies in `(0, ∞)`.
+    pub(crate) fn recip(self) -> Option<Self> {
+        let lo = self.lower();
+        if !(lo > 0.0) || !self.mid.is_finite() {
+            return None;
+        }
+        // |1/x − 1/m| = |m − x| / (x m) ≤ r / (lo m); fl(1/m) adds u/m.
+        let mid = 1.0 / self.mid;
+        let rad = up(self.rad / (lo * self.mid) + U * mid.abs(), 6);
+        Some(Self { mid, rad })
+    }
+}
+
+/// `Σ a_i b_i` over balls with a proven radius (module docs).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Dot {
+    sum: f64,
+    abs: f64,
+    rad: f64,
+    terms: usize,
+}
+
+impl Dot {
+    pub(crate) fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds `a·b`.
+    pub(crate) fn add_prod(&mut self, a: Ball, b: Ball) {
+        let p = a.mid * b.mid;
+        self.sum += p;
+        self.abs += p.abs();
+        self.rad += a.mid.abs() * b.rad + a.rad * (b.mid.abs() + b.rad);
+        self.terms += 1;
+    }
+
+    /// Adds `a·b` for two floats.
+    pub(crate) fn add_exact_prod(&mut self, a: f64, b: f64) {
+        let p = a * b;
+        self.sum += p;
+        self.abs += p.abs();
+        self.terms += 1;
+    }
+
+    /// Adds `a`.
+    pub(crate) fn add(&mut self, a: Ball) {
+        self.sum += a.mid;
+        self.abs += a.mid.abs();
+        self.rad += a.rad;
+        self.terms += 1;
+    }
+
+    /// The sum with its proven radius.
+    pub(crate) fn ball(&self) -> Ball {
+        let k = self.terms + 1;
+        Ball {
+            mid: self.sum,
+            rad: up(gamma(k) * self.abs + self.rad, 2 * k + 8),
+        }
+    }
+}
+
+/// A matrix of balls: the exact matrix `X` satisfies `|X − mid| ≤ rad` entrywise.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct BallMatrix {
+    pub mid: DMatrix<f64>,
+    pub rad: DMatrix<f64>,
+}
+
+impl BallMatrix {
+    /// A float matrix, exactly.
+    pub(crate) fn exact(m: &DMatrix<f64>) -> Self {
+        Self {
+            mid: m.clone(),
+            rad: DMatrix::zeros(m.nrows(), m.ncols()),
+        }
+    }
+
+    /// Builds a matrix entry by entry.
+    pub(crate) fn from_fn(rows: usize, cols: usize, mut f: impl FnMut(usize, usize) -> Ball) -> Self {
+        let mut mid = DMatrix::zeros(rows, cols);
+        let mut rad = DMatrix::zeros(rows, cols);
+        for c in 0..cols {
+            for r in 0..rows {
+                let b = f(r, c);
+                mid[(r, c)] = b.mid;
+                rad[(r, c)] = b.rad;
+            }
+        }
+        Self { mid, rad }
+    }
+
+    /// Entry `(r, c)`.
+    pub(crate) fn at(&self, r: usize, c: usize) -> Ball {
+        Ball {
+            mid: self.mid[(r, c)],
+            rad: self.rad[(r, c)],
+        }
+    }
+
+    /// `I − M` for a float matrix `M` (the gain `K_b = I − K_a`, exactly as a ball).
+    pub(crate) fn identity_minus(m: &DMatrix<f64>) -> Self {
+        Self::from_fn(m.nrows(), m.ncols(), |r, c| {
+            if r == c {
+                let d = 1.0 - m[(r, c)];
+                Ball {
+                    mid: d,
+                    rad: up(U * d.abs(), 1),
+                }
+            } else {
+                Ball::exact(-m[(r, c)])
+            }
+        })
+    }
+
+    /// The same matrices with an exactly symmetric `mid`: `(M + Mᵀ)/2`, the difference and
+    /// the rounding added to the radius (for a ball matrix that stands for a symmetric
+    /// matrix but was computed entry by entry in different orders).
+    pub(crate) fn symmetrized(&self) -> Self {
+        let k = self.mid.nrows();
+        Self::from_fn(k, k, |x, y| {
+            let (a, c) = (self.mid[(x, y)], self.mid[(y, x)]);
+            let mid = 0.5 * (a + c);
+            Ball {
+                mid,
+                rad: up(
+                    self.rad[(x, y)].max(self.rad[(y, x)]) + 0.5 * (a - c).abs() + U * mid.abs(),
+                    4,
+                ),
+            }
+        })
+    }
+
+    /// `tr A`.
+    pub(crate) fn trace(&self) -> Ball {
+        let mut d = Dot::new();
+        for i in 0..self.mid.nrows().min(self.mid.ncols()) {
+            d.add(self.at(i, i));
+        }
+        d.ball()
+    }
+}
+
+/// Proves that every symmetric `X` with `|X − mid| ≤ rad` is positive semidefinite (module
+/// docs); `false` means "not proven", not "indefinite". `mid` must be exactly symmetric.
+pub(crate) fn is_psd(mid: &DMatrix<f64>, rad: &DMatrix<f64>) -> bool {
+    let n = mid.nrows();
+    if n == 0 {
+        return true;
+    }
+    if mid.ncols() != n
+        || rad.shape() != mid.shape()
+        || mid.iter().chain(rad.iter()).any(|x| !x.is_finite())
+        || (0..n).any(|i| (0..i).any(|j| mid[(i, j)] != mid[(j, i)]))
+    {
+        return false;
+    }
+    let e = up(rad.iter().map(|r| r * r).sum::<f64>().sqrt(), n * n + 4);
+    let t = up((0..n).map(|i| mid[(i, i)].abs()).sum::<f64>(), n + 2);
+    let d = (0..n).map(|i| mid[(i, i)].abs()).fold(0.0, f64::max);
+    let g = gamma(n + 1);
+    let a = up(g / (1.0 - g), 4);
+    if a * n as f64 > 1e-2 {
+        return false;
+    }
+    let underflow = 64.0 * (n as f64 + 2.0) * (2.0 * n as f64 + d) * f64::MIN_POSITIVE;
+    let s = up(2.0 * (e + a * t + U * d) + underflow, 8);
+    let mut b = mid.clone();
+    for i in 0..n {
+        b[(i, i)] -= s;
+    }
+    cholesky_succeeds(&b)
+}
+
+/// Plain floating-point Cholesky `B = R̃ᵀR̃`; whether every pivot is positive (and finite).
+fn cholesky_succeeds(b: &DMatrix<f64>) -> bool {
+    let n = b.nrows();
+    // Column-major upper factor R, stored densely.
+    let mut r = DMatrix::<f64>::zeros(n, n);
+    for j in 0..n {
+        for i in 0..j {
+            let mut s = b[(i, j)];
+            for k in 0..i {
+                s -= r[(k, i)] * r[(k, j)];
+            }
+            r[(i, j)] = s / r[(i, i)];
+        }
+        let mut s = b[(j, j)];
+        for k in 0..j {
+            s -= r[(k, j)] * r[(k, j)];
+        }
+        if !(s > 0.0) || !s.is_finite() {
+            return false;
+        }
+        r[(j, j)] = s.sqrt();
+    }
+    true
+}
+
+/// A float `s ≥ 0` with `λ_min(X) ≥ −s` proven for every `X` of the ball matrix (symmetric
+/// `mid`): the smallest of `0, s₀, 2s₀, 4s₀, …` (from an eigenvalue estimate) for which
+/// [`is_psd`] proves `X + s I ⪰ 0`, with `mid + s I` formed in floating point and its
+/// rounding added to the radius. `None` if no shift up to `2⁴⁰` times the estimate works.
+pub(crate) fn psd_shift(m: &BallMatrix) -> Option<f64> {
+    let n = m.mid.nrows();
+    if is_psd(&m.mid, &m.rad) {
+        return Some(0.0);
+    }
+    let estimate = -nalgebra::SymmetricEigen::new(m.mid.clone())
+        .eigenvalues
+        .min();
+    let scale = m.mid.amax().max(m.rad.amax()).max(f64::MIN_POSITIVE);
+    let mut shift = up(estimate.max(0.0) + 1e-15 * scale, 2);
+    for _ in 0..40 {
+        let mut mid = m.mid.clone();
+        let mut rad = m.rad.clone();
+        for i in 0..n {
+            mid[(i, i)] += shift;
+            rad[(i, i)] = up(rad[(i, i)] + U * mid[(i, i)].abs(), 3);
+        }
+        if is_psd(&mid, &rad) {
+            return Some(shift);
+        }
+        shift *= 2.0;
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn identity_is_proven_and_a_negative_eigenvalue_never_is() {
+        assert!(is_psd(&DMatrix::identity(5, 5), &DMatrix::zeros(5, 5)));
+        // [[1, 1], [1, 1 − 1e-12]] has λ_min ≈ −5e-13: not PSD, must not be proven.
+        let m = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0 - 1e-12]);
+        assert!(!is_psd(&m, &DMatrix::zeros(2, 2)));
+        // Singular PSD [[1, 1], [1, 1]]: not provable (a margin is needed), never claimed.
+        let s = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        assert!(!is_psd(&s, &DMatrix::zeros(2, 2)));
+        // A radius larger than the smallest eigenvalue: not proven.
+        let d = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![1.0, 1e-3]));
+        assert!(is_psd(&d, &DMatrix::from_element(2, 2, 1e-5)));
+        assert!(!is_psd(&d, &DMatrix::from_element(2, 2, 2e-3)));
+    }
+
+    #[test]
+    fn shift_brackets_the_smallest_eigenvalue() {
+        let m = DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, -1.0]);
+        let lmin = nalgebra::SymmetricEigen::new(m.clone()).eigenvalues.min();
+        let s = psd_shift(&BallMatrix::exact(&m)).unwrap();
+        assert!(s >= -lmin && s <= -2.0 * lmin + 1e-12, "{s} vs {lmin}");
+    }
+
+    #[test]
+    fn dot_radius_covers_cancellation() {
+        // 1e16 + 1 − 1e16 computed in floats is 0 or 2; the exact value is 1.
+        let mut d = Dot::new();
+        d.add(Ball::exact(1e16));
+        d.add(Ball::exact(1.0));
+        d.add(Ball::exact(-1e16));
+        let b = d.ball();
+        assert!((b.mid - 1.0).abs() <= b.rad, "{b:?}");
+        assert!(b.lower() <= 1.0 && b.upper() >= 1.0);
+        let inv = Ball::exact(3.0).recip().unwrap();
+        assert!(inv.lower() <= 1.0 / 3.0 && inv.upper() >= 1.0 / 3.0);
+    }
+}
