@@ -60,6 +60,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let dims = arg_list(&args, "--dims", &[2, 3]);
     let count = arg_list(&args, "--count", &[50])[0];
+    let verbose = args.iter().any(|a| a == "--verbose");
     let levels: Vec<u32> = arg_list(&args, "--levels", &[1, 2, 3])
         .into_iter()
         .map(|l| l as u32)
@@ -102,6 +103,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         ..CutsSettings::default()
                     },
                 )?;
+                if verbose {
+                    eprintln!(
+                        "{class} #{done}: lower {:.10} (dual {:.10}) stop {:?} it {} cons {}",
+                        cuts.lower_bound, cuts.dual_objective, cuts.stop, cuts.iterations, cuts.constraints
+                    );
+                }
                 let nm = non_monolithic_ci(&p, Criterion::Trace)?;
                 let nm_upper = nmci_upper_bound(&p, &nm).unwrap_or(f64::INFINITY);
                 for (k, &level) in levels.iter().enumerate() {
@@ -121,6 +128,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         upper_rule: UpperRule::Certified,
                     };
                     gaps[k].push(bracket.gap_relative());
+                    if verbose {
+                        eprintln!("  level {level}: upper {upper:.10} gap {:.1e}", bracket.gap_relative());
+                    }
                 }
             }
             for (k, level) in levels.iter().enumerate() {

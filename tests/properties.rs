@@ -72,7 +72,7 @@ proptest! {
             pa: rows(&raw_a), pb: rows(&raw_b), xa: None, xb: None, pab_unknown: None,
             method: if method == "ci" { Method::Ci } else { Method::Nmci },
             criterion: None, samples: None, seed: None, max_trials: None,
-            sampler: None,
+            sampler: None, time_limit: None, level: None,
             estimates: None,
             patterns: None,
         };

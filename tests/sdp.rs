@@ -229,15 +229,18 @@ fn certified_gap_brackets_the_robust_optimum() {
     for samples in [100, 300] {
         let r = fuse(&request(diagonal, samples, 4)).unwrap();
         let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
-        assert_eq!(
-            upper, 2.0,
-            "nmCI's diag(1, 1) is the best conservative rule"
+        // The robust optimum is exactly 2 here (separable pattern: nmCI's diag(1, 1) is
+        // optimal, Reinhardt et al. 2015 per block): both proven ends must enclose it, the
+        // upper one by no more than its rounding.
+        assert!(lower <= 2.0 && 2.0 <= upper, "[{lower}, {upper}] misses 2");
+        assert!(upper <= 2.0 * (1.0 + 1e-14), "upper {upper}");
+        assert!(lower >= 2.0 * (1.0 - 1e-6), "lower {lower}");
+        assert!(
+            r.upper_bound_rule == Some(Method::Nmci) || r.upper_bound_rule == Some(Method::Certified),
+            "{:?}",
+            r.upper_bound_rule
         );
-        assert_eq!(r.upper_bound_rule, Some(Method::Nmci));
-        assert!(lower <= upper + 1e-9, "{lower} > {upper}");
-        assert!(r.gap.unwrap() <= 1e-6, "gap {:?}", r.gap);
-        assert!((r.gap.unwrap() - (upper - lower)).abs() < 1e-15);
-        assert!((r.gap_relative.unwrap() - (upper - lower) / upper).abs() < 1e-15);
+        assert!(r.gap.unwrap() >= upper - lower && r.gap.unwrap() <= 1e-6, "gap {:?}", r.gap);
     }
     // Fully unknown P_ab: CI is optimal (and nmCI is CI); the bracket holds.
     let r = fuse(&request(full, 100, 5)).unwrap();
@@ -249,7 +252,7 @@ fn certified_gap_brackets_the_robust_optimum() {
     .unwrap();
     let ci = covariance_intersection(&fully_unknown, Criterion::Trace).unwrap();
     assert!((r.upper_bound.unwrap() - ci.fused.trace()).abs() < 1e-12);
-    assert!(r.lower_bound.unwrap() <= r.upper_bound.unwrap() + 1e-9);
+    assert!(r.lower_bound.unwrap() <= r.upper_bound.unwrap());
     // Random problems and patterns: never lower > upper; the response serializes the keys.
     let mut rng = rng(77);
     for (n, prob) in [(2usize, 0.5), (3, 0.4), (3, 1.0), (4, 0.3)] {
@@ -275,13 +278,16 @@ fn certified_gap_brackets_the_robust_optimum() {
             seed: Some(1),
             max_trials: None,
             sampler: None,
+            time_limit: None,
+            level: None,
             estimates: None,
             patterns: None,
         };
         let r = fuse(&req).unwrap();
         let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
-        assert!(lower <= upper + 1e-7 * upper, "n={n}: {lower} > {upper}");
-        assert!(lower <= r.trace + 1e-7 * r.trace, "dual above primal");
+        // Both ends proven: no tolerance.
+        assert!(lower <= upper, "n={n}: {lower} > {upper}");
+        assert!(lower > 0.0, "n={n}: a trivial lower bound");
         let json = serde_json::to_value(&r).unwrap();
         for key in [
             "lower_bound",

@@ -566,12 +566,49 @@ mod cli {
         }
     }
 
+    /// Runs a request; a solve that takes more than a second gets a progress line on stderr
+    /// (elapsed time, and the request's `time_limit` when it has one).
+    fn fuse_with_progress(text: &str) -> Result<String, String> {
+        use indicatif::{ProgressBar, ProgressStyle};
+        use std::sync::mpsc;
+        use std::time::Duration;
+        let (tx, rx) = mpsc::channel();
+        let request = text.to_string();
+        let worker = std::thread::spawn(move || {
+            let out = nmci::fuse_json(&request).map_err(|e| e.to_string());
+            let _ = tx.send(());
+            out
+        });
+        if rx.recv_timeout(Duration::from_secs(1)).is_err() {
+            let method = serde_json::from_str::<serde_json::Value>(text)
+                .ok()
+                .and_then(|v| {
+                    let m = v.get("method")?.as_str()?.to_string();
+                    let limit = v.get("time_limit").and_then(|t| t.as_f64());
+                    Some(match limit {
+                        Some(t) => format!("{m} (time limit {t} s)"),
+                        None => m,
+                    })
+                })
+                .unwrap_or_else(|| "the request".into());
+            let bar = ProgressBar::new_spinner().with_style(
+                ProgressStyle::with_template("{spinner} solving {msg}: {elapsed}")
+                    .expect("a valid template"),
+            );
+            bar.set_message(method);
+            bar.enable_steady_tick(Duration::from_millis(200));
+            let _ = rx.recv();
+            bar.finish_and_clear();
+        }
+        worker
+            .join()
+            .unwrap_or_else(|_| Err("the solve panicked (a bug: please report it)".into()))
+    }
+
     pub fn main() -> ExitCode {
         let cli = Cli::parse();
         let result = match cli.command {
-            Command::Fuse { file } => {
-                read_input(file).and_then(|text| nmci::fuse_json(&text).map_err(|e| e.to_string()))
-            }
+            Command::Fuse { file } => read_input(file).and_then(|text| fuse_with_progress(&text)),
             Command::Track {
                 config,
                 runs,

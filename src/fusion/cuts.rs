@@ -317,9 +317,26 @@ pub fn optimal_fusion_cuts(
         for start in starts {
             found.push(worst_case_search(problem, &opt.fused, start, settings)?);
         }
-        let violation = found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
+        let mut violation = found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
         let gap_closed = certified_trace
             .is_some_and(|upper| best_lower >= upper - settings.tolerance * upper.max(1.0));
+        if violation <= threshold && !gap_closed && certified_trace.is_some() {
+            // The local search found nothing but the proven bracket is still open: before
+            // stopping, look for violations from random admissible points too (module docs).
+            let mut extra =
+                random_search(problem, &opt.fused, settings, iterations as u64, threshold)?;
+            for _ in 0..OPEN_BRACKET_STARTS * settings.restarts {
+                let v = DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0)).normalize();
+                let f = worst_case_search(problem, &opt.fused, v, settings)?;
+                if f.0 > threshold {
+                    extra.push(f);
+                }
+            }
+            if !extra.is_empty() {
+                violation = extra.iter().map(|f| f.0).fold(violation, f64::max);
+                found.extend(extra);
+            }
+        }
         let converged = violation <= threshold || gap_closed;
         let timed_out = deadline.passed();
         if converged || timed_out || iterations >= settings.max_iterations {
@@ -447,6 +464,47 @@ fn prune(
     }
     Ok(Some((reduced, kept, violation.max(found))))
 }
+
+/// Admissible cross-covariances drawn at random (hit-and-run, [`RANDOM_SEARCH_SAMPLES`]):
+/// the most violated ones, each polished by the worst-case search from the top eigenvector of
+/// its violation (at most `restarts`; empty when none is violated beyond `threshold`).
+#[allow(non_snake_case)]
+fn random_search(
+    problem: &FusionProblem,
+    fused: &Fused,
+    settings: &CutsSettings,
+    round: u64,
+    threshold: f64,
+) -> Result<Vec<(f64, DMatrix<f64>)>, SolveError> {
+    let drawn = sample_cross_covariances(
+        problem,
+        RANDOM_SEARCH_SAMPLES,
+        settings.seed ^ (0xC0FFEE + round),
+        SamplerSettings::hit_and_run(),
+    )?;
+    let mut scored: Vec<(f64, usize)> = drawn
+        .cross
+        .iter()
+        .enumerate()
+        .map(|(i, P_ab)| (-conservativeness_margin(problem, fused, P_ab), i))
+        .filter(|(v, _)| *v > threshold)
+        .collect();
+    scored.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut out = Vec::new();
+    for &(_, i) in scored.iter().take(settings.restarts) {
+        let (_, v) = top_eigen(&violation_matrix(problem, fused, &drawn.cross[i]));
+        out.push(worst_case_search(problem, fused, v, settings)?);
+    }
+    Ok(out)
+}
+
+/// Extra random starting directions (times `restarts`) of the worst-case search when the
+/// local search finds no violation but the proven bracket is open.
+const OPEN_BRACKET_STARTS: usize = 4;
+
+/// Random admissible points tried when the local search finds no violation but the proven
+/// bracket is open.
+const RANDOM_SEARCH_SAMPLES: usize = 2000;
 
 /// `K P' Kᵀ − P̄` for one cross-covariance.
 #[allow(non_snake_case)]
