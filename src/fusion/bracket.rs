@@ -190,36 +190,34 @@ pub fn nmci_upper_bound(problem: &FusionProblem, nm: &NmciResult) -> Option<f64>
     Some(total.ball().upper())
 }
 
-/// `tr(K P Kᵀ)` as a ball, `K` a ball matrix and `P` floats.
-#[allow(non_snake_case)]
-fn quadratic_trace(K: &BallMatrix, P: &DMatrix<f64>) -> Ball {
-    let n = P.nrows();
-    let mut d = Dot::new();
-    for k in 0..K.mid.nrows() {
-        for p in 0..n {
-            for q in 0..n {
-                if P[(p, q)] != 0.0 {
-                    d.add_prod(K.at(k, p).mul(K.at(k, q)), Ball::exact(P[(p, q)]));
-                }
-            }
-        }
-    }
-    d.ball()
-}
-
 #[allow(non_snake_case)]
 fn weighted_upper(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>, K_a: &DMatrix<f64>, omega: f64) -> Option<f64> {
+    young_bound(P_a, P_b, K_a, omega).map(|m| m.trace().upper())
+}
+
+/// `ω⁻¹ K_a P_a K_aᵀ + (1−ω)⁻¹ K_b P_b K_bᵀ` (`K_b = I − K_a` exactly) as a ball matrix: for
+/// every `J ⪰ 0` with diagonal blocks `P_a`, `P_b` it dominates `K J Kᵀ` (Young's inequality,
+/// module docs). `ω ∈ {0, 1}` only with `K_a = 0`, resp. `K_a = I` (then `K J Kᵀ` is the one
+/// term); `None` otherwise or for `ω ∉ [0, 1]`.
+#[allow(non_snake_case)]
+pub(crate) fn young_bound(
+    P_a: &DMatrix<f64>,
+    P_b: &DMatrix<f64>,
+    K_a: &DMatrix<f64>,
+    omega: f64,
+) -> Option<BallMatrix> {
     let n = P_a.nrows();
     let K_b = BallMatrix::identity_minus(K_a);
-    let a = quadratic_trace(&BallMatrix::exact(K_a), P_a);
-    let b = quadratic_trace(&K_b, P_b);
+    let Ka = BallMatrix::exact(K_a);
+    let a = Ka.mul(&BallMatrix::exact(P_a)).mul(&Ka.transpose());
+    let b = K_b.mul(&BallMatrix::exact(P_b)).mul(&K_b.transpose());
     if omega == 0.0 {
-        // K J Kᵀ = K_b P_b K_bᵀ when K_a = 0 exactly.
-        return K_a.iter().all(|&k| k == 0.0).then(|| b.upper());
+        return K_a.iter().all(|&k| k == 0.0).then_some(b);
     }
     if omega == 1.0 {
-        let identity = (0..n).all(|i| (0..n).all(|j| K_a[(i, j)] == if i == j { 1.0 } else { 0.0 }));
-        return identity.then(|| a.upper());
+        let identity =
+            (0..n).all(|i| (0..n).all(|j| K_a[(i, j)] == if i == j { 1.0 } else { 0.0 }));
+        return identity.then_some(a);
     }
     if !(omega > 0.0 && omega < 1.0) {
         return None;
@@ -231,10 +229,29 @@ fn weighted_upper(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>, K_a: &DMatrix<f64>, om
         rad: up(U * one_minus, 1),
     }
     .recip()?;
-    let mut d = Dot::new();
-    d.add_prod(wa, a);
-    d.add_prod(wb, b);
-    Some(d.ball().upper())
+    Some(BallMatrix::from_fn(n, n, |i, j| {
+        let mut d = Dot::new();
+        d.add_prod(wa, a.at(i, j));
+        d.add_prod(wb, b.at(i, j));
+        d.ball()
+    }))
+}
+
+/// The `ω` minimising `tr` of [`young_bound`] for a fixed gain: `√A / (√A + √B)` with
+/// `A = tr K_a P_a K_aᵀ`, `B = tr K_b P_b K_bᵀ` (any `ω` gives a valid bound).
+#[allow(non_snake_case)]
+pub(crate) fn young_omega(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>, K_a: &DMatrix<f64>) -> f64 {
+    let n = P_a.nrows();
+    let K_b = DMatrix::identity(n, n) - K_a;
+    let a = (K_a * P_a * K_a.transpose()).trace().max(0.0).sqrt();
+    let b = (&K_b * P_b * K_b.transpose()).trace().max(0.0).sqrt();
+    if a == 0.0 {
+        0.0
+    } else if b == 0.0 {
+        1.0
+    } else {
+        a / (a + b)
+    }
 }
 
 /// A proven lower bound on the robust optimum `V*` of `problem` from admissible cross blocks

@@ -96,6 +96,7 @@ impl Ball {
     }
 
     /// `x · y`.
+    #[allow(dead_code)]
     pub(crate) fn mul(self, other: Ball) -> Self {
         let mid = self.mid * other.mid;
         Self {
@@ -220,6 +221,40 @@ impl BallMatrix {
                 Ball::exact(-m[(r, c)])
             }
         })
+    }
+
+    /// `A B`.
+    pub(crate) fn mul(&self, other: &BallMatrix) -> Self {
+        Self::from_fn(self.mid.nrows(), other.mid.ncols(), |r, c| {
+            let mut d = Dot::new();
+            for k in 0..self.mid.ncols() {
+                d.add_prod(self.at(r, k), other.at(k, c));
+            }
+            d.ball()
+        })
+    }
+
+    /// `Aᵀ`.
+    pub(crate) fn transpose(&self) -> Self {
+        Self {
+            mid: self.mid.transpose(),
+            rad: self.rad.transpose(),
+        }
+    }
+
+    /// A symmetric float matrix `P` with `P ⪰ X` for every symmetric `X` of the ball: the
+    /// symmetrized `mid` plus `ρ ≥ ‖rad‖_F` (and the rounding of the addition) on the
+    /// diagonal, so `P − X ⪰ (ρ − ‖X − mid‖₂) I ⪰ 0`.
+    pub(crate) fn dominating(&self) -> DMatrix<f64> {
+        let s = self.symmetrized();
+        let n = s.mid.nrows();
+        let rho = up(s.rad.iter().map(|r| r * r).sum::<f64>().sqrt(), n * n + 4);
+        let mut p = s.mid.clone();
+        for i in 0..n {
+            let add = up(rho + 2.0 * U * (p[(i, i)].abs() + rho), 4);
+            p[(i, i)] += add;
+        }
+        p
     }
 
     /// The same matrices with an exactly symmetric `mid`: `(M + Mᵀ)/2`, the difference and
