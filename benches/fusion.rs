@@ -7,8 +7,8 @@
 //! Issue 6: `ici/trace/112`, `ci_nway/5x14`.
 //! Issue 5: `sample/hit_and_run/14x1000` (≥ 1000 samples/s), `sdp_cuts/paper` (the paper's
 //! example by cutting planes) and `sdp_cuts/random6` (a random 6-D problem, each entry of
-//! `P_ab` unknown with probability 0.6: no independent blocks); the certified rule
-//! `certified/paper_one_zero`, `certified/random4`.
+//! `P_ab` unknown with probability 0.6: no independent blocks); the certified rule per level
+//! `certified/<level>/paper_one_zero`, `certified/<level>/random3`, `certified/1/random4`.
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
@@ -191,9 +191,9 @@ criterion_group! {
     config = Bench::default().sample_size(20).measurement_time(std::time::Duration::from_secs(3));
     targets = benches
 }
-/// The certified rule: the paper's example with only `P_ab[2,1]` known to be zero (nmCI = CI
-/// = 3.088; certified 2.000, proven optimal) and a random 4-D problem (`P_ab` entries unknown
-/// with probability 0.6).
+/// The certified rule per level: the paper's example with only `P_ab[2,1]` known to be zero
+/// (nmCI = CI = 3.088; certified 2.000, proven optimal), a random non-separable 3-D problem
+/// (`P_ab` entries unknown with probability 0.6) and a random 4-D one (level 1).
 fn certified_benches(c: &mut Bench) {
     let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
     let one_zero = FusionProblem::from_covariances(
@@ -202,10 +202,35 @@ fn certified_benches(c: &mut Bench) {
         CrossPattern::from_fn(2, |i, j| !(i == 1 && j == 0)),
     )
     .unwrap();
-    let settings = CertifySettings::default();
-    c.bench_function("certified/paper_one_zero", |b| {
-        b.iter(|| certified_fusion(black_box(&one_zero), &settings).unwrap())
-    });
+    let level = |l: u32| CertifySettings {
+        level: Some(l),
+        ..CertifySettings::default()
+    };
+    for l in 1..=5 {
+        c.bench_function(&format!("certified/{l}/paper_one_zero"), |b| {
+            b.iter(|| certified_fusion(black_box(&one_zero), &level(l)).unwrap())
+        });
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let random3 = loop {
+        let unknown = DMatrix::from_fn(3, 3, |_, _| rng.random_bool(0.6));
+        let p = FusionProblem::from_covariances(
+            random_spd(3, &mut rng),
+            random_spd(3, &mut rng),
+            CrossPattern::from_matrix(unknown).unwrap(),
+        )
+        .unwrap();
+        if independent_blocks(&p.P_a, &p.P_b, &p.cross_pattern).len() == 1
+            && p.cross_pattern.unknown_count() < 9
+        {
+            break p;
+        }
+    };
+    for l in 1..=3 {
+        c.bench_function(&format!("certified/{l}/random3"), |b| {
+            b.iter(|| certified_fusion(black_box(&random3), &level(l)).unwrap())
+        });
+    }
     let mut rng = ChaCha8Rng::seed_from_u64(6);
     let unknown = DMatrix::from_fn(4, 4, |_, _| rng.random_bool(0.6));
     let random4 = FusionProblem::from_covariances(
@@ -214,8 +239,8 @@ fn certified_benches(c: &mut Bench) {
         CrossPattern::from_matrix(unknown).unwrap(),
     )
     .unwrap();
-    c.bench_function("certified/random4", |b| {
-        b.iter(|| certified_fusion(black_box(&random4), &settings).unwrap())
+    c.bench_function("certified/1/random4", |b| {
+        b.iter(|| certified_fusion(black_box(&random4), &level(1)).unwrap())
     });
 }
 

@@ -55,9 +55,9 @@ pub enum Method {
 }
 
 /// The certified rule joins the `sdp` / `sdp_cuts` bracket's upper bound when every
-/// independent block has at most this many states (its program grows as `(2n² + 1)²`:
-/// ≈ 0.3 s at 4 states, 1.4 s at 5, 6–9 s at 6 natively). Method `"certified"` itself goes
-/// to [`CertifySettings::max_block_dim`].
+/// independent block has at most this many states (the level-1 program grows as
+/// `(2n² + 1)²`; timings in the README). Method `"certified"` itself goes to
+/// [`CertifySettings::max_block_dim`].
 pub const BRACKET_CERTIFY_MAX_BLOCK: usize = 4;
 
 /// One estimate of an N-way request.

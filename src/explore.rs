@@ -238,7 +238,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
             None,
             None,
             Some(format!(
-                "the explorer certifies independent blocks of at most {BRACKET_CERTIFY_MAX_BLOCK} states (the program grows as (2n² + 1)²); method \"certified\" of the CLI takes up to 6"
+                "the explorer certifies independent blocks of at most {BRACKET_CERTIFY_MAX_BLOCK} states (the level-1 program grows as (2n² + 1)²); method \"certified\" of the CLI takes up to 6"
             )),
         ),
         Err(e) => (None, None, Some(e.to_string())),

@@ -156,7 +156,7 @@ fn typed_errors() {
     .unwrap();
     assert_eq!(
         certified_fusion(&big, &CertifySettings::default()).unwrap_err().to_string(),
-        "the certified bound is limited to independent blocks of at most 6 states (this one has 7): its program has one PSD cone of size 2n² + 1"
+        "the certified bound is limited to independent blocks of at most 6 states (this one has 7): its PSD cone grows as 2n² at level 1 (max_block_dim)"
     );
     // Seven independent states are fine: blocks of one.
     let split = FusionProblem::from_covariances(

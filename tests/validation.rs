@@ -161,6 +161,38 @@ fn request_errors() {
             r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "method": "sdp", "samples": 50, "max_trials": 100}"#,
             "rejection sampler accepted only",
         ),
+        (
+            &format!(r#"{{{ok}, "method": "ci", "time_limit": 5}}"#),
+            "`time_limit` applies to methods \"sdp\", \"sdp_cuts\" and \"certified\" only",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "nmci", "level": 2}}"#),
+            "`level` applies to methods",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "sdp", "time_limit": -1}}"#),
+            "`time_limit` must be a positive number of seconds (got -1)",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "certified", "time_limit": 0}}"#),
+            "`time_limit` must be a positive number of seconds (got 0)",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "certified", "level": 7}}"#),
+            "`level` must be in 1..=6 (got 7)",
+        ),
+        (
+            &format!(r#"{{{ok}, "method": "certified", "level": 0}}"#),
+            "`level` must be in 1..=6 (got 0)",
+        ),
+        (
+            r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,2]], "pab_unknown": [[true,true,true,true],[true,true,true,true],[true,true,true,true],[true,true,true,false]], "method": "certified", "level": 4}"#,
+            "the level-4 certificate of a 4-state block needs a PSD cone of 300 rows, above the limit of 90 (max_cone)",
+        ),
+        (
+            r#"{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]], "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]], "method": "certified", "level": 3, "time_limit": 0.001}"#,
+            "the certified bound's SDP stopped at its time limit of 0.001 s",
+        ),
     ];
     for (json, expected) in cases {
         let err = run(json).unwrap_err();

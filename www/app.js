@@ -31,10 +31,21 @@ window.nmciStats = {
     return s[Math.floor(s.length / 2)];
   },
   runs: 0,
+  abandoned: 0,
 };
 
 // ---------- worker round trip: latest state wins, one request in flight ----------
-const worker = new Worker(new URL("./worker.js", import.meta.url), { type: "module" });
+// A solve still running ABANDON_MS after a newer edit arrived is stale: the worker is
+// terminated (wasm cannot be interrupted from outside) and a fresh one takes the newest state.
+const ABANDON_MS = 300;
+function makeWorker() {
+  const w = new Worker(new URL("./worker.js", import.meta.url), { type: "module" });
+  w.onmessage = onWorkerMessage;
+  w.onerror = (e) => showGeneral(`the worker failed: ${e.message}`);
+  return w;
+}
+let worker = null;
+let staleTimer = null;
 let nextId = 1;
 let inFlight = null; // { id, t0, state }
 let queued = null;
@@ -50,6 +61,21 @@ function submit() {
   const snapshot = structuredClone(state);
   if (inFlight) {
     queued = snapshot;
+    if (!staleTimer) {
+      const stale = inFlight.id;
+      const wait = Math.max(0, ABANDON_MS - (performance.now() - inFlight.t0));
+      staleTimer = setTimeout(() => {
+        staleTimer = null;
+        if (!inFlight || inFlight.id !== stale || !queued) return;
+        worker.terminate();
+        worker = makeWorker();
+        window.nmciStats.abandoned++;
+        inFlight = null;
+        const q = queued;
+        queued = null;
+        send(q);
+      }, wait);
+    }
     return;
   }
   send(snapshot);
@@ -62,9 +88,13 @@ function send(s) {
   worker.postMessage({ id: inFlight.id, request: request(s) });
 }
 
-worker.onmessage = (event) => {
+function onWorkerMessage(event) {
   const { id, ok, result, error } = event.data;
   if (!inFlight || id !== inFlight.id) return;
+  if (staleTimer) {
+    clearTimeout(staleTimer);
+    staleTimer = null;
+  }
   const done = inFlight;
   inFlight = null;
   if (ok) {
@@ -89,8 +119,8 @@ worker.onmessage = (event) => {
     $("busy").hidden = true;
     document.body.dataset.ready = "true";
   }
-};
-worker.onerror = (e) => showGeneral(`the worker failed: ${e.message}`);
+}
+worker = makeWorker();
 
 // ---------- errors shown inline ----------
 function clearErrors() {
@@ -469,10 +499,15 @@ function renderNumbers() {
     parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${a.sdp.status}</b>, ${a.sdp.iterations} iterations, ${a.sdp.lmis} LMIs in the final working set of ${a.sdp.samples} samples, ${state.sampler === "hit_and_run" ? "hit-and-run sampler (no rejections)" : `sampler acceptance ${(a.sdp.acceptance_rate * 100).toPrecision(3)} %`}</div>`);
   }
   if (a.gap) {
-    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(certified: SDP dual objective below, ${{ nmci: "nmCI", ci: "CI", certified: "the certified rule" }[a.gap.upper_rule]} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative</span></div>`);
+    const upperName = { nmci: "nmCI", ci: "CI", certified: "the certified rule" }[a.gap.upper_rule];
+    const level = a.gap.levels ? ` (certificate level${a.gap.levels.length > 1 ? "s" : ""} ${a.gap.levels.join(", ")})` : "";
+    const verdict = a.gap.closed
+      ? `<span id="gap-verdict" class="ok">proven optimal to 10⁻⁶: ${upperName}${a.gap.upper_rule === "certified" ? level : ""} attains the robust optimum</span>`
+      : `<span id="gap-verdict" class="open">open: the robust optimum lies between the ends${level}</span>`;
+    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(both ends proven in exact arithmetic: a Lagrangian bound from the SDP's duals below, ${upperName} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative —</span> ${verdict}</div>`);
   }
   if (a.certified) {
-    parts.push(`<div id="certified-status"><span class="k">certified rule:</span> tr P̄ ${a.certified.trace.toFixed(6)}${s.criterion !== "trace" ? " (minimises the trace; CI and nmCI above minimise log det)" : a.certified.trace < Math.min(a.ci.trace, a.nmci.trace) - 1e-9 ? ` — ${((1 - a.certified.trace / Math.min(a.ci.trace, a.nmci.trace)) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here"}, proven to dominate K P' Kᵀ for every admissible P' (status ${a.certified.status}, ${a.certified.iterations} iterations, repair ${a.certified.repair.toExponential(1)})</div>`);
+    parts.push(`<div id="certified-status"><span class="k">certified rule:</span> tr P̄ ${a.certified.trace.toFixed(6)}${s.criterion !== "trace" ? " (minimises the trace; CI and nmCI above minimise log det)" : a.certified.trace < Math.min(a.ci.trace, a.nmci.trace) - 1e-9 ? ` — ${((1 - a.certified.trace / Math.min(a.ci.trace, a.nmci.trace)) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here"}, proven to dominate K P' Kᵀ for every admissible P' (level ${(a.certified.levels || []).join(", ")}, status ${a.certified.status}, ${a.certified.iterations} iterations, repair ${a.certified.repair.toExponential(1)})</div>`);
   }
   if (a.region_error) {
     parts.push(`<div class="err" id="region-status">region: ${a.region_error}</div>`);

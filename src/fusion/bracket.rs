@@ -130,18 +130,21 @@ impl UpperBounds {
         })
     }
 
-    /// The smallest bound and its rule (ties go to nmCI, then CI: the closed-form rules).
+    /// The smallest bound and its rule. Ties go to nmCI, then CI (the closed-form rules); the
+    /// certified rule is named only when it is smaller by more than `10⁻¹²` relative (where
+    /// it takes CI's bound per block, the two differ by rounding only).
     pub fn best(&self) -> Option<(f64, UpperRule)> {
         let mut best: Option<(f64, UpperRule)> = None;
-        for (v, rule) in [
-            (self.nmci, UpperRule::Nmci),
-            (self.ci, UpperRule::Ci),
-            (self.certified, UpperRule::Certified),
-        ] {
+        for (v, rule) in [(self.nmci, UpperRule::Nmci), (self.ci, UpperRule::Ci)] {
             if let Some(v) = v {
                 if best.is_none_or(|(b, _)| v < b) {
                     best = Some((v, rule));
                 }
+            }
+        }
+        if let Some(c) = self.certified {
+            if best.is_none_or(|(b, _)| c < b * (1.0 - 1e-12)) {
+                best = Some((c, UpperRule::Certified));
             }
         }
         best

@@ -122,8 +122,10 @@ pub struct CertifySettings {
     /// The certificate's level `r ≥ 1` (module docs); `None` (default) chooses per block:
     /// [`CertifySettings::auto_level`].
     pub level: Option<u32>,
-    /// Largest PSD cone accepted (default 200 rows: the level-1 cone of a 6-state block is
-    /// 73, level 3 of a 3-state block 66, level 2 of a 4-state block 84).
+    /// Largest PSD cone accepted (default 90 rows: the level-1 cone of a 6-state block is 73,
+    /// level 3 of a 3-state block 66, level 2 of a 4-state block 84). The interior-point
+    /// solver holds a dense block of `(m(m+1)/2)²` numbers for a cone of `m` rows: 134 MB at
+    /// 90 rows, 1.7 GB at 170 (a level-3 4-state block, minutes per iteration).
     pub max_cone: usize,
     /// Wall-clock limit of each block's solve in seconds (default none); past it the solve
     /// ends with [`SolveError::TimeLimit`].
@@ -137,7 +139,7 @@ impl Default for CertifySettings {
             tolerance: 1e-10,
             max_block_dim: 6,
             level: None,
-            max_cone: 200,
+            max_cone: 90,
             time_limit: None,
         }
     }
@@ -217,11 +219,13 @@ pub struct CertifiedResult {
     pub repair: f64,
     /// The independent blocks certified separately.
     pub blocks: Vec<Vec<usize>>,
-    /// The level used on each block.
+    /// The level used on each block: the requested one, or a lower one where the solver
+    /// broke down numerically on it.
     pub levels: Vec<u32>,
     /// Per block: whether CI's proven bound (for the block's CI gain, or for the given gain
     /// with its best `ω`) was tighter than the solver's certificate and was taken instead —
-    /// the solver can end looser than CI where CI is optimal (`AlmostSolved` at high levels).
+    /// the solver can end looser than CI where CI is optimal (`AlmostSolved` at high levels),
+    /// or fail at every level (then the block's `status` is `AlmostSolved`).
     pub ci_blocks: Vec<bool>,
 }
 
@@ -335,8 +339,19 @@ fn certify(
         let sub = problem.restrict(block);
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
-        let level = settings.level_for(block.len());
-        let mut solved = certify_block(&sub, sub_gain.as_ref(), level, settings)?;
+        // The requested level, or — where the solver breaks down numerically on it — the
+        // highest lower level that solves; CI's proven bound when none does.
+        let mut level = settings.level_for(block.len());
+        let mut solved = loop {
+            match certify_block(&sub, sub_gain.as_ref(), level, settings) {
+                Ok(s) => break Some(s),
+                Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) if level > 1 => {
+                    level -= 1
+                }
+                Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => break None,
+                Err(e) => return Err(e),
+            }
+        };
         // CI's bound (Young's inequality, proven in exact arithmetic) is a level-1
         // certificate: keep it where the solver's certificate ended looser (module docs).
         let (ci_gain, omega) = match &sub_gain {
@@ -349,12 +364,24 @@ fn certify(
         let mut ci_used = false;
         if let Some(bound) = young_bound(&sub.P_a, &sub.P_b, &ci_gain, omega) {
             let P_ci = bound.dominating();
-            if trace_upper_bound(&P_ci) < trace_upper_bound(&solved.P) {
-                solved.P = P_ci;
-                solved.K_a = ci_gain;
+            let looser = match &solved {
+                Some(s) => trace_upper_bound(&P_ci) < trace_upper_bound(&s.P),
+                None => true,
+            };
+            if looser {
+                let s = solved.get_or_insert_with(|| BlockCertificate {
+                    K_a: ci_gain.clone(),
+                    P: P_ci.clone(),
+                    status: SdpStatus::AlmostSolved,
+                    iterations: 0,
+                    repair: 0.0,
+                });
+                s.P = P_ci;
+                s.K_a = ci_gain;
                 ci_used = true;
             }
         }
+        let solved = solved.ok_or_else(|| repair_failed("CI's bound"))?;
         ci_blocks.push(ci_used);
         if solved.status == SdpStatus::AlmostSolved {
             status = SdpStatus::AlmostSolved;

@@ -12,8 +12,9 @@
 //! (Clarabel). The search alternates it with the top eigenvector of `K P' Kᵀ − P̄`, from
 //! several starting directions, and stops when the violation no longer grows. The loop ends
 //! when the worst violation found is below `tolerance · max(tr P̄, 1)` or at `max_iterations`
-//! (reported, never hidden). Every program solved is a relaxation of the robust one, so its
-//! dual objective stays a lower bound on the robust optimum. A cut lies on the boundary of the
+//! (reported, never hidden). Every program solved is a relaxation of the robust one; its
+//! constraints and the solver's dual matrices give a proven lower bound on the robust
+//! optimum (`fusion::bracket`; the best over the programs solved is reported). A cut lies on the boundary of the
 //! admissible set (its joint covariance is singular, to solver tolerance); the SDP uses it
 //! through its positive semidefinite projection.
 //!
@@ -25,39 +26,28 @@
 //! problem), so on its own "converged" means no violation was *found*.
 //!
 //! ## Guided by the certified rule, cut in-out
-//! The certified rule (`fusion::certify`) is a proven upper bound on the robust optimum,
-//! and every program here has a dual objective below it. With `certify` (default) the loop
-//! (1) starts from the worst cases at the certified bound — where it is tight, i.e. the
-//! likely active constraints — found by the same search from the eigenvectors of its `P̄`,
-//! and (2) also stops when the lower bound reaches the certified trace within the tolerance
-//! (`gap_closed`): the optimum is then *proven*, not just no violation found.
-//! (3) In-out separation (Ben-Ameur & Neto): cuts taken at the relaxation's optimum
+//! The certified rule (`fusion::certify`) is a proven upper bound on the robust optimum.
+//! With `certify` (default) the loop (1) starts from the worst cases at the certified bound —
+//! where it is tight, i.e. the likely active constraints — found by the same search from the
+//! eigenvectors of its `P̄`, (2) also stops when the proven lower bound reaches the certified
+//! rule's proven trace within the tolerance (`gap_closed`): the optimum is then proven to
+//! that relative accuracy, not just "no violation found", and (3) does not stop on "no
+//! violation found" while the proven bracket is open until a wider search — 2000 random
+//! admissible points (hit-and-run) and four times as many random starting directions — has
+//! also found none.
+//! (4) In-out separation (Ben-Ameur & Neto): cuts taken at the relaxation's optimum
 //! oscillate in the tail; the search also runs at the point `α` of the way from a feasible
 //! point (the certified rule, else nmCI) to the optimum, whose cuts are deeper; when it finds
 //! no violation that point becomes the new feasible one.
 //!
-//! (4) In-out cuts are not all active at the end: after convergence the program is solved
+//! (5) In-out cuts are not all active at the end: after convergence the program is solved
 //! again on the active cuts alone (margin `≤ 10⁻⁶ max(tr P̄, 1)`), and that program is kept
 //! when its optimum is no lower, every dropped cut holds at its solution and the worst-case
 //! search from the eigenvectors of its `P̄` finds nothing new (all beyond the tolerance).
 //! `constraints` counts the final program, `constraints_generated` the whole run.
 //!
-//! Measured (release, `examples/cuts_probe.rs -- 3 4 5 6` — seed 55, `P_ab` entries unknown
-//! with probability 0.6, non-separable — and the `sdp_cuts/random6` benchmark problem;
-//! tolerance `1e-7`; LMIs in the final program, generated in brackets, against N = 1000):
-//!
-//! | n | default (guided, in-out, pruned) | plain cutting planes (session 4) |
-//! |---|---|---|
-//! | 3 | 16 (51), 16 (16) | 44, 12 |
-//! | 4 | 73 (73), 27 (73) | 107, 106 |
-//! | 5 | 37 (37), 28 (62) | 32, 124 |
-//! | 6 | 44 (117), 53 (134) | — |
-//! | 6 (`random6`) | 97 (97; 30 iterations, 35 s: pruning declined) | 174 (59 iterations, 70 s) |
-//!
-//! so ≥ 10× fewer LMIs than N = 1000 in every case (≥ 13×). The gap closed outright in 2 of
-//! these runs; elsewhere the certificate is not tight (its family is a relaxation) and the
-//! violation test stops the loop. `converged: false` reports an iteration limit; a solver
-//! failure is returned as an error.
+//! `converged: false` reports an iteration or time limit (`stop` says which); a solver
+//! failure is returned as an error. Measurements: README (`examples/cuts_probe.rs`).
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
