@@ -279,3 +279,92 @@ fn the_parallel_study_split_by_rule_is_the_sequential_study_bit_for_bit() {
         assert_eq!(trace, &sequential, "run {r}");
     }
 }
+
+#[test]
+fn an_explicit_edge_list_equal_to_rings_and_bridges_gives_bit_identical_studies() {
+    // The default network written out: a ring in each group of four, then the bridges; and
+    // the default target assignment written out.
+    let mut edges = Vec::new();
+    for g in 0..4 {
+        for k in 0..4 {
+            // listed in another order and orientation than `links()` makes them
+            edges.push((4 * g + (k + 1) % 4 + 1, 4 * g + k + 1));
+        }
+    }
+    edges.extend([(7, 4), (11, 7), (13, 12)]);
+    edges.reverse();
+    let targets: Vec<[usize; 2]> = (0..16).map(|a| [5 * (a / 4) + a % 4 + 1, 5 * (a / 4) + a % 4 + 2]).collect();
+    let explicit = StudyConfig {
+        scenario: Scenario {
+            bridges: vec![],
+            edges,
+            targets,
+            ..Scenario::default()
+        },
+        ..tiny_config()
+    };
+    let (a, ra) = run_study(&tiny_config()).unwrap();
+    let (b, rb) = run_study(&explicit).unwrap();
+    assert_eq!(a, b);
+    assert_eq!(ra, rb);
+    assert_eq!(
+        Scenario::default().neighbours(),
+        explicit.scenario.neighbours()
+    );
+}
+
+#[test]
+fn invalid_networks_are_rejected_by_name() {
+    let with = |edges: Vec<(usize, usize)>| Scenario {
+        bridges: vec![],
+        edges,
+        ..Scenario::default()
+    };
+    let mut ring: Vec<(usize, usize)> = (1..16).map(|a| (a, a + 1)).collect();
+    let cases = [
+        (
+            Scenario {
+                edges: vec![(1, 2)],
+                ..Scenario::default()
+            },
+            "not both",
+        ),
+        (with(vec![(1, 17)]), "edge 1–17 names an agent outside 1..=16"),
+        (with(vec![(3, 3)]), "edge 3–3 links an agent to itself"),
+        (with(vec![(1, 2), (2, 1)]), "edge 2–1 is listed twice"),
+        (
+            with(ring.clone()),
+            "", // a path through all 16 agents is connected: accepted
+        ),
+        (
+            {
+                ring.retain(|&e| e != (8, 9));
+                with(ring)
+            },
+            "not connected: agent 9 cannot be reached from agent 1",
+        ),
+        (
+            Scenario {
+                targets: vec![[1, 2]; 3],
+                ..Scenario::default()
+            },
+            "`targets` has 3 entries; give one pair per agent (16)",
+        ),
+        (
+            Scenario {
+                targets: vec![[1, 21]; 16],
+                ..Scenario::default()
+            },
+            "`targets` of agent 1: [1, 21] must be two different targets among 1..=20",
+        ),
+    ];
+    for (scenario, expected) in cases {
+        match scenario.validate() {
+            Ok(()) => assert!(expected.is_empty(), "accepted, expected: {expected}"),
+            Err(e) => {
+                assert!(!expected.is_empty(), "rejected: {e}");
+                assert!(e.to_string().contains(expected), "{e}\n  expected: {expected}");
+            }
+        }
+    }
+}

@@ -77,6 +77,63 @@ impl Scenario {
                 ));
             }
         }
+        if !self.edges.is_empty() {
+            if !self.bridges.is_empty() {
+                return bad("give either `bridges` (with a ring in each group) or `edges` (the whole network), not both: set `bridges = []` with `edges`".into());
+            }
+            let n = self.agents();
+            let mut seen = std::collections::BTreeSet::new();
+            for &(a, b) in &self.edges {
+                if a == 0 || b == 0 || a > n || b > n {
+                    return bad(format!("edge {a}–{b} names an agent outside 1..={n}"));
+                }
+                if a == b {
+                    return bad(format!("edge {a}–{b} links an agent to itself"));
+                }
+                if !seen.insert((a.min(b), a.max(b))) {
+                    return bad(format!("edge {a}–{b} is listed twice"));
+                }
+            }
+            // Connected: every agent reachable from agent 1.
+            let mut reached = vec![false; n];
+            let mut stack = vec![0];
+            reached[0] = true;
+            while let Some(v) = stack.pop() {
+                for &(a, b) in &seen {
+                    let (a, b) = (a - 1, b - 1);
+                    for (x, y) in [(a, b), (b, a)] {
+                        if x == v && !reached[y] {
+                            reached[y] = true;
+                            stack.push(y);
+                        }
+                    }
+                }
+            }
+            if let Some(lost) = reached.iter().position(|r| !r) {
+                return bad(format!(
+                    "the network of `edges` is not connected: agent {} cannot be reached from agent 1",
+                    lost + 1
+                ));
+            }
+        }
+        if !self.targets.is_empty() {
+            if self.targets.len() != self.agents() {
+                return bad(format!(
+                    "`targets` has {} entries; give one pair per agent ({})",
+                    self.targets.len(),
+                    self.agents()
+                ));
+            }
+            for (a, pair) in self.targets.iter().enumerate() {
+                if pair.iter().any(|&t| t == 0 || t > self.targets()) || pair[0] == pair[1] {
+                    return bad(format!(
+                        "`targets` of agent {}: {pair:?} must be two different targets among 1..={}",
+                        a + 1,
+                        self.targets()
+                    ));
+                }
+            }
+        }
         Ok(())
     }
 }

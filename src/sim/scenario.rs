@@ -26,8 +26,17 @@ pub struct Scenario {
     pub prior_velocity_variance: f64,
     /// Prior variance of each bias coordinate (not given in the paper).
     pub prior_bias_variance: f64,
-    /// Links between groups, 1-based agent ids.
+    /// Links between groups, 1-based agent ids (with a ring inside each group).
     pub bridges: Vec<(usize, usize)>,
+    /// An explicit network instead of the rings and `bridges`: undirected links, 1-based
+    /// agent ids (default empty: rings plus bridges). With `edges`, `bridges` must be `[]`;
+    /// the network must be connected, without self-links or repeated links.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub edges: Vec<(usize, usize)>,
+    /// Per-agent measured targets, 1-based (default empty: the `k`-th agent of a group
+    /// measures its group's targets `k` and `k + 1`). One pair per agent when given.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub targets: Vec<[usize; 2]>,
 }
 
 impl Default for Scenario {
@@ -43,6 +52,8 @@ impl Default for Scenario {
             prior_velocity_variance: 1.0,
             prior_bias_variance: 1.0,
             bridges: vec![(4, 7), (7, 11), (12, 13)],
+            edges: Vec::new(),
+            targets: Vec::new(),
         }
     }
 }
@@ -82,8 +93,12 @@ impl Scenario {
         4 * self.targets() + 2 * a + axis
     }
 
-    /// Targets (0-based) agent `a` (0-based) measures: its group's `k`-th and `k+1`-th.
+    /// Targets (0-based) agent `a` (0-based) measures: `targets[a]` when given, else its
+    /// group's `k`-th and `k+1`-th.
     pub fn measured_targets(&self, a: usize) -> [usize; 2] {
+        if let Some(&[t, u]) = self.targets.get(a) {
+            return [t - 1, u - 1];
+        }
         let (g, k) = (a / self.agents_per_group, a % self.agents_per_group);
         let first = g * self.targets_per_group + k;
         [first, first + 1]
@@ -115,8 +130,16 @@ impl Scenario {
         out
     }
 
-    /// Undirected links (0-based): a ring inside each group plus the bridges.
+    /// Undirected links (0-based, each as `(min, max)`): `edges` when given, else a ring inside
+    /// each group plus the bridges.
     pub fn links(&self) -> Vec<(usize, usize)> {
+        if !self.edges.is_empty() {
+            return self
+                .edges
+                .iter()
+                .map(|&(a, b)| ((a - 1).min(b - 1), (a - 1).max(b - 1)))
+                .collect();
+        }
         let m = self.agents_per_group;
         let mut links = Vec::new();
         for g in 0..self.groups {

@@ -150,6 +150,26 @@ test("a fully unknown 4-D P_ab defeats the rejection sampler; hit-and-run gives 
   await settle();
 });
 
+test("an edit during a long solve abandons it: a fresh worker computes the newest state", async () => {
+  await page.selectOption("#preset", "twoblock");
+  await settle();
+  await page.click('button[data-pattern="full"]');
+  await settle();
+  await page.selectOption("#sampler", "hit_and_run");
+  await settle();
+  const abandoned = await page.evaluate(() => window.nmciStats.abandoned);
+  await page.fill("#samples", "4000"); // a 4-D SDP over 4000 samples: seconds in the worker
+  await page.waitForTimeout(150);
+  await page.fill("#samples", "120"); // newer: the running solve is stale
+  await settle();
+  assert.ok((await page.evaluate(() => window.nmciStats.abandoned)) > abandoned, "no solve was abandoned");
+  assert.match(await text("#sdp-status"), /final working set of 120 samples/);
+  await page.fill("#samples", "200");
+  await settle();
+  await page.selectOption("#sampler", "rejection");
+  await settle();
+});
+
 test("a URL hash restores the whole state", async () => {
   await page.selectOption("#preset", "twoblock");
   await settle();
