@@ -116,7 +116,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 if verbose {
                     eprintln!(
                         "{class} #{done}: lower {:.10} (dual {:.10}) stop {:?} it {} cons {}",
-                        cuts.lower_bound, cuts.dual_objective, cuts.stop, cuts.iterations, cuts.constraints
+                        cuts.lower_bound,
+                        cuts.dual_objective,
+                        cuts.stop,
+                        cuts.iterations,
+                        cuts.constraints
                     );
                 }
                 let nm = non_monolithic_ci(&p, Criterion::Trace)?;
@@ -142,7 +146,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     };
                     gaps[k].push(bracket.gap_relative());
                     if verbose {
-                        eprintln!("  level {level}: upper {upper:.10} gap {:.1e}", bracket.gap_relative());
+                        eprintln!(
+                            "  level {level}: upper {upper:.10} gap {:.1e}",
+                            bracket.gap_relative()
+                        );
                     }
                 }
             }

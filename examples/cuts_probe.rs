@@ -1,5 +1,4 @@
-//! The cutting planes guided by the certified rule vs not (numbers in `fusion::cuts`' docs
-//! and the README): two random non-separable problems per dimension (seed 55, each entry of
+//! The cutting planes guided by the certified rule vs not (numbers in the README): two random non-separable problems per dimension (seed 55, each entry of
 //! `P_ab` unknown with probability 0.6).
 //!
 //! `cargo run --release --example cuts_probe -- 3 4 5 6`
@@ -53,7 +52,7 @@ fn main() {
                     sample_cross_covariances(&p, 10_000, 99, SamplerSettings::hit_and_run())
                         .unwrap();
                 let margin = worst_margin(&p, &c.fused, &fresh.cross) / c.fused.trace();
-                println!("n={n} certify={certify}: tr {:.6} lb {:.6} cert {:?} closed {} conv {} it {} cons {} of {} viol {:.1e} ({seconds:.1}s) fresh margin/tr {margin:.1e}", c.fused.trace(), c.dual_objective, c.certified_trace, c.gap_closed, c.converged, c.iterations, c.constraints, c.constraints_generated, c.violation);
+                println!("n={n} certify={certify}: tr {:.6} proven lower {:.6} certified {:?} closed {} stop {:?} it {} cons {} of {} viol {:.1e} ({seconds:.1}s) fresh margin/tr {margin:.1e}", c.fused.trace(), c.lower_bound, c.certified_trace, c.gap_closed, c.stop, c.iterations, c.constraints, c.constraints_generated, c.violation);
             }
         }
     }

@@ -10,9 +10,9 @@ use crate::api::{
     naive_response, nmci_response, problem_from_parts, sdp_response, FuseResponse,
     BRACKET_CERTIFY_MAX_BLOCK,
 };
+use crate::error::RequestError;
 use crate::fusion::bracket::CLOSED_RTOL;
 use crate::fusion::certify::CertifySettings;
-use crate::error::RequestError;
 use crate::fusion::check::{fused_coin, worst_margin};
 use crate::fusion::known::known_correlation_fusion;
 use crate::fusion::sample::{sample_cross_covariances, SamplerKind, SamplerSettings};
@@ -246,10 +246,11 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
     // The proven upper ends: CI and nmCI (trace criterion) and the certified rule.
     let uppers = upper_bounds_with(&problem, certified.as_ref().and_then(|c| c.upper_bound))?;
     // The page never shows the SDP's own-gain certificate: not computed here.
-    let (sdp, sdp_fused, sdp_error) = match sdp_response(&problem, &settings, &certify, Some(uppers), false) {
-        Ok((r, f)) => (Some(r), Some(f), None),
-        Err(e) => (None, None, Some(e.to_string())),
-    };
+    let (sdp, sdp_fused, sdp_error) =
+        match sdp_response(&problem, &settings, &certify, Some(uppers), false) {
+            Ok((r, f)) => (Some(r), Some(f), None),
+            Err(e) => (None, None, Some(e.to_string())),
+        };
     let gap = sdp.as_ref().and_then(|s| {
         Some(Gap {
             lower: s.lower_bound?,

@@ -114,7 +114,10 @@ fn scalar_case_in_closed_form_at_every_level_and_tolerance() {
             let optimum = if unknown { a.min(b) } else { a * b / (a + b) };
             let best = certified_fusion(&p, &settings).unwrap().fused.P[(0, 0)];
             assert!(best >= optimum * (1.0 - 1e-14), "k={k}: {best} < {optimum}");
-            assert!(best <= optimum * (1.0 + slack), "k={k}: {best} vs {optimum}");
+            assert!(
+                best <= optimum * (1.0 + slack),
+                "k={k}: {best} vs {optimum}"
+            );
         }
     }
 }
@@ -153,7 +156,10 @@ fn higher_levels_never_looser_and_close_two_state_anti_diagonal_brackets() {
             .unwrap();
             assert_eq!(cert.levels, vec![level]);
             let t = cert.fused.trace();
-            assert!(t <= previous * (1.0 + 1e-7), "k={k} level {level}: {t} > {previous}");
+            assert!(
+                t <= previous * (1.0 + 1e-7),
+                "k={k} level {level}: {t} > {previous}"
+            );
             previous = t;
             let bracket = UpperBounds::of(&p, Some(trace_upper_bound(&cert.fused.P)))
                 .unwrap()
@@ -168,7 +174,10 @@ fn higher_levels_never_looser_and_close_two_state_anti_diagonal_brackets() {
             }
         }
     }
-    assert!(open_at_one > 0, "level 1 closed every case: pick other problems");
+    assert!(
+        open_at_one > 0,
+        "level 1 closed every case: pick other problems"
+    );
 }
 
 #[test]
@@ -178,7 +187,10 @@ fn certified_is_never_looser_in_trace_but_not_below_ci_in_every_direction() {
     let mut r = rng(5);
     let mut directional = 0;
     for _ in 0..20 {
-        let zero = (rand::Rng::random_range(&mut r, 0..2), rand::Rng::random_range(&mut r, 0..2));
+        let zero = (
+            rand::Rng::random_range(&mut r, 0..2),
+            rand::Rng::random_range(&mut r, 0..2),
+        );
         let p = random_problem(2, CrossPattern::from_fn(2, |i, j| (i, j) != zero), &mut r);
         let cert = certified_fusion(&p, &CertifySettings::default()).unwrap();
         let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
@@ -247,7 +259,11 @@ fn time_limits_end_in_typed_errors_or_an_honest_bracket() {
         time_limit: Some(-1.0),
         ..Default::default()
     };
-    assert!(bad.validate().unwrap_err().to_string().contains("time_limit"));
+    assert!(bad
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("time_limit"));
     let bad = CertifySettings {
         level: Some(0),
         ..Default::default()

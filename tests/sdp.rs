@@ -236,11 +236,16 @@ fn certified_gap_brackets_the_robust_optimum() {
         assert!(upper <= 2.0 * (1.0 + 1e-14), "upper {upper}");
         assert!(lower >= 2.0 * (1.0 - 1e-6), "lower {lower}");
         assert!(
-            r.upper_bound_rule == Some(Method::Nmci) || r.upper_bound_rule == Some(Method::Certified),
+            r.upper_bound_rule == Some(Method::Nmci)
+                || r.upper_bound_rule == Some(Method::Certified),
             "{:?}",
             r.upper_bound_rule
         );
-        assert!(r.gap.unwrap() >= upper - lower && r.gap.unwrap() <= 1e-6, "gap {:?}", r.gap);
+        assert!(
+            r.gap.unwrap() >= upper - lower && r.gap.unwrap() <= 1e-6,
+            "gap {:?}",
+            r.gap
+        );
     }
     // Fully unknown P_ab: CI is optimal (and nmCI is CI); the bracket holds.
     let r = fuse(&request(full, 100, 5)).unwrap();

@@ -293,7 +293,9 @@ fn an_explicit_edge_list_equal_to_rings_and_bridges_gives_bit_identical_studies(
     }
     edges.extend([(7, 4), (11, 7), (13, 12)]);
     edges.reverse();
-    let targets: Vec<[usize; 2]> = (0..16).map(|a| [5 * (a / 4) + a % 4 + 1, 5 * (a / 4) + a % 4 + 2]).collect();
+    let targets: Vec<[usize; 2]> = (0..16)
+        .map(|a| [5 * (a / 4) + a % 4 + 1, 5 * (a / 4) + a % 4 + 2])
+        .collect();
     let explicit = StudyConfig {
         scenario: Scenario {
             bridges: vec![],
@@ -329,7 +331,10 @@ fn invalid_networks_are_rejected_by_name() {
             },
             "not both",
         ),
-        (with(vec![(1, 17)]), "edge 1–17 names an agent outside 1..=16"),
+        (
+            with(vec![(1, 17)]),
+            "edge 1–17 names an agent outside 1..=16",
+        ),
         (with(vec![(3, 3)]), "edge 3–3 links an agent to itself"),
         (with(vec![(1, 2), (2, 1)]), "edge 2–1 is listed twice"),
         (
@@ -363,7 +368,10 @@ fn invalid_networks_are_rejected_by_name() {
             Ok(()) => assert!(expected.is_empty(), "accepted, expected: {expected}"),
             Err(e) => {
                 assert!(!expected.is_empty(), "rejected: {e}");
-                assert!(e.to_string().contains(expected), "{e}\n  expected: {expected}");
+                assert!(
+                    e.to_string().contains(expected),
+                    "{e}\n  expected: {expected}"
+                );
             }
         }
     }

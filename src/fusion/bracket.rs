@@ -48,10 +48,10 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
 use super::ci::{covariance_intersection, CiResult};
 use super::nmci::{non_monolithic_ci, NmciResult};
-use super::Criterion;
-use crate::error::InputError;
 use super::verify::{down, is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
+use super::Criterion;
 use super::FusionProblem;
+use crate::error::InputError;
 
 /// The relative gap below which a bracket counts as closed: the robust optimum is then
 /// proven to that relative accuracy (`gap ≤ 10⁻⁶ · upper`).
@@ -180,21 +180,34 @@ pub fn nmci_upper_bound(problem: &FusionProblem, nm: &NmciResult) -> Option<f64>
             block_of[i] = b;
         }
     }
-    let mixes = (0..n).any(|i| (0..n).any(|j| block_of[i] != block_of[j] && nm.fused.K_a[(i, j)] != 0.0));
+    let mixes =
+        (0..n).any(|i| (0..n).any(|j| block_of[i] != block_of[j] && nm.fused.K_a[(i, j)] != 0.0));
     if mixes || block_of.contains(&usize::MAX) {
         return None;
     }
     let mut total = Dot::new();
     for (block, &omega) in nm.blocks.iter().zip(&nm.omega) {
-        let pick = |m: &DMatrix<f64>| DMatrix::from_fn(block.len(), block.len(), |i, j| m[(block[i], block[j])]);
-        let b = weighted_upper(&pick(&problem.P_a), &pick(&problem.P_b), &pick(&nm.fused.K_a), omega)?;
+        let pick = |m: &DMatrix<f64>| {
+            DMatrix::from_fn(block.len(), block.len(), |i, j| m[(block[i], block[j])])
+        };
+        let b = weighted_upper(
+            &pick(&problem.P_a),
+            &pick(&problem.P_b),
+            &pick(&nm.fused.K_a),
+            omega,
+        )?;
         total.add(Ball::exact(b));
     }
     Some(total.ball().upper())
 }
 
 #[allow(non_snake_case)]
-fn weighted_upper(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>, K_a: &DMatrix<f64>, omega: f64) -> Option<f64> {
+fn weighted_upper(
+    P_a: &DMatrix<f64>,
+    P_b: &DMatrix<f64>,
+    K_a: &DMatrix<f64>,
+    omega: f64,
+) -> Option<f64> {
     young_bound(P_a, P_b, K_a, omega).map(|m| m.trace().upper())
 }
 
@@ -260,11 +273,18 @@ pub(crate) fn young_omega(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>, K_a: &DMatrix<
 /// A proven lower bound on the robust optimum `V*` of `problem` from admissible cross blocks
 /// `cross[i]` and dual matrices `duals[i]` (module docs); `0` when nothing can be proven.
 #[allow(non_snake_case)]
-pub fn lower_bound(problem: &FusionProblem, cross: &[&DMatrix<f64>], duals: &[DMatrix<f64>]) -> f64 {
+pub fn lower_bound(
+    problem: &FusionProblem,
+    cross: &[&DMatrix<f64>],
+    duals: &[DMatrix<f64>],
+) -> f64 {
     let n = problem.dim();
     let mut terms: Vec<(DMatrix<f64>, DMatrix<f64>)> = Vec::new(); // (X_i, Λ_i)
     for (X, L) in cross.iter().zip(duals) {
-        if X.shape() != (n, n) || L.shape() != (n, n) || X.iter().chain(L.iter()).any(|x| !x.is_finite()) {
+        if X.shape() != (n, n)
+            || L.shape() != (n, n)
+            || X.iter().chain(L.iter()).any(|x| !x.is_finite())
+        {
             continue;
         }
         let Some(X) = admissible(problem, X) else {
@@ -306,7 +326,12 @@ pub fn lower_bound(problem: &FusionProblem, cross: &[&DMatrix<f64>], duals: &[DM
         .map(|(X, _)| {
             let S = BallMatrix::from_fn(n, n, |k, l| {
                 let mut d = Dot::new();
-                for v in [problem.P_a[(k, l)], problem.P_b[(k, l)], -X[(k, l)], -X[(l, k)]] {
+                for v in [
+                    problem.P_a[(k, l)],
+                    problem.P_b[(k, l)],
+                    -X[(k, l)],
+                    -X[(l, k)],
+                ] {
                     d.add(Ball::exact(v));
                 }
                 d.ball()
@@ -354,7 +379,7 @@ pub fn lower_bound(problem: &FusionProblem, cross: &[&DMatrix<f64>], duals: &[DM
     let c0 = c0.ball();
     // μ ≤ λ_min(H), proven.
     let estimate = SymmetricEigen::new(H.mid.clone()).eigenvalues.min();
-    if !(estimate > 0.0) {
+    if estimate.is_nan() || estimate <= 0.0 {
         return 0.0;
     }
     let mut mu = 0.5 * estimate;
@@ -414,7 +439,7 @@ pub fn lower_bound(problem: &FusionProblem, cross: &[&DMatrix<f64>], duals: &[DM
         rad: 0.0,
     }
     .lower();
-    if !(numerator > 0.0) {
+    if numerator.is_nan() || numerator <= 0.0 {
         return 0.0;
     }
     down(numerator / sigma, 2)
@@ -425,8 +450,21 @@ pub fn lower_bound(problem: &FusionProblem, cross: &[&DMatrix<f64>], duals: &[DM
 #[allow(non_snake_case)]
 fn admissible(problem: &FusionProblem, X: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let n = problem.dim();
-    let X = DMatrix::from_fn(n, n, |i, j| if problem.cross_pattern.is_unknown(i, j) { X[(i, j)] } else { 0.0 });
-    for t in [1.0, 1.0 - 2f64.powi(-40), 1.0 - 2f64.powi(-26), 1.0 - 2f64.powi(-14), 0.99, 0.9] {
+    let X = DMatrix::from_fn(n, n, |i, j| {
+        if problem.cross_pattern.is_unknown(i, j) {
+            X[(i, j)]
+        } else {
+            0.0
+        }
+    });
+    for t in [
+        1.0,
+        1.0 - 2f64.powi(-40),
+        1.0 - 2f64.powi(-26),
+        1.0 - 2f64.powi(-14),
+        0.99,
+        0.9,
+    ] {
         let Xt = &X * t;
         let J = problem.joint_covariance(&Xt);
         // joint_covariance copies P_a, P_b, Xt and Xtᵀ: exactly symmetric.

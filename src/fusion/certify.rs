@@ -345,7 +345,9 @@ fn certify(
         let mut solved = loop {
             match certify_block(&sub, sub_gain.as_ref(), level, settings) {
                 Ok(s) => break Some(s),
-                Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) if level > 1 => {
+                Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. })
+                    if level > 1 =>
+                {
                     level -= 1
                 }
                 Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => break None,
@@ -472,7 +474,8 @@ impl Layout {
             .enumerate()
             .map(|(i, g)| (g, i))
             .collect();
-        let add = |a: &[usize], b: &[usize]| a.iter().zip(b).map(|(x, y)| x + y).collect::<Vec<_>>();
+        let add =
+            |a: &[usize], b: &[usize]| a.iter().zip(b).map(|(x, y)| x + y).collect::<Vec<_>>();
         let sum = mons
             .iter()
             .map(|a| mons.iter().map(|b| products[&add(a, b)]).collect())

@@ -409,7 +409,7 @@ pub fn optimal_fusion_cuts(
 /// every dropped cut holds at its solution (beyond `threshold`), and the worst-case search
 /// from the eigenvectors of its `P̄` finds no violation above `max(threshold, violation)`.
 /// Returns the reduced solution, its cuts and the violation found.
-#[allow(non_snake_case, clippy::type_complexity)]
+#[allow(non_snake_case, clippy::type_complexity, clippy::too_many_arguments)]
 fn prune(
     problem: &FusionProblem,
     full: &SdpResult,

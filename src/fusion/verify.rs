@@ -102,7 +102,9 @@ impl Ball {
         Self {
             mid,
             rad: up(
-                self.mid.abs() * other.rad + self.rad * (other.mid.abs() + other.rad) + U * mid.abs(),
+                self.mid.abs() * other.rad
+                    + self.rad * (other.mid.abs() + other.rad)
+                    + U * mid.abs(),
                 6,
             ),
         }
@@ -111,7 +113,7 @@ impl Ball {
     /// `1 / x`, when the ball lies in `(0, ∞)`.
     pub(crate) fn recip(self) -> Option<Self> {
         let lo = self.lower();
-        if !(lo > 0.0) || !self.mid.is_finite() {
+        if lo.is_nan() || lo <= 0.0 || !self.mid.is_finite() {
             return None;
         }
         // |1/x − 1/m| = |m − x| / (x m) ≤ r / (lo m); fl(1/m) adds u/m.
@@ -187,7 +189,11 @@ impl BallMatrix {
     }
 
     /// Builds a matrix entry by entry.
-    pub(crate) fn from_fn(rows: usize, cols: usize, mut f: impl FnMut(usize, usize) -> Ball) -> Self {
+    pub(crate) fn from_fn(
+        rows: usize,
+        cols: usize,
+        mut f: impl FnMut(usize, usize) -> Ball,
+    ) -> Self {
         let mut mid = DMatrix::zeros(rows, cols);
         let mut rad = DMatrix::zeros(rows, cols);
         for c in 0..cols {
@@ -333,7 +339,7 @@ fn cholesky_succeeds(b: &DMatrix<f64>) -> bool {
         for k in 0..j {
             s -= r[(k, j)] * r[(k, j)];
         }
-        if !(s > 0.0) || !s.is_finite() {
+        if s.is_nan() || s <= 0.0 || !s.is_finite() {
             return false;
         }
         r[(j, j)] = s.sqrt();
