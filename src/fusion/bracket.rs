@@ -31,6 +31,14 @@
 //! Numer. Anal. 46(1), 2007, specialised to this program (the gain is eliminated exactly
 //! instead of bounded a priori).
 //!
+//! **Independent blocks.** When `P_a`, `P_b` and the pattern split the state into
+//! independent blocks, every admissible `J` is block diagonal (in the blocks' order), and the
+//! bound is computed per block `B` with `J_i` built on that block (and `P_a`, `P_b`'s blocks
+//! elsewhere). For any robust-feasible `(K, P̄)`, the diagonal block
+//! `(K J Kᵀ)_BB = Σ_C K_BC J_CC K_BCᵀ ⪰ K_BB J_BB K_BBᵀ`, and `K_BB` is itself unbiased
+//! (`(K_a)_BB + (K_b)_BB = I`), so `tr P̄_BB` is at least block `B`'s bound, and the sum of
+//! the per-block bounds (rounded down) is a lower bound on `V*`.
+//!
 //! ## The upper end
 //! Each conservative rule gives a `P̄` that dominates `K J Kᵀ` for every admissible `J`, so
 //! its trace bounds `V*` from above. To be a bound in floating point too, the trace is
