@@ -49,8 +49,8 @@ pub enum Method {
     /// Naive fusion (as if independent): not conservative when the estimates are correlated.
     Naive,
     /// The tightest bound proven conservative by a sum-of-squares certificate of a chosen level
-    /// (`certified_fusion`): never looser than CI or nmCI in trace (up to solver tolerance),
-    /// tighter on many non-separable patterns.
+    /// (`certified_fusion`): its trace never above nmCI's or CI's beyond rounding, tighter on
+    /// many non-separable patterns.
     Certified,
 }
 
@@ -121,9 +121,10 @@ pub struct FuseRequest {
     /// `sdp`: `rejection` (the paper's, default) or `hit_and_run` (any dimension).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerKind>,
-    /// `sdp`, `sdp_cuts`, `certified`: wall-clock limit in seconds (default none). Past it
-    /// `sdp` and `certified` fail with a time-limit error; `sdp_cuts` returns its best proven
-    /// bracket so far with `converged: false` and `stop: "time_limit"`.
+    /// `sdp`, `sdp_cuts`, `certified`: wall-clock limit in seconds (default none) of the main
+    /// solve and, separately, of each certificate in the response (the bracket's and the
+    /// own-gain one). Past it `sdp` and `certified` fail with a time-limit error; `sdp_cuts`
+    /// returns its best proven bracket so far with `converged: false` and `stop: "time_limit"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_limit: Option<f64>,
     /// `certified`, `sdp`, `sdp_cuts`: the level of the certified rule (`certified` itself,

@@ -278,13 +278,40 @@ pub fn optimal_fusion_cuts(
     };
     let mut iterations = 0;
     let mut best_lower = 0.0f64;
+    // The last finished program (its result, its number of cuts, the violation found at it):
+    // what a solve stopped by the time limit falls back to.
+    let mut previous: Option<(SdpResult, usize, f64)> = None;
     loop {
         iterations += 1;
         let set = CrossSamples {
             cross: cross.clone(),
             trials: 0,
         };
-        let opt = solve_samples(problem, &set, &sdp, &deadline)?;
+        let opt = match solve_samples(problem, &set, &sdp, &deadline) {
+            Ok(o) => o,
+            Err(SolveError::TimeLimit { .. }) if previous.is_some() => {
+                let (opt, len, violation) = previous.take().expect("checked above");
+                let generated = cross.len();
+                cross.truncate(len);
+                return Ok(CutsResult {
+                    fused: opt.fused,
+                    status: opt.status,
+                    iterations: iterations - 1,
+                    constraints: cross.len(),
+                    constraints_generated: generated,
+                    violation,
+                    converged: false,
+                    stop: CutsStop::TimeLimit,
+                    certified_trace,
+                    certified_levels: certified.as_ref().map(|c| c.levels.clone()),
+                    gap_closed: false,
+                    dual_objective: opt.dual_objective,
+                    lower_bound: best_lower,
+                    cross,
+                });
+            }
+            Err(e) => return Err(e),
+        };
         best_lower = best_lower.max(opt.lower_bound);
         let threshold = settings.tolerance * opt.fused.trace().max(1.0);
         // Worst-case search from the top eigenvector of the worst current constraint and
@@ -370,6 +397,7 @@ pub fn optimal_fusion_cuts(
                 cross,
             });
         }
+        previous = Some((opt.clone(), set.cross.len(), violation));
         // In-out separation: cut at a point between the relaxation's optimum and a feasible
         // point (deeper, better centred cuts, started from the directions just found); no
         // violation there makes it the new feasible point.
