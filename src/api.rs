@@ -514,8 +514,14 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             r.violation = Some(cuts.violation);
             r.converged = Some(cuts.converged);
             r.stop = Some(cuts.stop);
+            // Past the time limit the own-gain certificate is left out, not an error (the loop
+            // has its bracket).
             r.gain_certified_trace =
-                own_gain_certified(&problem, &cuts.fused.K_a, &settings.certify_settings)?;
+                match own_gain_certified(&problem, &cuts.fused.K_a, &settings.certify_settings) {
+                    Ok(t) => t,
+                    Err(SolveError::TimeLimit { .. }) => None,
+                    Err(e) => return Err(e.into()),
+                };
             r.gap_closed = Some(cuts.gap_closed);
             r.levels = cuts.certified_levels.clone();
             // The loop computed the certified rule already (blocks of up to 6 states).

@@ -261,6 +261,32 @@ fn time_limits_end_in_typed_errors_or_an_honest_bracket() {
                 &certified_fusion(&q, &CertifySettings::default()).unwrap()
             )
     );
+    // Through the contract: a short limit on a 4-state sdp_cuts request still gives a response
+    // with the proven bracket (certificates that did not finish are left out).
+    let rows = |m: &DMatrix<f64>| {
+        (0..4)
+            .map(|i| (0..4).map(|j| m[(i, j)]).collect::<Vec<_>>())
+            .collect::<Vec<_>>()
+    };
+    let pattern: Vec<Vec<bool>> = (0..4)
+        .map(|i| (0..4).map(|j| q.cross_pattern.is_unknown(i, j)).collect())
+        .collect();
+    let json = serde_json::json!({
+        "pa": rows(&q.P_a), "pb": rows(&q.P_b), "pab_unknown": pattern,
+        "method": "sdp_cuts", "time_limit": 0.2,
+    });
+    let r: serde_json::Value =
+        serde_json::from_str(&fuse_json(&json.to_string()).expect("a response")).unwrap();
+    let (lower, upper) = (
+        r["lower_bound"].as_f64().unwrap(),
+        r["upper_bound"].as_f64().unwrap(),
+    );
+    assert!(0.0 < lower && lower <= upper, "{r}");
+    assert!(
+        ["time_limit", "tolerance", "gap_closed", "max_iterations"]
+            .contains(&r["stop"].as_str().unwrap()),
+        "{r}"
+    );
     // Bad limits are refused by name.
     let bad = SdpSettings {
         time_limit: Some(-1.0),

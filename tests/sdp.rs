@@ -212,9 +212,9 @@ fn splitting_into_independent_blocks_is_exact() {
     assert_eq!(split.fused.P[(3, 4)], 0.0);
 }
 
-/// The certified bracket of the fuse response: the SDP's dual objective below, the best of CI
-/// and nmCI above; `lower ≤ upper` always (to solver tolerance), and on the paper's example
-/// the bracket closes on the robust optimum 2 by 100 samples.
+/// The proven bracket of the fuse response: the Lagrangian bound below, the best proven rule
+/// above; `lower ≤ upper` always (no tolerance), and on the paper's example the bracket
+/// closes on the robust optimum 2 by 100 samples.
 #[test]
 fn certified_gap_brackets_the_robust_optimum() {
     let request = |pattern: &str, samples: usize, seed: u64| {
@@ -247,6 +247,19 @@ fn certified_gap_brackets_the_robust_optimum() {
             r.gap
         );
     }
+    // The README's figures for the paper's example, 100 samples, seed 0.
+    let r = fuse(&request(diagonal, 100, 0)).unwrap();
+    let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
+    assert!(
+        lower >= 1.99999999996,
+        "README: at least 1.99999999996, got {lower}"
+    );
+    assert!(
+        upper <= 2.0000000000000044,
+        "README: at most 2.0000000000000044, got {upper}"
+    );
+    assert_eq!(r.upper_bound_rule, Some(Method::Nmci));
+    assert!(r.gap_relative.unwrap() <= 2e-11, "README: 2·10⁻¹¹");
     // Fully unknown P_ab: CI is optimal (and nmCI is CI); the bracket holds.
     let r = fuse(&request(full, 100, 5)).unwrap();
     let fully_unknown = FusionProblem::from_covariances(

@@ -126,8 +126,8 @@ pub struct UpperBounds {
 }
 
 impl UpperBounds {
-    /// The bounds of trace-optimal CI and nmCI (computed here) and a certified rule's rounded-up
-    /// trace ([`trace_upper_bound`]).
+    /// The bounds of trace-optimal CI and nmCI (computed here; both always present for finite
+    /// data) and a certified rule's rounded-up trace ([`trace_upper_bound`]).
     pub fn of(problem: &FusionProblem, certified: Option<f64>) -> Result<Self, InputError> {
         let ci = covariance_intersection(problem, Criterion::Trace)?;
         let nm = non_monolithic_ci(problem, Criterion::Trace)?;
@@ -216,7 +216,11 @@ fn weighted_upper(
     K_a: &DMatrix<f64>,
     omega: f64,
 ) -> Option<f64> {
-    young_bound(P_a, P_b, K_a, omega).map(|m| m.trace().upper())
+    // The rule's own ω; where it does not fit the gain exactly (an endpoint with a gain that
+    // is not exactly 0 or I), ω = 1/2, for which Young's inequality holds for any gain.
+    young_bound(P_a, P_b, K_a, omega)
+        .or_else(|| young_bound(P_a, P_b, K_a, 0.5))
+        .map(|m| m.trace().upper())
 }
 
 /// `ω⁻¹ K_a P_a K_aᵀ + (1−ω)⁻¹ K_b P_b K_bᵀ` (`K_b = I − K_a` exactly) as a ball matrix: for

@@ -41,13 +41,15 @@
 //! `C = ω⁻¹ w_a w_aᵀ + (1−ω)⁻¹ w_b w_bᵀ` (`w_a`, `w_b`: `w` with its `b`-, resp.
 //! `a`-entries zeroed; `C − wwᵀ ⪰ 0` because `(ω⁻¹ − 1)((1−ω)⁻¹ − 1) = 1`); nmCI is the
 //! block-wise one, so the program's optimum is never above CI's or nmCI's trace (and the
-//! reported bound is not either, see below). This is a statement about traces, not the
-//! Loewner order: the certified `P̄` may be larger than CI's along some direction (tested). It equals CI where `P_ab` is fully unknown (CI
-//! is optimal there), nmCI on separable patterns (each independent block is then a CI
-//! problem with a fully unknown cross-covariance, where CI is optimal: Reinhardt, Noack,
-//! Arambel, Hanebeck, "Minimum covariance bounds for the fusion under unknown
-//! correlations", IEEE SPL 22(9), 2015), and is tighter on many non-separable patterns —
-//! equal where CI or nmCI is already the robust optimum.
+//! reported bound is not either beyond rounding, see below). This is a statement about
+//! traces, not the Loewner order: the certified `P̄` may be larger than CI's along some
+//! direction (tested). Where `P_ab` is fully unknown CI is the robust optimum (Reinhardt,
+//! Noack, Arambel, Hanebeck, "Minimum covariance bounds for the fusion under unknown
+//! correlations", IEEE SPL 22(9), 2015), and so is nmCI where every independent block has a
+//! fully unknown cross block (the per-block problems are then such CI problems); there the
+//! certified bound equals them up to rounding (it is proven, so it cannot be below the
+//! optimum). On other patterns it is tighter on many problems and equal where CI or nmCI
+//! already is the robust optimum.
 //!
 //! ## The program
 //! `min tr Q` over `C`, `Q`, `G` and, for [`certified_fusion`], the gain `K_a`, subject to

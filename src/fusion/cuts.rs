@@ -100,9 +100,11 @@ pub struct CutsSettings {
     pub in_out: f64,
     /// Settings of the certified rule that guides the loop and closes its gap.
     pub certify_settings: CertifySettings,
-    /// Wall-clock limit in seconds (default none): past it the loop returns the last
-    /// program's result and its proven bracket with `converged: false` and
-    /// `stop: TimeLimit` (an error only if the first program did not finish in time).
+    /// Wall-clock limit in seconds (default none) of the whole loop: past it (checked between
+    /// iterations and inside each solve) the loop returns the last finished program's result
+    /// and its proven bracket with `converged: false` and `stop: TimeLimit` — an error only if
+    /// the first program did not finish in time. The guiding certificate gets half of the
+    /// limit and is left out if it does not finish.
     pub time_limit: Option<f64>,
 }
 
@@ -231,8 +233,12 @@ pub fn optimal_fusion_cuts(
     )?
     .cross;
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0x5EED_C075);
+    // With a time limit the guiding certificate gets half of it; if it does not finish, the
+    // loop runs unguided (the limit is for the loop's bracket, not for the guide).
     let certify_settings = CertifySettings {
-        time_limit: settings.time_limit.map(|_| deadline.remaining().max(1e-3)),
+        time_limit: settings
+            .time_limit
+            .map(|_| (0.5 * deadline.remaining()).max(1e-3)),
         ..settings.certify_settings
     };
     let certified = if settings.certify
@@ -241,7 +247,11 @@ pub fn optimal_fusion_cuts(
                 && CertifySettings::cone_size(b.len(), certify_settings.level_for(b.len()))
                     <= certify_settings.max_cone
         }) {
-        Some(certified_fusion(problem, &certify_settings)?)
+        match certified_fusion(problem, &certify_settings) {
+            Ok(c) => Some(c),
+            Err(SolveError::TimeLimit { .. }) => None,
+            Err(e) => return Err(e),
+        }
     } else {
         None
     };

@@ -95,21 +95,6 @@ impl Ball {
         s - up(4.0 * U * s.abs(), 1)
     }
 
-    /// `x · y`.
-    #[allow(dead_code)]
-    pub(crate) fn mul(self, other: Ball) -> Self {
-        let mid = self.mid * other.mid;
-        Self {
-            mid,
-            rad: up(
-                self.mid.abs() * other.rad
-                    + self.rad * (other.mid.abs() + other.rad)
-                    + U * mid.abs(),
-                6,
-            ),
-        }
-    }
-
     /// `1 / x`, when the ball lies in `(0, ∞)`.
     pub(crate) fn recip(self) -> Option<Self> {
         let lo = self.lower();
