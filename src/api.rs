@@ -614,14 +614,12 @@ fn own_gain_certified(
 }
 
 /// The proven upper bounds of a problem: CI, nmCI and (for small blocks) the certified rule.
+#[allow(non_snake_case)]
 pub(crate) fn upper_bounds(
     problem: &FusionProblem,
-    certified: Option<&CertifiedResult>,
-) -> Result<UpperBounds, SolveError> {
-    Ok(UpperBounds::of(
-        problem,
-        certified.map(|c| trace_upper_bound(&c.fused.P)),
-    )?)
+    certified_P: Option<&DMatrix<f64>>,
+) -> Result<UpperBounds, InputError> {
+    UpperBounds::of(problem, certified_P.map(trace_upper_bound))
 }
 
 /// Fills `lower_bound` and `upper_bound` (both proven: `fusion::bracket`), the rule of the
@@ -743,7 +741,7 @@ pub(crate) fn sdp_response(
             if let Some(c) = &cert {
                 r.levels = Some(c.levels.clone());
             }
-            upper_bounds(problem, cert.as_ref())?
+            upper_bounds(problem, cert.as_ref().map(|c| &c.fused.P))?
         }
     };
     fill_bracket(opt.lower_bound, &uppers, &mut r);

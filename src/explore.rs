@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::api::{
     bracket_certificate, certificate_response, ci_response, ei_response, ici_response,
-    naive_response, nmci_response, problem_from_parts, sdp_response, FuseResponse,
+    naive_response, nmci_response, problem_from_parts, sdp_response, upper_bounds, FuseResponse,
     BRACKET_CERTIFY_MAX_BLOCK,
 };
 use crate::error::RequestError;
@@ -171,13 +171,6 @@ pub struct Exploration {
     pub region: Vec<f64>,
 }
 
-fn upper_bounds_with(
-    problem: &FusionProblem,
-    certified: Option<f64>,
-) -> Result<crate::fusion::bracket::UpperBounds, RequestError> {
-    Ok(crate::fusion::bracket::UpperBounds::of(problem, certified)?)
-}
-
 /// Mixes the SDP seed into an independent stream for the region samples.
 fn region_seed(seed: u64) -> u64 {
     seed ^ 0x9E37_79B9_7F4A_7C15
@@ -244,7 +237,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         Err(e) => (None, None, Some(e.to_string())),
     };
     // The proven upper ends: CI and nmCI (trace criterion) and the certified rule.
-    let uppers = upper_bounds_with(&problem, certified.as_ref().and_then(|c| c.upper_bound))?;
+    let uppers = upper_bounds(&problem, certified_fused.as_ref().map(|f| &f.P))?;
     // The page never shows the SDP's own-gain certificate: not computed here.
     let (sdp, sdp_fused, sdp_error) =
         match sdp_response(&problem, &settings, &certify, Some(uppers), false) {

@@ -288,6 +288,29 @@ pub fn optimal_fusion_cuts(
     };
     let mut iterations = 0;
     let mut best_lower = 0.0f64;
+    // The result of a finished loop; `converged` and `gap_closed` follow from `stop`.
+    let finish = |opt: SdpResult,
+                  cross: Vec<DMatrix<f64>>,
+                  generated: usize,
+                  iterations: usize,
+                  violation: f64,
+                  stop: CutsStop,
+                  lower_bound: f64| CutsResult {
+        fused: opt.fused,
+        status: opt.status,
+        iterations,
+        constraints: cross.len(),
+        constraints_generated: generated,
+        violation,
+        converged: matches!(stop, CutsStop::Tolerance | CutsStop::GapClosed),
+        stop,
+        certified_trace,
+        certified_levels: certified.as_ref().map(|c| c.levels.clone()),
+        gap_closed: stop == CutsStop::GapClosed,
+        dual_objective: opt.dual_objective,
+        lower_bound,
+        cross,
+    };
     // The last finished program (its result, its number of cuts, the violation found at it):
     // what a solve stopped by the time limit falls back to.
     let mut previous: Option<(SdpResult, usize, f64)> = None;
@@ -303,22 +326,15 @@ pub fn optimal_fusion_cuts(
                 let (opt, len, violation) = previous.take().expect("checked above");
                 let generated = cross.len();
                 cross.truncate(len);
-                return Ok(CutsResult {
-                    fused: opt.fused,
-                    status: opt.status,
-                    iterations: iterations - 1,
-                    constraints: cross.len(),
-                    constraints_generated: generated,
-                    violation,
-                    converged: false,
-                    stop: CutsStop::TimeLimit,
-                    certified_trace,
-                    certified_levels: certified.as_ref().map(|c| c.levels.clone()),
-                    gap_closed: false,
-                    dual_objective: opt.dual_objective,
-                    lower_bound: best_lower,
+                return Ok(finish(
+                    opt,
                     cross,
-                });
+                    generated,
+                    iterations - 1,
+                    violation,
+                    CutsStop::TimeLimit,
+                    best_lower,
+                ));
             }
             Err(e) => return Err(e),
         };
@@ -390,22 +406,10 @@ pub fn optimal_fusion_cuts(
                     violation = v;
                 }
             }
-            return Ok(CutsResult {
-                fused: opt.fused,
-                status: opt.status,
-                iterations,
-                constraints: cross.len(),
-                constraints_generated: generated,
-                violation,
-                converged,
-                stop,
-                certified_trace,
-                certified_levels: certified.as_ref().map(|c| c.levels.clone()),
-                gap_closed,
-                dual_objective: opt.dual_objective,
-                lower_bound: best_lower.max(opt.lower_bound),
-                cross,
-            });
+            let lower = best_lower.max(opt.lower_bound);
+            return Ok(finish(
+                opt, cross, generated, iterations, violation, stop, lower,
+            ));
         }
         previous = Some((opt.clone(), set.cross.len(), violation));
         // In-out separation: cut at a point between the relaxation's optimum and a feasible
