@@ -502,9 +502,9 @@ function renderNumbers() {
     const upperName = { nmci: "nmCI", ci: "CI", certified: "the certified rule" }[a.gap.upper_rule];
     const level = a.gap.levels ? ` (certificate level${a.gap.levels.length > 1 ? "s" : ""} ${a.gap.levels.join(", ")})` : "";
     const verdict = a.gap.closed
-      ? `<span id="gap-verdict" class="ok">proven optimal to 10⁻⁶: ${upperName}${a.gap.upper_rule === "certified" ? level : ""} attains the robust optimum</span>`
+      ? `<span id="gap-verdict" class="ok">proven optimal to 10⁻⁶ (relative): ${upperName}${a.gap.upper_rule === "certified" ? level : ""} is within 10⁻⁶ of the robust optimum</span>`
       : `<span id="gap-verdict" class="open">open: the robust optimum lies between the ends${level}</span>`;
-    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(both ends proven in exact arithmetic: a Lagrangian bound from the SDP's duals below, ${upperName} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative —</span> ${verdict}</div>`);
+    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(both ends proven, every rounding accounted for: a Lagrangian bound from the SDP's duals below, ${upperName} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative —</span> ${verdict}</div>`);
   }
   if (a.certified) {
     parts.push(`<div id="certified-status"><span class="k">certified rule:</span> tr P̄ ${a.certified.trace.toFixed(6)}${s.criterion !== "trace" ? " (minimises the trace; CI and nmCI above minimise log det)" : a.certified.trace < Math.min(a.ci.trace, a.nmci.trace) - 1e-9 ? ` — ${((1 - a.certified.trace / Math.min(a.ci.trace, a.nmci.trace)) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here"}, proven to dominate K P' Kᵀ for every admissible P' (level ${(a.certified.levels || []).join(", ")}, status ${a.certified.status}, ${a.certified.iterations} iterations, repair ${a.certified.repair.toExponential(1)})</div>`);

@@ -47,8 +47,8 @@ test("opens on the paper's example: nmCI trace 2.000, ω = [0, 1], CI looser", a
   assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved)/);
   assert.ok(Math.abs((await num("#row-sdp .trace")) - 2) < 1e-3);
   // The certified bracket: dual objective below, the best conservative rule (nmCI) above.
-  assert.match(await text("#gap"), /lies in \[(1\.99999\d|2\.000000), 2\.000000\] \(both ends proven in exact arithmetic: a Lagrangian bound from the SDP's duals below, nmCI above\)/);
-  assert.match(await text("#gap-verdict"), /^proven optimal to 10⁻⁶: nmCI attains the robust optimum$/);
+  assert.match(await text("#gap"), /lies in \[(1\.99999\d|2\.000000), 2\.000000\] \(both ends proven, every rounding accounted for: a Lagrangian bound from the SDP's duals below, nmCI above\)/);
+  assert.match(await text("#gap-verdict"), /^proven optimal to 10⁻⁶ \(relative\): nmCI is within 10⁻⁶ of the robust optimum$/);
   // The region of possible true fused covariances is drawn, with the five bounds.
   assert.ok((await page.locator("#layer-region path").count()) >= 100);
   for (const k of ["pa", "pb", "ci", "nmci", "sdp"]) assert.equal(await page.locator(`#layer-${k}`).count(), 1, k);
@@ -125,7 +125,7 @@ test("toggling a pattern cell changes the detected blocks", async () => {
   assert.match(await text("#row-certified"), /proven conservative/);
   assert.match(await text("#certified-status"), /% below the best of CI and nmCI, proven to dominate/);
   assert.match(await text("#gap"), /duals below, the certified rule above/);
-  assert.match(await text("#gap-verdict"), /^(proven optimal to 10⁻⁶: the certified rule \(certificate level 5\) attains|open: the robust optimum lies between the ends \(certificate level 5\))/);
+  assert.match(await text("#gap-verdict"), /^(proven optimal to 10⁻⁶ \(relative\): the certified rule \(certificate level 5\) is within|open: the robust optimum lies between the ends \(certificate level 5\))/);
   assert.equal(await page.locator("#row-certified .coin.neg").count(), 0);
   assert.equal(await page.locator("#layer-certified").count(), 1);
   await page.screenshot({ path: join(out, "explorer-not-separable.png"), fullPage: true });
