@@ -54,7 +54,7 @@ pub struct Study {
 
 #[wasm_bindgen]
 impl Study {
-    /// A study from a configuration object with the keys of `configs/study.toml` (every key
+    /// A study from a configuration object with the keys of `configs/paper.toml` (every key
     /// optional; unknown keys are rejected); throws on an invalid configuration.
     #[wasm_bindgen(constructor)]
     pub fn new(config: JsValue) -> Result<Study, JsError> {

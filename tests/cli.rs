@@ -127,6 +127,9 @@ fn track_writes_the_summary_and_csvs() {
     assert!(coin.starts_with("step,time,central,ci,nmci,naive,ici\n"));
     assert_eq!(coin.lines().count(), 7);
     assert!(dir.join("coin.svg").exists());
+    assert!(std::fs::read_to_string(dir.join("network.svg"))
+        .unwrap()
+        .starts_with("<svg"));
     assert!(summary["omega_7_11"]["ici"].is_number());
     // --no-coin: the same study without the exact COIN.
     let (code, _, err) = nmci(
@@ -278,4 +281,57 @@ fn fuse_takes_n_estimates() {
         err.contains("supports methods \"ci\" and \"nmci\""),
         "{err}"
     );
+}
+
+#[test]
+fn sweep_writes_the_ranking_the_best_configuration_and_its_drawing() {
+    let dir = std::env::temp_dir().join(format!("nmci-sweep-{}", std::process::id()));
+    let out = dir.to_str().unwrap();
+    let (code, stdout, err) = nmci(
+        &[
+            "sweep",
+            "--extra",
+            "1",
+            "--steps",
+            "4",
+            "--runs",
+            "1",
+            "--short-list",
+            "2",
+            "--out",
+            out,
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        stdout.starts_with("7 networks fit the text; 2 with Monte Carlo RMSE (1 runs × 4 steps)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("reference"), "{stdout}");
+    let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
+    // Header, 7 fitting networks, the figure's reading as a reference.
+    assert_eq!(csv.lines().count(), 1 + 7 + 1);
+    assert!(csv
+        .lines()
+        .last()
+        .unwrap()
+        .starts_with("reference,4-7 7-11 12-13,false,"));
+    // The best network as a configuration `nmci track` runs.
+    let best: nmci::sim::StudyConfig =
+        toml::from_str(&std::fs::read_to_string(dir.join("best.toml")).unwrap()).unwrap();
+    let report: nmci::sim::SweepReport =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap()).unwrap();
+    assert_eq!(best.scenario.bridges, report.ranked[0].links);
+    assert_eq!(nmci::sim::check_text(&best.scenario), Ok(()));
+    let svg = std::fs::read_to_string(dir.join("network.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.matches("<circle").count() == 16);
+    // Bad input: non-zero exit, the reason on stderr.
+    let (code, _, err) = nmci(&["sweep", "--extra", "5", "--out", out], "");
+    assert_ne!(code, 0);
+    assert_eq!(
+        err.trim(),
+        "nmci: invalid scenario: extra links: at most 3 (got 5; the count grows as 93^extra)"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }

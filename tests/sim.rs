@@ -33,8 +33,8 @@ fn the_structure_gives_eight_blocks_of_fourteen() {
     // Block 1 is group 1, y axis; block 2 group 2, x axis.
     assert!(model.blocks[1].contains(&sc.target_index(0, 2)));
     assert!(model.blocks[2].contains(&sc.target_index(5, 0)));
-    // Agent 7's neighbours, ascending: 4 (bridge), 6, 8 (ring), 11 (bridge); 1-based.
-    assert_eq!(sc.neighbours()[6], vec![3, 5, 7, 10]);
+    // Agent 7's neighbours, ascending: 4 (bridge), 6, 8 (ring), 10, 11 (bridges); 1-based.
+    assert_eq!(sc.neighbours()[6], vec![3, 5, 7, 9, 10]);
 }
 
 #[test]
@@ -112,19 +112,22 @@ fn reduced_study_reproduces_the_qualitative_results() {
         ci.rmse_mean
     );
     assert!(nmci.two_sigma_mean < ci.two_sigma_mean);
-    // ω(7←11): groups 1–2 (blocks 0–3) take agent 7's own estimate; groups 3–4 do not.
-    assert_eq!(s.omega_nmci.len(), 8);
-    assert!(
-        s.omega_nmci[..4].iter().all(|w| *w >= 0.95),
-        "{:?}",
-        s.omega_nmci
-    );
-    assert!(
-        s.omega_nmci[4..].iter().all(|w| *w < 1.0),
-        "{:?}",
-        s.omega_nmci
-    );
-    assert!(s.omega_ci > 0.0 && s.omega_ci < 1.0);
+    // ω(7←11) at every step of every run: on groups 1–2 (blocks 0–3) nmCI keeps agent 7's
+    // own estimate, exactly; on groups 3–4 it mixes (strictly inside (0, 1)) from the third
+    // step on; CI's one ω is inside (0, 1) throughout.
+    for t in &traces {
+        assert_eq!(t.omega_nmci.len(), 60);
+        for w in &t.omega_nmci {
+            assert_eq!(w.len(), 8);
+            assert_eq!(&w[..4], &[1.0; 4], "{w:?}");
+        }
+        // Group 4's information first reaches agent 7 on its own route (13–…–16, 16–9, 9–10,
+        // 10–7) in the third exchange; until then 11's blocks dominate there (ω = 0).
+        for w in &t.omega_nmci[2..] {
+            assert!(w[4..].iter().all(|w| *w > 0.0 && *w < 1.0), "{w:?}");
+        }
+        assert!(t.omega_ci.iter().all(|w| *w > 0.0 && *w < 1.0));
+    }
 }
 
 #[test]
@@ -158,12 +161,26 @@ fn invalid_scenarios_are_rejected() {
     }
 }
 
+fn config_file(name: &str) -> StudyConfig {
+    let path = format!("{}/configs/{name}", env!("CARGO_MANIFEST_DIR"));
+    toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
 #[test]
-fn configs_study_toml_lists_the_defaults() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/study.toml"))
-        .unwrap();
-    let parsed: StudyConfig = toml::from_str(&text).unwrap();
-    assert_eq!(parsed, StudyConfig::default());
+fn configs_paper_toml_lists_the_defaults_and_bridges_toml_only_changes_the_network() {
+    assert_eq!(config_file("paper.toml"), StudyConfig::default());
+    let bridges = config_file("bridges.toml");
+    assert_eq!(bridges.scenario.bridges, FIGURE_BRIDGES.to_vec());
+    assert_eq!(
+        bridges,
+        StudyConfig {
+            scenario: Scenario {
+                bridges: FIGURE_BRIDGES.to_vec(),
+                ..Scenario::default()
+            },
+            ..StudyConfig::default()
+        }
+    );
 }
 
 #[path = "golden/mod.rs"]
@@ -291,7 +308,7 @@ fn an_explicit_edge_list_equal_to_rings_and_bridges_gives_bit_identical_studies(
             edges.push((4 * g + (k + 1) % 4 + 1, 4 * g + k + 1));
         }
     }
-    edges.extend([(7, 4), (11, 7), (13, 12)]);
+    edges.extend(Scenario::default().bridges.iter().map(|&(a, b)| (b, a)));
     edges.reverse();
     let targets: Vec<[usize; 2]> = (0..16)
         .map(|a| [5 * (a / 4) + a % 4 + 1, 5 * (a / 4) + a % 4 + 2])
@@ -374,5 +391,250 @@ fn invalid_networks_are_rejected_by_name() {
                 );
             }
         }
+    }
+}
+
+// ---- The network sweep (src/sim/sweep.rs) ----
+
+/// A study on the network of `bridges` (rings plus these links between groups).
+fn on_network(bridges: &[(usize, usize)], steps: usize) -> StudyConfig {
+    StudyConfig {
+        steps,
+        runs: 1,
+        seed: 4,
+        scenario: Scenario {
+            bridges: bridges.to_vec(),
+            ..Scenario::default()
+        },
+        ..StudyConfig::default()
+    }
+}
+
+#[test]
+fn the_covariance_only_recursion_gives_the_monte_carlo_omega_and_two_sigma_bit_for_bit() {
+    for bridges in [Scenario::default().bridges, FIGURE_BRIDGES.to_vec()] {
+        let config = on_network(&bridges, 25);
+        let model = Model::new(&config.scenario).unwrap();
+        for run in [0, 3] {
+            let spec = config.run_spec(run, Storage::Blocks);
+            let ci_run = simulate_run_for_rule(&model, &spec, Rule::Ci).unwrap();
+            let nm_run = simulate_run_for_rule(&model, &spec, Rule::Nmci).unwrap();
+            let ci = covariance_series(&config, Rule::Ci).unwrap();
+            let nm = covariance_series(&config, Rule::Nmci).unwrap();
+            assert_eq!(ci.omega.len(), 25);
+            assert_eq!(
+                ci.omega.iter().map(|w| w[0]).collect::<Vec<_>>(),
+                ci_run.omega_ci
+            );
+            assert_eq!(nm.omega, nm_run.omega_nmci);
+            assert_eq!(ci.two_sigma, ci_run.two_sigma[1]);
+            assert_eq!(nm.two_sigma, nm_run.two_sigma[1]);
+        }
+    }
+}
+
+/// Sum of hop distances from agent `from` (0-based), breadth-first; written here, not shared
+/// with the library.
+fn closeness_sum(sc: &Scenario, from: usize) -> usize {
+    let nb = sc.neighbours();
+    let mut dist = vec![usize::MAX; nb.len()];
+    dist[from] = 0;
+    let mut frontier = vec![from];
+    let mut d = 0;
+    while !frontier.is_empty() {
+        d += 1;
+        let mut next = Vec::new();
+        for v in frontier {
+            for &w in &nb[v] {
+                if dist[w] == usize::MAX {
+                    dist[w] = d;
+                    next.push(w);
+                }
+            }
+        }
+        frontier = next;
+    }
+    assert!(dist.iter().all(|&d| d != usize::MAX));
+    dist.iter().sum()
+}
+
+#[test]
+fn the_text_conditions_reject_networks_that_break_them() {
+    let with = |bridges: &[(usize, usize)]| Scenario {
+        bridges: bridges.to_vec(),
+        ..Scenario::default()
+    };
+    assert_eq!(check_text(&Scenario::default()), Ok(()));
+    // The figure's reading: 7 hears of groups 3–4 only through 11.
+    assert_eq!(
+        check_text(&with(&FIGURE_BRIDGES)),
+        Err(TextMismatch::OnlyThrough11)
+    );
+    // Agent 3 reaches 11 over 3–12 without passing through 7.
+    assert_eq!(
+        check_text(&with(&[(4, 7), (7, 10), (7, 11), (3, 12), (12, 13)])),
+        Err(TextMismatch::Bypasses7 { agent: 1 })
+    );
+    // Over 8–14, 14–13, 13–12: agent 5 (the first of 1–8 that can; group 1 hangs on 4–7)
+    // reaches 11 through 8 without passing through 7.
+    assert_eq!(
+        check_text(&with(&[(4, 7), (7, 10), (7, 11), (8, 14), (12, 13)])),
+        Err(TextMismatch::Bypasses7 { agent: 5 })
+    );
+    assert_eq!(
+        check_text(&with(&[(4, 7), (7, 10), (10, 11), (12, 13)])),
+        Err(TextMismatch::No7To11)
+    );
+    // A group that is a path, not a ring (explicit edges without 9–12).
+    let mut edges: Vec<(usize, usize)> = Scenario::default()
+        .links()
+        .into_iter()
+        .map(|(a, b)| (a + 1, b + 1))
+        .filter(|&l| l != (9, 12))
+        .collect();
+    edges.push((1, 9));
+    let path = Scenario {
+        bridges: vec![],
+        edges: edges.clone(),
+        ..Scenario::default()
+    };
+    path.validate().unwrap();
+    assert_eq!(
+        check_text(&path),
+        Err(TextMismatch::NoRing {
+            group: 3,
+            a: 12,
+            b: 9
+        })
+    );
+    assert_eq!(
+        check_text(&Scenario {
+            groups: 2,
+            agents_per_group: 8,
+            targets_per_group: 10,
+            ..with(&[])
+        }),
+        Err(TextMismatch::NotFourGroupsOfFour {
+            groups: 2,
+            per_group: 8
+        })
+    );
+}
+
+#[test]
+fn the_sweep_enumerates_every_fitting_network_and_seven_is_always_more_central() {
+    let base = Scenario::default();
+    let one = candidate_networks(&base, Family::Bridges { extra: 1 });
+    let two = candidate_networks(&base, Family::Bridges { extra: 2 });
+    // Counts from an independent enumeration (a Python script over the same conditions).
+    assert_eq!((one.len(), two.len()), (7, 238));
+    assert_eq!(&two[..7], &one[..]);
+    assert!(two.contains(&base.bridges));
+    let mut seen = std::collections::BTreeSet::new();
+    for links in &two {
+        assert!(seen.insert(links.clone()), "listed twice: {links:?}");
+        for fixed in FIGURE_BRIDGES {
+            assert!(links.contains(&fixed));
+        }
+        let sc = Scenario {
+            bridges: links.clone(),
+            ..base.clone()
+        };
+        assert_eq!(check_text(&sc), Ok(()), "{links:?}");
+        // The module docs prove agent 7 strictly more central than 11 under the conditions.
+        assert!(closeness_sum(&sc, 6) < closeness_sum(&sc, 10), "{links:?}");
+    }
+    assert_eq!(
+        candidate_networks(&base, Family::Links { count: 1 }),
+        Vec::<Vec<_>>::new()
+    );
+}
+
+#[test]
+fn a_small_sweep_ranks_by_distance_and_runs_the_monte_carlo_for_the_short_list() {
+    let config = SweepConfig {
+        study: StudyConfig {
+            steps: 8,
+            runs: 2,
+            ..StudyConfig::default()
+        },
+        family: Family::Bridges { extra: 1 },
+        short_list: 3,
+        ..SweepConfig::default()
+    };
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let report = sweep(&config, |_, total| {
+        assert_eq!(total, 2 * 8 + 2 * 2 * (3 + 1));
+        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    })
+    .unwrap();
+    assert_eq!(calls.into_inner(), 2 * 8 + 2 * 2 * 4);
+    assert_eq!(report.fitting, 7);
+    assert_eq!(report.ranked.len(), 7);
+    let (short, rest) = report.ranked.split_at(3);
+    for part in [short, rest] {
+        assert!(part.windows(2).all(|w| w[0].distance <= w[1].distance));
+    }
+    assert!(short
+        .iter()
+        .all(|c| c.rmse.is_some() && c.text_mismatch.is_none()));
+    assert!(rest.iter().all(|c| c.rmse.is_none()));
+    // Each candidate's numbers are its network's covariance-only recursion.
+    for c in &report.ranked {
+        let study = config.network(&c.links);
+        let ci = covariance_series(&study, Rule::Ci).unwrap();
+        let last_half = |v: Vec<f64>| v[4..].iter().sum::<f64>() / 4.0;
+        assert_eq!(
+            c.omega_ci,
+            last_half(ci.omega.iter().map(|w| w[0]).collect())
+        );
+        let nm = covariance_series(&study, Rule::Nmci).unwrap();
+        let two_sigma = |s: &[f64]| s.iter().sum::<f64>() / 8.0;
+        assert_eq!(
+            c.two_sigma,
+            [two_sigma(&ci.two_sigma), two_sigma(&nm.two_sigma)]
+        );
+    }
+    // The Monte Carlo RMSE is the study's.
+    let best = &report.ranked[0];
+    let study = config.network(&best.links);
+    let (summary, _) = run_study(&study).unwrap();
+    let rmse = |name: &str| {
+        summary
+            .estimators
+            .iter()
+            .find(|(n, _)| n == name)
+            .unwrap()
+            .1
+            .rmse_mean
+    };
+    assert_eq!(best.rmse, Some([rmse("ci"), rmse("nmci")]));
+    // The figure's reading is evaluated as a reference and marked as not fitting the text.
+    assert_eq!(report.references.len(), 1);
+    assert_eq!(report.references[0].links, FIGURE_BRIDGES.to_vec());
+    assert_eq!(
+        report.references[0].text_mismatch.as_deref(),
+        Some("no agent of groups 3–4 reaches agent 7 without passing through agent 11")
+    );
+    assert_eq!(report.references[0].omega_nmci[4..], [0.0; 4]);
+}
+
+#[test]
+fn invalid_sweeps_are_rejected_by_name() {
+    let bad = |family| SweepConfig {
+        family,
+        ..SweepConfig::default()
+    };
+    for (config, message) in [
+        (
+            bad(Family::Bridges { extra: 4 }),
+            "invalid scenario: extra links: at most 3 (got 4; the count grows as 93^extra)",
+        ),
+        (
+            bad(Family::Links { count: 0 }),
+            "invalid scenario: links between groups: 1 to 4 (got 0; the count grows as 95^(count−1))",
+        ),
+    ] {
+        assert_eq!(sweep(&config, |_, _| {}).unwrap_err().to_string(), message);
     }
 }

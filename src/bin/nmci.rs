@@ -2,7 +2,7 @@
 //!
 //! `nmci fuse [FILE]` reads a JSON fusion request from FILE (or standard input) and prints
 //! the JSON response; invalid input exits non-zero with a one-line message on stderr.
-//! `nmci track` runs the tracking study (see `configs/study.toml`).
+//! `nmci track` runs the tracking study (see `configs/paper.toml`).
 
 #[cfg(not(target_arch = "wasm32"))]
 mod cli {
@@ -32,7 +32,7 @@ mod cli {
         },
         /// Run the paper's 16-agent tracking study (parallel over runs) and write its outputs.
         Track {
-            /// Study configuration (TOML, the form of configs/study.toml); defaults when absent.
+            /// Study configuration (TOML, the form of configs/paper.toml); defaults when absent.
             #[arg(long)]
             config: Option<PathBuf>,
             /// Monte Carlo runs (overrides the configuration).
@@ -49,6 +49,33 @@ mod cli {
             no_coin: bool,
             /// Output folder: summary.json, nees/rmse/two_sigma/omega/coin CSVs, nees/rmse/omega/coin SVGs.
             #[arg(long, default_value = "out/track")]
+            out: PathBuf,
+        },
+        /// Search the networks the paper's text allows for the one its numbers fit (ω of 7←11
+        /// for CI and nmCI and the 2σ covariance-only for every network; the Monte Carlo RMSE
+        /// for the short list), ranked by distance to the paper's numbers.
+        Sweep {
+            /// Study values to run with (TOML, the form of configs/paper.toml); its network is
+            /// replaced by each candidate's. Defaults when absent.
+            #[arg(long)]
+            config: Option<PathBuf>,
+            /// Keep the bridges 4–7, 7–11, 12–13 and add up to N more links between groups.
+            #[arg(long, default_value_t = 2, conflicts_with = "links")]
+            extra: usize,
+            /// Instead: 7–11 plus any others, N links between groups in all.
+            #[arg(long)]
+            links: Option<usize>,
+            /// Networks that get the Monte Carlo RMSE (the best by covariance-only distance).
+            #[arg(long, default_value_t = 5)]
+            short_list: usize,
+            /// Monte Carlo runs per short-listed network (overrides the configuration).
+            #[arg(long)]
+            runs: Option<usize>,
+            /// Time steps (overrides the configuration).
+            #[arg(long)]
+            steps: Option<usize>,
+            /// Output folder: sweep.csv (every network), sweep.json, best.toml, network.svg.
+            #[arg(long, default_value = "out/sweep")]
             out: PathBuf,
         },
         /// The paper's fig. 2: sampled SDP against nmCI on the 2-D example, by sample-set size.
@@ -342,6 +369,149 @@ mod cli {
         root.present().map_err(|e| err(&e))
     }
 
+    /// A study configuration from a TOML file, or the defaults.
+    fn load_config(path: Option<PathBuf>) -> Result<nmci::sim::StudyConfig, String> {
+        match path {
+            Some(path) => {
+                let text = std::fs::read_to_string(&path)
+                    .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+                toml::from_str(&text).map_err(|e| {
+                    format!("invalid configuration {}: {}", path.display(), e.message())
+                })
+            }
+            None => Ok(nmci::sim::StudyConfig::default()),
+        }
+    }
+
+    /// `nmci sweep`: the ranked networks as CSV and JSON, the best as a configuration and a
+    /// drawing, and the top of the ranking on standard output.
+    fn sweep(
+        config: Option<PathBuf>,
+        family: nmci::sim::Family,
+        short_list: usize,
+        runs: Option<usize>,
+        steps: Option<usize>,
+        out: PathBuf,
+    ) -> Result<String, String> {
+        use indicatif::{ProgressBar, ProgressStyle};
+        use nmci::sim::*;
+
+        let mut study = load_config(config)?;
+        study.runs = runs.unwrap_or(study.runs);
+        study.steps = steps.unwrap_or(study.steps);
+        let config = SweepConfig {
+            study,
+            family,
+            short_list,
+            ..SweepConfig::default()
+        };
+        config.validate().map_err(|e| e.to_string())?;
+        let bar = ProgressBar::new(0).with_style(
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} pieces (networks × rules, then Monte Carlo runs × rules), {elapsed} (eta {eta})",
+            )
+            .map_err(|e| e.to_string())?,
+        );
+        let started = std::time::Instant::now();
+        let report = nmci::sim::sweep(&config, |done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        })
+        .map_err(|e| e.to_string())?;
+        bar.finish_and_clear();
+        let best = report
+            .ranked
+            .first()
+            .ok_or("no network of this family fits the paper's text")?;
+        std::fs::create_dir_all(&out)
+            .map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+        let write = |name: &str, text: String| {
+            std::fs::write(out.join(name), text)
+                .map_err(|e| format!("cannot write {}: {e}", out.join(name).display()))
+        };
+        let links = |c: &Candidate| {
+            c.links
+                .iter()
+                .map(|(a, b)| format!("{a}-{b}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        let pct = |r: Option<f64>| r.map_or(String::new(), |r| format!("{:.1}", -100.0 * r));
+        let mut csv = String::from(
+            "rank,links,fits_text,distance,omega_ci,omega_nmci,two_sigma_reduction_pct,rmse_reduction_pct\n",
+        );
+        let rows = report
+            .ranked
+            .iter()
+            .enumerate()
+            .map(|(k, c)| ((k + 1).to_string(), c))
+            .chain(
+                report
+                    .references
+                    .iter()
+                    .map(|c| ("reference".to_string(), c)),
+            );
+        let mut table = String::new();
+        for (i, (rank, c)) in rows.enumerate() {
+            let omega = c
+                .omega_nmci
+                .iter()
+                .map(|w| format!("{w:.3}"))
+                .collect::<Vec<_>>()
+                .join(" ");
+            csv += &format!(
+                "{rank},{},{},{:.4},{:.4},{omega},{},{}\n",
+                links(c),
+                c.text_mismatch.is_none(),
+                c.distance,
+                c.omega_ci,
+                pct(Some(c.two_sigma_reduction)),
+                pct(c.rmse_reduction)
+            );
+            if i < config.short_list.max(1) || rank == "reference" {
+                table += &format!(
+                    "{rank:>9}  d = {:.3}  links {:<28} CI ω {:.3}  nmCI ω {omega}  2σ {:>6} %  RMSE {:>6} %\n",
+                    c.distance,
+                    links(c),
+                    c.omega_ci,
+                    pct(Some(c.two_sigma_reduction)),
+                    pct(c.rmse_reduction)
+                );
+            }
+        }
+        write("sweep.csv", csv)?;
+        write(
+            "sweep.json",
+            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?,
+        )?;
+        let best_config = config.network(&best.links);
+        write(
+            "best.toml",
+            toml::to_string(&StudyConfig {
+                coin: StudyConfig::default().coin,
+                ..best_config.clone()
+            })
+            .map_err(|e| e.to_string())?,
+        )?;
+        write(
+            "network.svg",
+            network_svg(
+                &best_config.scenario,
+                best_config.agent,
+                best_config.watched,
+            ),
+        )?;
+        Ok(format!(
+            "{} networks fit the text; {} with Monte Carlo RMSE ({} runs × {} steps); {:.1} s\n{table}wrote {}/sweep.csv, sweep.json, best.toml, network.svg",
+            report.fitting,
+            config.short_list.min(report.fitting),
+            config.study.runs,
+            config.study.steps,
+            started.elapsed().as_secs_f64(),
+            out.display()
+        ))
+    }
+
     fn track(
         config: Option<PathBuf>,
         runs: Option<usize>,
@@ -353,16 +523,7 @@ mod cli {
         use indicatif::{ProgressBar, ProgressStyle};
         use nmci::sim::*;
 
-        let mut cfg: StudyConfig = match config {
-            Some(path) => {
-                let text = std::fs::read_to_string(&path)
-                    .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-                toml::from_str(&text).map_err(|e| {
-                    format!("invalid configuration {}: {}", path.display(), e.message())
-                })?
-            }
-            None => StudyConfig::default(),
-        };
+        let mut cfg = load_config(config)?;
         cfg.runs = runs.unwrap_or(cfg.runs);
         cfg.steps = steps.unwrap_or(cfg.steps);
         cfg.seed = seed.unwrap_or(cfg.seed);
@@ -390,6 +551,10 @@ mod cli {
         write(
             "summary.json",
             serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?,
+        )?;
+        write(
+            "network.svg",
+            network_svg(&cfg.scenario, cfg.agent, cfg.watched),
         )?;
         let names: Vec<&str> = estimators().map(estimator_name).collect();
         for (file, series) in [
@@ -617,6 +782,25 @@ mod cli {
                 no_coin,
                 out,
             } => track(config, runs, steps, seed, no_coin, out),
+            Command::Sweep {
+                config,
+                extra,
+                links,
+                short_list,
+                runs,
+                steps,
+                out,
+            } => sweep(
+                config,
+                match links {
+                    Some(count) => nmci::sim::Family::Links { count },
+                    None => nmci::sim::Family::Bridges { extra },
+                },
+                short_list,
+                runs,
+                steps,
+                out,
+            ),
             Command::Fig2 {
                 runs,
                 sizes,

@@ -29,7 +29,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::model::Model;
-use super::study::{fuse, Estimate, Partition};
+use super::study::{exchange, fuse, Estimate, Partition};
 use super::{Rule, SimError, Storage};
 use crate::error::InputError;
 use crate::fusion::check::conservativeness_index;
@@ -225,25 +225,23 @@ impl ErrorPropagation {
     fn exchange(&mut self, model: &Model, rule: Rule) -> Result<(), SimError> {
         let count = self.filters.len();
         let blocks = self.part.blocks.len();
-        let sent = self.filters.clone();
         // coefficients[a][k]: agent a's post-exchange error in block k as Σⱼ C_aj eⱼ
         // (`None` = the identity: most fusions keep or take whole blocks).
-        let mut coefficients: Vec<Vec<Coefficients>> = Vec::with_capacity(count);
-        for a in 0..count {
-            let mut coef: Vec<Coefficients> = (0..blocks).map(|_| vec![(a, None)]).collect();
-            for &b in &self.neighbours[a] {
-                let before: Vec<DMatrix<f64>> =
-                    self.filters[a].iter().map(|g| g.P.clone()).collect();
-                let omega = fuse(model, Storage::Blocks, rule, &mut self.filters[a], &sent[b])?;
-                for k in (0..blocks).filter(|&k| self.twin[k].is_none()) {
-                    let gain = gain_b(
-                        rule,
-                        &omega,
-                        k,
-                        &before[k],
-                        &sent[b][k].P,
-                        &self.filters[a][k].P,
-                    )?;
+        let mut coefficients: Vec<Vec<Coefficients>> = (0..count)
+            .map(|a| (0..blocks).map(|_| vec![(a, None)]).collect())
+            .collect();
+        let twin = &self.twin;
+        let mut sent = Vec::with_capacity(count);
+        exchange(
+            &mut self.filters,
+            &mut sent,
+            &self.neighbours,
+            |a, b, mine: &mut Estimate, theirs: &Estimate| {
+                let coef = &mut coefficients[a];
+                let before: Vec<DMatrix<f64>> = mine.iter().map(|g| g.P.clone()).collect();
+                let omega = fuse(model, Storage::Blocks, rule, mine, theirs)?;
+                for k in (0..blocks).filter(|&k| twin[k].is_none()) {
+                    let gain = gain_b(rule, &omega, k, &before[k], &theirs[k].P, &mine[k].P)?;
                     match gain {
                         Gain::Keep => {}
                         Gain::Take => coef[k] = vec![(b, None)],
@@ -263,9 +261,9 @@ impl ErrorPropagation {
                         }
                     }
                 }
-            }
-            coefficients.push(coef);
-        }
+                Ok(())
+            },
+        )?;
         for (k, S) in self.joint.iter_mut().enumerate() {
             if self.twin[k].is_some() {
                 continue;

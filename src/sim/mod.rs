@@ -8,21 +8,32 @@
 //! covariance exactly (no Monte Carlo: all covariances and gains are deterministic), giving
 //! each estimator's conservativeness index (COIN) per step next to its NEES;
 //! [`LiveStudy`] advances a study a few steps at a time (the page's live Study tab) and
-//! [`simulate_runs_parallel`] runs it on every core (the CLI).
+//! [`simulate_runs_parallel`] runs it on every core (the CLI). [`sweep`] searches the networks
+//! the paper's text allows for the one its numbers fit (its figure is not in the source).
 
 mod coin;
+mod draw;
 mod live;
 mod model;
 mod scenario;
 mod study;
+mod sweep;
 
 pub use coin::{coin_series, ErrorPropagation};
+pub use draw::network_svg;
 pub use live::{LiveStudy, StudyView};
 pub use model::Model;
 pub use scenario::{ScalarMeasurement, Scenario};
 pub use study::{
     merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, Rule, RunSpec, RunState,
     RunTrace, Storage, RULES,
+};
+#[cfg(not(target_arch = "wasm32"))]
+pub use sweep::sweep;
+pub use sweep::{
+    candidate_networks, check_text, covariance_series, Candidate, CovarianceRun, CovarianceSeries,
+    Family, SweepConfig, SweepReport, TextMismatch, FIGURE_BRIDGES, PAPER_OMEGA_CI,
+    PAPER_OMEGA_NMCI_FAR, PAPER_RMSE_REDUCTION, PAPER_TWO_SIGMA_REDUCTION,
 };
 
 use serde::{Deserialize, Serialize};
@@ -139,7 +150,7 @@ impl Scenario {
 }
 
 /// A whole study: the scenario and how it is run. Every field has a default
-/// (`configs/study.toml` lists them) and can be overridden by a TOML file or the CLI.
+/// (`configs/paper.toml` lists them) and can be overridden by a TOML file or the CLI.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct StudyConfig {

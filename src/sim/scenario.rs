@@ -4,7 +4,9 @@
 use serde::{Deserialize, Serialize};
 
 /// Scenario parameters. Defaults: 4 groups × 4 agents, 5 targets per group, `dt = 0.1 s`,
-/// `q = 0.05`, landmark variance 3, bridges 4–7, 7–11, 12–13 (1-based agent ids).
+/// `q = 0.05`, landmark variance 3, and the network that fits the paper best (rings plus the
+/// bridges 4–7, 7–10, 7–11, 9–16, 12–13, 1-based agent ids: the best of `nmci sweep`, see
+/// docs/reproduction.md; [`super::FIGURE_BRIDGES`] is the reading of the paper's figure).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Scenario {
@@ -51,7 +53,7 @@ impl Default for Scenario {
             prior_position_variance: 10.0,
             prior_velocity_variance: 1.0,
             prior_bias_variance: 1.0,
-            bridges: vec![(4, 7), (7, 11), (12, 13)],
+            bridges: vec![(4, 7), (7, 10), (7, 11), (9, 16), (12, 13)],
             edges: Vec::new(),
             targets: Vec::new(),
         }

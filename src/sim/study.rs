@@ -153,6 +153,20 @@ impl Partition {
             .collect()
     }
 
+    /// The mean 2σ of the position coordinates: `2·√(mean of P_ii)` over every target's `x`
+    /// and `y` (blocks in order, positions in order within a block). Depends on `P` only.
+    pub(super) fn two_sigma(&self, e: &Estimate) -> f64 {
+        let mut var = 0.0;
+        let mut count = 0usize;
+        for (k, g) in e.iter().enumerate() {
+            for &i in &self.positions[k] {
+                var += g.P[(i, i)];
+                count += 1;
+            }
+        }
+        2.0 * (var / count as f64).sqrt()
+    }
+
     /// `x ← F x`, `P ← F P Fᵀ + Q` block by block, with the sparse rows of `F`.
     pub(super) fn predict(&self, e: &mut Estimate) {
         for (k, g) in e.iter_mut().enumerate() {
@@ -208,6 +222,33 @@ impl Partition {
         symmetrize_in_place(P);
         K
     }
+}
+
+/// The study's exchange schedule, in one place (the Monte Carlo runs, the exact COIN and the
+/// covariance-only sweep all call it, so a change of schedule cannot make them drift): every
+/// agent sends a copy of its current estimate (after its own prediction and update) to all
+/// its neighbours at once; then each agent, in ascending id, fuses what it received one
+/// neighbour at a time, in ascending neighbour id: `fuse_one(a, b, estimate of a, copy sent
+/// by b)`. `sent` is a reused buffer.
+pub(super) fn exchange<E: Clone>(
+    agents: &mut [E],
+    sent: &mut Vec<E>,
+    neighbours: &[Vec<usize>],
+    mut fuse_one: impl FnMut(usize, usize, &mut E, &E) -> Result<(), SimError>,
+) -> Result<(), SimError> {
+    sent.truncate(agents.len());
+    for (k, estimate) in agents.iter().enumerate() {
+        match sent.get_mut(k) {
+            Some(copy) => copy.clone_from(estimate),
+            None => sent.push(estimate.clone()),
+        }
+    }
+    for (a, mine) in agents.iter_mut().enumerate() {
+        for &b in &neighbours[a] {
+            fuse_one(a, b, mine, &sent[b])?;
+        }
+    }
+    Ok(())
 }
 
 /// Fuses `b` into `a` with `rule`; returns the weights used (CI: one; nmCI: one per model block).
@@ -515,10 +556,12 @@ impl RunState {
                     part.update(&mut agents[a], a, m, value);
                 }
             }
-            self.sent.clone_from(agents);
-            for a in 0..sc.agents() {
-                for &b in &self.neighbours[a] {
-                    let omega = fuse(model, spec.storage, *rule, &mut agents[a], &self.sent[b])?;
+            exchange(
+                agents,
+                &mut self.sent,
+                &self.neighbours,
+                |a, b, mine, theirs| {
+                    let omega = fuse(model, spec.storage, *rule, mine, theirs)?;
                     if a == spec.agent && b == spec.watched {
                         match rule {
                             Rule::Ci => trace.omega_ci.push(omega[0]),
@@ -527,26 +570,25 @@ impl RunState {
                             Rule::Naive => {}
                         }
                     }
-                }
-            }
+                    Ok(())
+                },
+            )?;
         }
         // Metrics of the headline agent, block by block (the covariance is block-diagonal).
         let estimates =
             std::iter::once(&self.central).chain(self.agents.iter().map(|r| &r[spec.agent]));
         for (s, e) in estimates.enumerate() {
-            let (mut nees_sum, mut se, mut var) = (0.0, 0.0, 0.0);
+            let (mut nees_sum, mut se) = (0.0, 0.0);
             for (k, block) in part.blocks.iter().enumerate() {
                 let err = DVector::from_fn(block.len(), |i, _| truth[block[i]] - e[k].x[i]);
                 nees_sum += nees(&e[k].P, &err);
                 for &i in &part.positions[k] {
                     se += err[i] * err[i];
-                    var += e[k].P[(i, i)];
                 }
             }
-            let count = (2 * sc.targets()) as f64;
             trace.nees[s].push(nees_sum);
             trace.rmse[s].push((se / sc.targets() as f64).sqrt());
-            trace.two_sigma[s].push(2.0 * (var / count).sqrt());
+            trace.two_sigma[s].push(part.two_sigma(e));
         }
         self.done += 1;
         Ok(())
