@@ -90,6 +90,43 @@ impl Study {
     }
 }
 
+/// The network of a study configuration (the keys of `configs/paper.toml`, every key
+/// optional), drawn: `{svg, text_mismatch}`, `text_mismatch` `undefined` when the network
+/// fits the paper's text ([`crate::sim::check_text`]) and otherwise why not. Throws on an
+/// invalid configuration.
+#[wasm_bindgen]
+pub fn study_network(config: JsValue) -> Result<JsValue, JsError> {
+    #[derive(Serialize)]
+    struct Network {
+        svg: String,
+        text_mismatch: Option<String>,
+    }
+    let config: StudyConfig = parse(config)?;
+    config.validate()?;
+    to_js(&Network {
+        svg: crate::sim::network_svg(&config.scenario, config.agent, config.watched),
+        text_mismatch: crate::sim::check_text(&config.scenario)
+            .err()
+            .map(|e| e.to_string()),
+    })
+}
+
+/// The named networks, as links between groups (1-based pairs, beside the rings): `paper`,
+/// the default (the best fit of `nmci sweep`), and `figure`, the bridges read from the
+/// paper's figure ([`crate::sim::FIGURE_BRIDGES`]).
+#[wasm_bindgen]
+pub fn study_networks() -> Result<JsValue, JsError> {
+    #[derive(Serialize)]
+    struct Networks {
+        paper: Vec<(usize, usize)>,
+        figure: Vec<(usize, usize)>,
+    }
+    to_js(&Networks {
+        paper: StudyConfig::default().scenario.bridges,
+        figure: crate::sim::FIGURE_BRIDGES.to_vec(),
+    })
+}
+
 /// Run `run` of the paper's fig. 2 study ([`crate::fig2_run`]): `config` has the keys of
 /// [`crate::Fig2Config`] (`runs`, `sizes`, `seed`); returns one record per sample-set size.
 #[wasm_bindgen]

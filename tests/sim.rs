@@ -638,3 +638,40 @@ fn invalid_sweeps_are_rejected_by_name() {
         assert_eq!(sweep(&config, |_, _| {}).unwrap_err().to_string(), message);
     }
 }
+
+#[test]
+fn per_group_rmse_and_two_sigma_recombine_into_the_totals() {
+    // One step of one run: each group has 5 targets (10 position coordinates), so the
+    // squared total RMSE is the mean of the groups' squared RMSEs, and likewise (2σ/2)².
+    let config = StudyConfig {
+        steps: 2,
+        runs: 1,
+        ..StudyConfig::default()
+    };
+    let model = Model::new(&config.scenario).unwrap();
+    let mut run = RunState::new(&model, &config.run_spec(0, Storage::Blocks));
+    run.step(&model).unwrap();
+    let s = summarize(std::slice::from_ref(run.trace()), model.dim());
+    for (k, (name, e)) in s.estimators.iter().enumerate() {
+        assert_eq!(e.rmse_by_group.len(), 4, "{name}");
+        let mean_square = |v: &[f64], half: f64| {
+            v.iter().map(|x| (x * half).powi(2)).sum::<f64>() / v.len() as f64
+        };
+        let (rmse, two_sigma) = (s.rmse_series[k][0], s.two_sigma_series[k][0]);
+        assert!((mean_square(&e.rmse_by_group, 1.0) - rmse * rmse).abs() <= 1e-12 * rmse * rmse);
+        let var = (two_sigma / 2.0).powi(2);
+        assert!(
+            (mean_square(&e.two_sigma_by_group, 0.5) - var).abs() <= 1e-12 * var,
+            "{name}"
+        );
+        // And each group's own error, from the run's error vector directly.
+        let err = run.error(k, 6).unwrap();
+        for g in 0..4 {
+            let se: f64 = (5 * g..5 * g + 5)
+                .flat_map(|t| [4 * t, 4 * t + 2])
+                .map(|i| err[i] * err[i])
+                .sum();
+            assert!((e.rmse_by_group[g] - (se / 5.0).sqrt()).abs() <= 1e-12 * e.rmse_by_group[g]);
+        }
+    }
+}

@@ -1,7 +1,9 @@
 // The "Tracking study" tab: runs the paper's 16-agent study in a Web Worker (wasm `Study`)
-// and redraws the headline table and three charts after every chunk of steps.
+// and redraws the headline table and three charts after every chunk of steps. The network is
+// picked (paper fit, the figure's reading, custom links) and drawn by the wasm module.
 import { lineChart } from "./chart.js";
 import { readWholeNumbers, workerTab } from "./worker-tab.js";
+import init, { study_network, study_networks } from "./pkg/nmci.js";
 
 const $ = (s) => document.querySelector(s);
 const NAMES = ["central", "ci", "nmci", "naive", "ici"];
@@ -24,9 +26,69 @@ $("#tab-study").addEventListener("click", () => showTab("study"));
 $("#tab-fig2").addEventListener("click", () => showTab("fig2"));
 $("#tab-nway").addEventListener("click", () => showTab("nway"));
 
+// The network: a named one (from the wasm module, where the defaults live) or custom links
+// between groups ("4-7 7-11 …"), drawn by the same Rust code as `nmci track`'s network.svg.
+const networks = init().then(() => study_networks());
+let named = null; // the named networks once the module is loaded
+networks.then((n) => { named = n; drawNetwork(); }, (err) => { $("#err-study").textContent = `cannot load the wasm module: ${err.message || err}`; });
+
+function parseLinks(text) {
+  const links = [];
+  for (const word of text.trim().split(/[\s,;]+/).filter(Boolean)) {
+    const m = /^(\d+)\s*[-–]\s*(\d+)$/.exec(word);
+    if (!m) throw new Error(`links: write pairs of agents like "4-7 7-11" (cannot read "${word}")`);
+    links.push([Number(m[1]), Number(m[2])]);
+  }
+  return links;
+}
+
+/** The links between groups of the chosen network; throws an Error naming the problem. */
+function readLinks() {
+  if (!named) throw new Error("the wasm module is still loading");
+  const choice = $("#study-network").value;
+  $("#study-links-label").hidden = choice !== "custom";
+  if (choice !== "custom") return named[choice];
+  const input = $("#study-links");
+  try {
+    const links = parseLinks(input.value);
+    input.classList.remove("bad");
+    return links;
+  } catch (err) {
+    input.classList.add("bad");
+    throw err;
+  }
+}
+
+function drawNetwork() {
+  const error = $("#err-study");
+  error.textContent = "";
+  try {
+    const network = study_network({ scenario: { bridges: readLinks() } });
+    $("#study-links").classList.remove("bad");
+    $("#study-network-svg").innerHTML = network.svg;
+    $("#study-network-caption").textContent = network.text_mismatch
+      ? `Does not fit the paper's text: ${network.text_mismatch}.`
+      : "Fits the paper's text: groups 1–2 reach agent 11 only through agent 7, and groups 3–4 reach agent 7 also without agent 11.";
+  } catch (err) {
+    const message = err.message || String(err);
+    if ($("#study-network").value === "custom") $("#study-links").classList.add("bad");
+    error.textContent = message;
+    $("#study-network-svg").replaceChildren();
+    $("#study-network-caption").textContent = "";
+  }
+}
+$("#study-network").addEventListener("change", () => {
+  if ($("#study-network").value === "custom" && !$("#study-links").value.trim() && named) {
+    $("#study-links").value = named.paper.map(([a, b]) => `${a}-${b}`).join(" ");
+  }
+  drawNetwork();
+});
+$("#study-links").addEventListener("input", drawNetwork);
+
 function readConfig() {
   const config = readWholeNumbers("study", [["runs", 1, 100], ["steps", 2, 2000], ["seed", 0, Number.MAX_SAFE_INTEGER]]);
   config.coin = $("#study-coin").checked;
+  config.scenario = { bridges: readLinks() };
   return config;
 }
 

@@ -19,6 +19,24 @@
 //!   block) `K_b = (1−ω) P P_b⁻¹`, naive `K_b = P P_b⁻¹`, ICI `K_b = P (P_b⁻¹ − (1−ω) Γ⁻¹)`
 //!   with `Γ = ω P_a + (1−ω) P_b`.
 //!
+//! ## What is assumed (each is true of the study as coded, and each is needed)
+//! - **Truth from the common prior, filters started at its mean.** Each run draws the truth
+//!   from `N(0, P₀)` and starts every filter at `0`, so the initial errors are `eᵢ = x` for all
+//!   agents and `E` is an expectation over truth *and* noise together (not conditional on a
+//!   fixed truth).
+//! - **Matched model.** The filters use the `F`, `Q`, `H`, `R` and `P₀` that generate the data.
+//! - **`R` diagonal.** Each agent's measurements are applied as independent scalar updates
+//!   (the study's [`Partition::update`]); a correlated `R` would need a whitening step here.
+//! - **White, independent noises.** Process noise is shared by all agents (one truth), but is
+//!   white over steps; measurement noises are white over steps and independent across agents,
+//!   measurements and the process noise.
+//! - **Gains independent of the data.** Kalman gains depend on covariances only, and CI, nmCI
+//!   and ICI choose ω from covariances only, so every `C` above is deterministic and
+//!   `Σ ← C Σ Cᵀ` is exact. (A rule whose weights depended on the means would break this.)
+//! - **Pre-exchange copies.** Agents fuse the copies their neighbours sent before the
+//!   exchange began; the schedule is [`super::study::exchange`], the one the Monte Carlo runs
+//!   use, so the two cannot drift apart.
+//!
 //! The agent's COIN is then `λ_max(L⁻¹ E L⁻ᵀ)` with `P = L Lᵀ` its covariance and `E` its
 //! diagonal block of `Σ` ([`conservativeness_index`]); both are block-diagonal over the model
 //! blocks, so it is the largest block value. `≤ 1` means the agent's covariance bounds its

@@ -415,6 +415,12 @@ pub struct EstimatorSummary {
     /// The largest COIN over the steps (`≤ 1` = conservative at every step).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coin_max: Option<f64>,
+    /// Mean position RMSE of each target group's targets (group 1 first).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rmse_by_group: Vec<f64>,
+    /// Mean 2σ of each target group's position coordinates.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub two_sigma_by_group: Vec<f64>,
 }
 
 /// Per-step means over runs and the headline numbers.
@@ -487,6 +493,20 @@ pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
     let bounds = nees_bounds(traces.len().max(1), dof);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let names: Vec<&str> = estimators().map(estimator_name).collect();
+    // Per series and group: the sums over every run's steps, over the steps run.
+    let steps_run: usize = traces.iter().map(len).sum();
+    let by_group = |s: usize, which: usize| -> Vec<f64> {
+        let groups = traces.first().map_or(0, |t| t.group_sums[s].len());
+        (0..groups)
+            .map(|g| {
+                traces
+                    .iter()
+                    .map(|t| t.group_sums[s][g][which])
+                    .sum::<f64>()
+                    / steps_run.max(1) as f64
+            })
+            .collect()
+    };
     let estimators = (0..series)
         .map(|s| {
             (
@@ -499,6 +519,8 @@ pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
                         / steps.max(1) as f64,
                     coin_mean: None,
                     coin_max: None,
+                    rmse_by_group: by_group(s, 0),
+                    two_sigma_by_group: by_group(s, 1),
                 },
             )
         })

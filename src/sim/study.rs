@@ -82,6 +82,8 @@ pub(super) struct Partition {
     pub(super) measurements: Vec<Vec<LocalMeasurement>>,
     /// Local indices of the target position coordinates in each block.
     positions: Vec<Vec<usize>>,
+    /// The target group (`target / targets_per_group`) of each of those coordinates.
+    position_groups: Vec<Vec<usize>>,
 }
 
 #[allow(non_snake_case)]
@@ -117,12 +119,18 @@ impl Partition {
         let is_position: Vec<bool> = (0..model.dim())
             .map(|i| i < 4 * sc.targets() && i % 2 == 0)
             .collect();
-        let positions = blocks
+        let positions: Vec<Vec<usize>> = blocks
             .iter()
             .map(|b| (0..b.len()).filter(|&k| is_position[b[k]]).collect())
             .collect();
+        let position_groups = blocks
+            .iter()
+            .zip(&positions)
+            .map(|(b, p)| p.iter().map(|&k| b[k] / 4 / sc.targets_per_group).collect())
+            .collect();
         Self {
             positions,
+            position_groups,
             F: blocks
                 .iter()
                 .map(|b| {
@@ -316,6 +324,10 @@ pub struct RunTrace {
     pub omega_nmci: Vec<Vec<f64>>,
     /// ICI's ω for that fusion, per step (`0` keeps the agent's own estimate).
     pub omega_ici: Vec<f64>,
+    /// Per series (same order) and target group, the sums over the steps so far of the
+    /// group's position RMSE and of its mean 2σ (`[rmse, 2σ]`; divided by the steps, the
+    /// per-group means of [`super::EstimatorSummary`]).
+    pub group_sums: Vec<Vec<[f64; 2]>>,
 }
 
 /// What one run computes.
@@ -371,6 +383,7 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
         omega_ci: Vec::new(),
         omega_nmci: Vec::new(),
         omega_ici: Vec::new(),
+        group_sums: Vec::with_capacity(RULES.len() + 1),
     };
     for (k, part) in parts.into_iter().enumerate() {
         let RunTrace {
@@ -380,6 +393,7 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
             omega_ci,
             omega_nmci,
             omega_ici,
+            group_sums,
         } = part;
         // Series 0 is the centralized filter (the same in every part); series 1 the rule's.
         let skip = if k == 0 { 0 } else { 1 };
@@ -389,6 +403,7 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
         merged.omega_ci.extend(omega_ci);
         merged.omega_nmci.extend(omega_nmci);
         merged.omega_ici.extend(omega_ici);
+        merged.group_sums.extend(group_sums.into_iter().skip(skip));
     }
     merged
 }
@@ -453,6 +468,7 @@ impl RunState {
             omega_ci: Vec::with_capacity(spec.steps),
             omega_nmci: Vec::with_capacity(spec.steps),
             omega_ici: Vec::with_capacity(spec.steps),
+            group_sums: vec![vec![[0.0; 2]; sc.groups]; series],
         };
         Self {
             spec: *spec,
@@ -579,16 +595,26 @@ impl RunState {
             std::iter::once(&self.central).chain(self.agents.iter().map(|r| &r[spec.agent]));
         for (s, e) in estimates.enumerate() {
             let (mut nees_sum, mut se) = (0.0, 0.0);
+            // Per target group: squared error, position variance, coordinates.
+            let mut group = vec![(0.0, 0.0, 0usize); sc.groups];
             for (k, block) in part.blocks.iter().enumerate() {
                 let err = DVector::from_fn(block.len(), |i, _| truth[block[i]] - e[k].x[i]);
                 nees_sum += nees(&e[k].P, &err);
-                for &i in &part.positions[k] {
+                for (&i, &g) in part.positions[k].iter().zip(&part.position_groups[k]) {
                     se += err[i] * err[i];
+                    group[g].0 += err[i] * err[i];
+                    group[g].1 += e[k].P[(i, i)];
+                    group[g].2 += 1;
                 }
             }
             trace.nees[s].push(nees_sum);
             trace.rmse[s].push((se / sc.targets() as f64).sqrt());
             trace.two_sigma[s].push(part.two_sigma(e));
+            for (sums, (se, var, count)) in trace.group_sums[s].iter_mut().zip(group) {
+                // `count` coordinates are `count / 2` targets (x and y each).
+                sums[0] += (se / (count / 2).max(1) as f64).sqrt();
+                sums[1] += 2.0 * (var / count.max(1) as f64).sqrt();
+            }
         }
         self.done += 1;
         Ok(())

@@ -296,6 +296,41 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
   await page.screenshot({ path: join(out, "study.png"), fullPage: true });
 });
 
+test("the study tab draws the chosen network, says whether it fits the paper's text, and runs it", async () => {
+  await page.click("#tab-study");
+  // The default network fits the paper's text; it is drawn with 16 agents.
+  await page.waitForFunction(() => document.querySelectorAll("#study-network-svg circle").length === 16);
+  assert.match(await text("#study-network-caption"), /^Fits the paper's text/);
+  // The figure's reading does not: agent 7 hears of groups 3–4 only through 11.
+  await page.selectOption("#study-network", "figure");
+  assert.equal(await text("#study-network-caption"), "Does not fit the paper's text: no agent of groups 3–4 reaches agent 7 without passing through agent 11.");
+  assert.equal(await page.locator("#study-network-svg path").count(), 16 + 3);
+  // Custom links: prefilled with the default's, edited, checked as typed.
+  await page.selectOption("#study-network", "custom");
+  assert.equal(await page.inputValue("#study-links"), "4-7 7-10 7-11 9-16 12-13");
+  await page.fill("#study-links", "4-7 7-10 7-11 9-16 12-13 3-12");
+  assert.equal(await text("#study-network-caption"), "Does not fit the paper's text: agent 1 reaches agent 11 without passing through agent 7.");
+  await page.fill("#study-links", "4-7 7-17");
+  assert.equal(await text("#err-study"), "invalid scenario: bridge 7–17 must join two different agents among 1..=16");
+  assert.equal(await page.locator("#study-links.bad").count(), 1);
+  await page.fill("#study-links", "4-7 7-11 x");
+  assert.equal(await text("#err-study"), 'links: write pairs of agents like "4-7 7-11" (cannot read "x")');
+  await page.click("#study-start");
+  assert.equal(await text("#err-study"), 'links: write pairs of agents like "4-7 7-11" (cannot read "x")');
+  // The figure's reading, run: nmCI's ω on groups 3–4 is exactly 0 (it takes 11's blocks).
+  await page.selectOption("#study-network", "figure");
+  assert.equal(await text("#err-study"), "");
+  await page.fill("#study-runs", "1");
+  await page.fill("#study-steps", "20");
+  await page.uncheck("#study-coin");
+  await page.click("#study-start");
+  await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 120_000 });
+  assert.match(await text("#study-omega"), /nmCI 1\.00, 1\.00, 1\.00, 1\.00, 0\.00, 0\.00, 0\.00, 0\.00 \(G1x … G4y\)/);
+  await page.screenshot({ path: join(out, "study-network.png"), fullPage: true });
+  await page.selectOption("#study-network", "paper");
+  await page.check("#study-coin");
+});
+
 test("the study tab rejects bad settings inline and can be stopped", async () => {
   await page.fill("#study-runs", "0");
   await page.click("#study-start");
