@@ -366,6 +366,14 @@ fn invalid_networks_are_rejected_by_name() {
             "not connected: agent 9 cannot be reached from agent 1",
         ),
         (
+            // Rings and bridges: group 1 joined to nothing (agent 1 reaches only its own ring).
+            Scenario {
+                bridges: vec![(7, 11), (12, 13)],
+                ..Scenario::default()
+            },
+            "the network is not connected: agent 5 cannot be reached from agent 1",
+        ),
+        (
             Scenario {
                 targets: vec![[1, 2]; 3],
                 ..Scenario::default()
@@ -548,6 +556,16 @@ fn the_sweep_enumerates_every_fitting_network_and_seven_is_always_more_central()
         candidate_networks(&base, Family::Links { count: 1 }),
         Vec::<Vec<_>>::new()
     );
+    // The other family: 7–11 and any two more links (connected networks only).
+    let links = candidate_networks(&base, Family::Links { count: 3 });
+    assert_eq!(links.len(), 768);
+    for l in &links {
+        let sc = Scenario {
+            bridges: l.clone(),
+            ..base.clone()
+        };
+        assert!(closeness_sum(&sc, 6) < closeness_sum(&sc, 10), "{l:?}");
+    }
 }
 
 #[test]

@@ -105,27 +105,28 @@ impl Scenario {
                     return bad(format!("edge {a}–{b} is listed twice"));
                 }
             }
-            // Connected: every agent reachable from agent 1.
-            let mut reached = vec![false; n];
-            let mut stack = vec![0];
-            reached[0] = true;
-            while let Some(v) = stack.pop() {
-                for &(a, b) in &seen {
-                    let (a, b) = (a - 1, b - 1);
-                    for (x, y) in [(a, b), (b, a)] {
-                        if x == v && !reached[y] {
-                            reached[y] = true;
-                            stack.push(y);
-                        }
+        }
+        // Connected (whatever form the network is given in): every agent reachable from 1.
+        let n = self.agents();
+        let mut reached = vec![false; n];
+        let mut stack = vec![0];
+        reached[0] = true;
+        let links = self.links();
+        while let Some(v) = stack.pop() {
+            for &(a, b) in &links {
+                for (x, y) in [(a, b), (b, a)] {
+                    if x == v && !reached[y] {
+                        reached[y] = true;
+                        stack.push(y);
                     }
                 }
             }
-            if let Some(lost) = reached.iter().position(|r| !r) {
-                return bad(format!(
-                    "the network of `edges` is not connected: agent {} cannot be reached from agent 1",
-                    lost + 1
-                ));
-            }
+        }
+        if let Some(lost) = reached.iter().position(|r| !r) {
+            return bad(format!(
+                "the network is not connected: agent {} cannot be reached from agent 1",
+                lost + 1
+            ));
         }
         if !self.targets.is_empty() {
             if self.targets.len() != self.agents() {
