@@ -1,8 +1,10 @@
 //! A drawing of a scenario's network (SVG text), used by the CLI, the docs and the page.
 //!
 //! Groups sit on a circle (group 1 at the top left, then clockwise), each group's agents on a
-//! small circle around its centre in ring order; links inside a group are grey and straight,
-//! links between groups dark and curved (so none runs through an agent), and the headline agent and the watched neighbour are filled.
+//! small circle around its centre in ring order. Links inside a group are grey and straight;
+//! links between groups are dark and bowed to one side, so links along one line stay apart
+//! and do not run straight through the agents between their ends. The headline
+//! agent (red) and the watched neighbour (blue) are filled.
 
 use super::Scenario;
 use std::fmt::Write;
@@ -44,8 +46,8 @@ pub fn network_svg(scenario: &Scenario, agent: usize, watched: usize) -> String 
             ("#9ca3af", 1.4)
         };
         // Links between groups bow to one side (a quadratic curve whose control point is
-        // the midpoint moved by a fifth of the length, perpendicular), so a link never runs
-        // straight through an agent that lies on the segment.
+        // the midpoint moved by a fifth of the length, perpendicular) instead of running
+        // straight through the agents that lie on the segment.
         let (dx, dy) = (x2 - x1, y2 - y1);
         let bow = if between { 0.2 } else { 0.0 };
         let (qx, qy) = ((x1 + x2) / 2.0 - bow * dy, (y1 + y2) / 2.0 + bow * dx);
