@@ -435,6 +435,7 @@ impl SweepConfig {
 }
 
 /// The group (0-based) of each model block: that of its first target.
+#[cfg(not(target_arch = "wasm32"))] // used by `sweep` (native: rayon)
 fn block_groups(model: &Model) -> Vec<usize> {
     let sc = &model.scenario;
     model
@@ -448,6 +449,7 @@ fn block_groups(model: &Model) -> Vec<usize> {
 }
 
 /// The steady-state value of a per-step series: the mean over the last half of the steps.
+#[cfg(not(target_arch = "wasm32"))] // used by `sweep` (native: rayon)
 fn steady(series: impl ExactSizeIterator<Item = f64>) -> f64 {
     let half = series.len() / 2;
     let (mut sum, mut count) = (0.0, 0usize);
@@ -459,6 +461,7 @@ fn steady(series: impl ExactSizeIterator<Item = f64>) -> f64 {
 }
 
 /// The covariance-only candidate of one network from its CI and nmCI series.
+#[cfg(not(target_arch = "wasm32"))] // used by `sweep` (native: rayon)
 fn candidate(
     model: &Model,
     links: &[(usize, usize)],
@@ -489,6 +492,7 @@ fn candidate(
 }
 
 /// The distance of the module docs.
+#[cfg(not(target_arch = "wasm32"))] // used by `sweep` (native: rayon)
 fn distance(c: &Candidate, groups: &[usize]) -> f64 {
     let [lo, hi] = PAPER_OMEGA_NMCI_FAR;
     let (mut near, mut far) = ((0.0, 0usize), (0.0, 0usize));

@@ -1,4 +1,4 @@
-//! The golden tiny tracking study shared by the native test (`tests/sim.rs`, which writes it
+//! The golden tiny tracking study shared by the native test (`tests/native/sim.rs`, which writes it
 //! with `NMCI_BLESS=1` and checks it otherwise) and the wasm test (`tests/web.rs`, which runs
 //! the same configuration in headless Chromium and must match it to 1e-9).
 #![allow(dead_code)]

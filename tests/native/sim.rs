@@ -1,6 +1,5 @@
 //! The tracking study's core: derived structure, block storage equal to dense storage,
 //! reproducibility, and the qualitative results of a reduced study.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 
 use nmci::sim::*;
 
@@ -183,8 +182,7 @@ fn configs_paper_toml_lists_the_defaults_and_bridges_toml_only_changes_the_netwo
     );
 }
 
-#[path = "golden/mod.rs"]
-mod golden;
+use crate::golden;
 
 /// The tiny study of the golden file: 2 runs × 12 steps, seed 3, default scenario.
 fn tiny_config() -> StudyConfig {

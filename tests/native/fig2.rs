@@ -1,6 +1,5 @@
 //! The paper's fig. 2 study: the sampled SDP approaches nmCI's diag(1, 1) as the sample set
 //! grows, is non-conservative for tiny sets, and nmCI never is.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 
 use nmci::*;
 

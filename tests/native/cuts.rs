@@ -1,8 +1,7 @@
 //! Cutting planes (`sdp_cuts`): the paper's example to diag(1, 1), and conservative on
 //! random non-separable cases against fresh samples, with few constraints.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 
-mod common;
+use crate::common;
 
 use common::*;
 use nmci::*;

@@ -1,5 +1,4 @@
 //! The `nmci` binary: JSON in, JSON out; bad input exits non-zero with one line on stderr.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 
 use std::io::Write;
 use std::process::{Command, Stdio};

@@ -1,9 +1,8 @@
 //! N-way CI and nmCI: pairwise results for two estimates, weights on the simplex and optimal
 //! against a brute-force grid, block splitting, and typed errors.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 #![allow(non_snake_case)]
 
-mod common;
+use crate::common;
 
 use common::*;
 use nalgebra::{DMatrix, DVector};

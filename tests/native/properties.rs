@@ -1,5 +1,4 @@
 //! Property tests on random SPD pairs and patterns: no panic, conservative, symmetric output.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 #![allow(non_snake_case)]
 
 use nalgebra::{DMatrix, DVector};

@@ -1,9 +1,8 @@
 //! Non-monolithic CI: the paper's example, block detection on hand-made patterns, the
 //! one-block case, and conservativeness.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 #![allow(non_snake_case)]
 
-mod common;
+use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;

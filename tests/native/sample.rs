@@ -1,8 +1,7 @@
 //! The rejection sampler: admissibility, known zeros, seeding, acceptance, budget.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 #![allow(non_snake_case)]
 
-mod common;
+use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;

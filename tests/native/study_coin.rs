@@ -1,7 +1,6 @@
 //! The tracking study's exact conservativeness index (COIN): the propagated true error
 //! covariance against Monte Carlo, and the properties the theory fixes (the centralized
 //! Kalman filter is exact, CI and nmCI are conservative, naive fusion is not).
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 
 use nalgebra::{DMatrix, DVector};
 use nmci::sim::*;

@@ -1,9 +1,8 @@
 //! The certified rule: exactly CI with a fully unknown `P_ab`, exactly nmCI on separable
 //! patterns, tighter on non-separable ones, conservative against fresh samples whatever the
 //! solver's accuracy, and never below a valid lower bound.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 
-mod common;
+use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;

@@ -1,9 +1,8 @@
 //! The sampled SDP: the paper's example to 1e-6, lower bound against nmCI, working set
 //! equal to the full program, and solver failures reported as errors carrying the status.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 #![allow(non_snake_case)]
 
-mod common;
+use crate::common;
 
 use common::*;
 use nmci::*;

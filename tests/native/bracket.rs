@@ -4,10 +4,9 @@
 //! (|k|√a + |1−k|√b)²`, the robust optimum `min(a, b)`, or `ab/(a+b)` with a known zero), a
 //! loose solver whose raw dual objective is *shown* to overshoot proven upper bounds while the
 //! proven lower bound never does, and the level hierarchy against the cutting planes.
-#![cfg(not(target_arch = "wasm32"))]
 #![allow(non_snake_case)]
 
-mod common;
+use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;

@@ -1,9 +1,8 @@
 //! Covariance intersection: exact optimal ω against a brute-force scan, endpoints, gains,
 //! and conservativeness against sampled admissible cross-covariances.
-#![cfg(not(target_arch = "wasm32"))] // native tests; tests/web.rs runs in the browser
 #![allow(non_snake_case)]
 
-mod common;
+use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;

@@ -1,0 +1,26 @@
+//! Every native integration test, in one binary: one link of the crate (and Clarabel)
+//! instead of one per file. Each module is one concern; its docs say what it checks.
+//! `tests/web.rs` runs in headless Chromium (wasm-pack test) and is not part of this binary.
+#![cfg(not(target_arch = "wasm32"))]
+
+#[path = "../common/mod.rs"]
+mod common;
+#[path = "../golden/mod.rs"]
+mod golden;
+
+mod bracket;
+mod certify;
+mod ci;
+mod cli;
+mod cuts;
+mod explore;
+mod fig2;
+mod nmci_rule;
+mod nway;
+mod properties;
+mod rules;
+mod sample;
+mod sdp;
+mod sim;
+mod study_coin;
+mod validation;
