@@ -141,3 +141,149 @@ fn summary_attaches_coin() {
     .unwrap();
     assert!(without.coin_series.is_empty() && report.ci.coin_mean.is_none());
 }
+
+/// The exact COIN's propagation against a brute-force one written the slow, obvious way: the
+/// whole joint error covariance of all agents over the whole state (no blocks, no twins, no
+/// sparse rows), dense `M Σ Mᵀ` for every scalar update and `C Σ Cᵀ` for the exchange, with
+/// the fusion gains recomputed from the dense rules' weights (`K_a = ω P P_a⁻¹`,
+/// `K_b = (1 − ω) P P_b⁻¹`, per block for nmCI; naive `K = P P⁻¹`). On a network where agents have 2 and 3
+/// neighbours, so one step chains several fusions of one agent.
+#[test]
+#[allow(non_snake_case)]
+fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
+    use nmci::{covariance_intersection, non_monolithic_ci, Criterion, FusionProblem};
+    let scenario = Scenario {
+        groups: 1,
+        agents_per_group: 4,
+        targets_per_group: 5,
+        bridges: vec![(1, 3)], // a ring 1-2-3-4 plus the chord 1–3: degrees 3, 2, 3, 2
+        ..Scenario::default()
+    };
+    let model = Model::new(&scenario).unwrap();
+    let (n, agents) = (model.dim(), scenario.agents());
+    let nb = scenario.neighbours();
+    assert_eq!(nb.iter().map(Vec::len).collect::<Vec<_>>(), [3, 2, 3, 2]);
+    let inv = |m: &DMatrix<f64>| m.clone().try_inverse().unwrap();
+    for rule in [Rule::Ci, Rule::Nmci, Rule::Naive] {
+        let mut exact = ErrorPropagation::new(&model, Some(rule));
+        // Brute force: every agent's dense covariance and the joint error covariance.
+        let mut P: Vec<DMatrix<f64>> = vec![model.P0.clone(); agents];
+        let big = agents * n;
+        let mut S = DMatrix::from_fn(big, big, |i, j| model.P0[(i % n, j % n)]);
+        for step in 0..6 {
+            // Prediction with the common process noise.
+            let mut A = DMatrix::zeros(big, big);
+            for i in 0..agents {
+                A.view_mut((i * n, i * n), (n, n)).copy_from(&model.F);
+            }
+            S = &A * &S * A.transpose()
+                + DMatrix::from_fn(big, big, |i, j| model.Q[(i % n, j % n)]);
+            for p in &mut P {
+                *p = &model.F * &*p * model.F.transpose() + &model.Q;
+            }
+            // Each agent's scalar updates: e ← (I − K hᵀ) e − K v.
+            for (i, ms) in model.measurements.iter().enumerate() {
+                for m in ms {
+                    let h = DVector::from_fn(n, |k, _| {
+                        m.row.iter().filter(|(j, _)| *j == k).map(|(_, c)| c).sum()
+                    });
+                    let Ph = &P[i] * &h;
+                    let K = &Ph / (h.dot(&Ph) + m.variance);
+                    let J = DMatrix::identity(n, n) - &K * h.transpose();
+                    P[i] = &J * &P[i] * J.transpose() + &K * K.transpose() * m.variance;
+                    let mut M = DMatrix::identity(big, big);
+                    M.view_mut((i * n, i * n), (n, n)).copy_from(&J);
+                    let mut u = DVector::zeros(big);
+                    u.rows_mut(i * n, n).copy_from(&K);
+                    S = &M * &S * M.transpose() + &u * u.transpose() * m.variance;
+                }
+            }
+            // Exchange: fuse the copies sent before it, one neighbour at a time, ascending.
+            let sent = P.clone();
+            let mut C = DMatrix::zeros(big, big);
+            for a in 0..agents {
+                let mut row = DMatrix::zeros(n, big); // e_a after the exchange, as Σ_j C_aj e_j
+                row.view_mut((0, a * n), (n, n))
+                    .copy_from(&DMatrix::identity(n, n));
+                for &b in &nb[a] {
+                    let (K_a, K_b, fused) = match rule {
+                        Rule::Ci => {
+                            let problem = FusionProblem::new_trusted(
+                                DVector::zeros(n),
+                                P[a].clone(),
+                                DVector::zeros(n),
+                                sent[b].clone(),
+                                model.cross_pattern.clone(),
+                            );
+                            let ci = covariance_intersection(&problem, Criterion::Trace).unwrap();
+                            let w = ci.omega;
+                            let F = ci.fused.P;
+                            (&F * inv(&P[a]) * w, &F * inv(&sent[b]) * (1.0 - w), F)
+                        }
+                        Rule::Nmci => {
+                            let problem = FusionProblem::new_trusted(
+                                DVector::zeros(n),
+                                P[a].clone(),
+                                DVector::zeros(n),
+                                sent[b].clone(),
+                                model.cross_pattern.clone(),
+                            );
+                            let nm = non_monolithic_ci(&problem, Criterion::Trace).unwrap();
+                            // ω of each state's block (the estimates are block-diagonal).
+                            let mut w = DVector::zeros(n);
+                            for (block, omega) in nm.blocks.iter().zip(&nm.omega) {
+                                for &i in block {
+                                    w[i] = *omega;
+                                }
+                            }
+                            let F = nm.fused.P;
+                            let one_minus = w.map(|v| 1.0 - v);
+                            (
+                                &F * DMatrix::from_diagonal(&w) * inv(&P[a]),
+                                &F * DMatrix::from_diagonal(&one_minus) * inv(&sent[b]),
+                                F,
+                            )
+                        }
+                        _ => {
+                            let F = inv(&(inv(&P[a]) + inv(&sent[b])));
+                            (&F * inv(&P[a]), &F * inv(&sent[b]), F)
+                        }
+                    };
+                    let mut next = &K_a * &row;
+                    let mut cols = next.columns_mut(b * n, n);
+                    cols += &K_b;
+                    row = next;
+                    P[a] = fused;
+                }
+                C.rows_mut(a * n, n).copy_from(&row);
+            }
+            S = &C * &S * C.transpose();
+            exact.step(&model).unwrap();
+            // Compare every agent's covariance and true error covariance.
+            for a in 0..agents {
+                let E_brute = S.view((a * n, a * n), (n, n)).into_owned();
+                let E = assemble(&model, &exact.error_covariance(a));
+                let P_exact = assemble(&model, &exact.covariance(a));
+                let scale = E_brute.amax();
+                assert!(
+                    (&E - &E_brute).amax() <= 1e-12 * scale,
+                    "{rule:?} step {step} agent {a}: E differs by {:e} (scale {scale:e})",
+                    (&E - &E_brute).amax()
+                );
+                assert!((&P_exact - &P[a]).amax() <= 1e-12 * P[a].amax());
+                // The brute force is block-diagonal too: nothing leaks across model blocks.
+                let off = &E_brute - assemble(&model, &split(&model, &E_brute));
+                assert!(off.amax() <= 1e-12 * scale, "{rule:?}: {:e}", off.amax());
+            }
+        }
+    }
+}
+
+/// The model blocks of a full matrix.
+fn split(model: &Model, full: &DMatrix<f64>) -> Vec<DMatrix<f64>> {
+    model
+        .blocks
+        .iter()
+        .map(|b| DMatrix::from_fn(b.len(), b.len(), |i, j| full[(b[i], b[j])]))
+        .collect()
+}
