@@ -25,7 +25,7 @@ fn case() -> impl Strategy<Value = (usize, Vec<f64>, Vec<f64>, Vec<bool>, f64, u
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 
     #[test]
     fn ci_and_nmci_are_conservative_and_symmetric((n, ra, rb, pat, eps, seed) in case()) {
@@ -40,9 +40,14 @@ proptest! {
                 return Ok(());
             }
         };
+        // The paper's rejection sampler, and hit-and-run (no trial budget) where its budget
+        // runs out: no case is skipped.
         let samples = match sample_cross_covariances(&p, 200, seed, SamplerSettings::rejection(200_000)) {
             Ok(s) => s,
-            Err(SampleError::BudgetExhausted { .. }) => return Ok(()),
+            Err(SampleError::BudgetExhausted { .. }) => {
+                sample_cross_covariances(&p, 200, seed, SamplerSettings::hit_and_run())
+                    .map_err(|e| TestCaseError::fail(e.to_string()))?
+            }
             Err(e) => return Err(TestCaseError::fail(e.to_string())),
         };
         let scale = p.P_a.amax().max(p.P_b.amax());
@@ -64,11 +69,20 @@ proptest! {
         n in 1usize..4,
         raw_a in prop::collection::vec(prop::num::f64::ANY, 9),
         raw_b in prop::collection::vec(-5.0f64..5.0, 9),
+        // Which of P_a, P_b are made symmetric positive definite (`G Gᵀ + I/10` from the raw
+        // entries, when finite): otherwise almost every n ≥ 2 case would stop at the
+        // symmetry check, and the solve paths would go untested.
+        spd_a in any::<bool>(),
+        spd_b in any::<bool>(),
         method in prop::sample::select(vec!["ci", "nmci"]),
     ) {
-        let rows = |raw: &[f64]| (0..n).map(|i| raw[i * n..i * n + n].to_vec()).collect::<Vec<_>>();
+        let rows = |m: &DMatrix<f64>| (0..n).map(|i| m.row(i).iter().copied().collect()).collect::<Vec<Vec<f64>>>();
+        let raw = |r: &[f64]| DMatrix::from_fn(n, n, |i, j| r[i * n + j]);
+        let finite = raw_a[..n * n].iter().all(|v| v.is_finite() && v.abs() < 1e100);
+        let pa = if spd_a && finite { spd(n, &raw_a, 0.1) } else { raw(&raw_a) };
+        let pb = if spd_b { spd(n, &raw_b, 0.1) } else { raw(&raw_b) };
         let req = FuseRequest {
-            pa: rows(&raw_a), pb: rows(&raw_b), xa: None, xb: None, pab_unknown: None,
+            pa: rows(&pa), pb: rows(&pb), xa: None, xb: None, pab_unknown: None,
             method: if method == "ci" { Method::Ci } else { Method::Nmci },
             criterion: None, samples: None, seed: None, max_trials: None,
             sampler: None, time_limit: None, level: None,

@@ -39,13 +39,21 @@ fn the_structure_gives_eight_blocks_of_fourteen() {
 #[test]
 fn block_storage_gives_the_dense_numbers() {
     let model = Model::new(&Scenario::default()).unwrap();
-    let blocks = simulate_run(&model, &spec(3, 5, 0, Storage::Blocks)).unwrap();
-    let dense = simulate_run(&model, &spec(3, 5, 0, Storage::Dense)).unwrap();
-    let close = |a: &[f64], b: &[f64]| {
-        a.iter()
-            .zip(b)
-            .all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs().max(1.0))
+    // A whole run of 12 steps, every series compared entry by entry (lengths first).
+    let steps = 12;
+    let blocks = simulate_run(&model, &spec(steps, 5, 0, Storage::Blocks)).unwrap();
+    let dense = simulate_run(&model, &spec(steps, 5, 0, Storage::Dense)).unwrap();
+    let close_n = |a: &[f64], b: &[f64], len: usize| {
+        a.len() == len
+            && b.len() == len
+            && a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs().max(1.0))
     };
+    let close = |a: &[f64], b: &[f64]| close_n(a, b, steps);
+    assert_eq!((blocks.nees.len(), dense.nees.len()), (5, 5));
+    assert_eq!(blocks.omega_nmci.len(), steps);
+    assert_eq!(dense.omega_nmci.len(), steps);
     for s in 0..5 {
         assert!(
             close(&blocks.nees[s], &dense.nees[s]),
@@ -55,13 +63,14 @@ fn block_storage_gives_the_dense_numbers() {
         );
         assert!(close(&blocks.rmse[s], &dense.rmse[s]));
         assert!(close(&blocks.two_sigma[s], &dense.two_sigma[s]));
+        let flat = |t: &RunTrace| t.group_sums[s].concat();
+        assert!(close_n(&flat(&blocks), &flat(&dense), 8));
     }
     assert!(close(&blocks.omega_ci, &dense.omega_ci));
     assert!(close(&blocks.omega_ici, &dense.omega_ici));
     // Dense nmCI finds the same 8 blocks by itself (from the exact zeros and the pattern).
     for (b, d) in blocks.omega_nmci.iter().zip(&dense.omega_nmci) {
-        assert_eq!(b.len(), 8);
-        assert!(close(b, d), "{b:?} vs {d:?}");
+        assert!(close_n(b, d, 8), "{b:?} vs {d:?}");
     }
 }
 
