@@ -334,3 +334,201 @@ fn sweep_writes_the_ranking_the_best_configuration_and_its_drawing() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The README's `nmci fuse` examples, run as written: every `"key": value` the README shows
+/// (values elided as `…` or `[...]` are skipped) equals the response's to 1e-12 relative, and
+/// the error example prints its line and exits 1. Also the paper-example figures quoted in
+/// prose (CI `tr P = 3.088`, `ω = 0.556`).
+#[test]
+fn the_readme_cli_examples_print_what_the_readme_shows() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let lines: Vec<&str> = readme.lines().collect();
+    let mut checked = 0;
+    for (k, line) in lines.iter().enumerate() {
+        let Some(rest) = line.strip_prefix("$ echo '") else {
+            continue;
+        };
+        let request = &rest[..rest.find("' | nmci fuse").expect("an nmci fuse example")];
+        let (code, out, err) = nmci(&["fuse"], request);
+        let shown = lines[k + 1];
+        if let Some(message) = shown.strip_prefix("nmci: ") {
+            assert_eq!(code, 1);
+            assert_eq!(lines[k + 2], "1");
+            assert_eq!(err.trim(), format!("nmci: {message}"));
+            checked += 1;
+            continue;
+        }
+        assert_eq!(code, 0, "{err}");
+        let response: serde_json::Value = serde_json::from_str(&out).unwrap();
+        let mut pairs = 0;
+        for (start, _) in shown.match_indices("\"") {
+            // A key is a quoted word followed by `": `.
+            let after = &shown[start + 1..];
+            let Some(end) = after.find('"') else { continue };
+            let (key, tail) = (&after[..end], &after[end + 1..]);
+            let Some(value) = tail.strip_prefix(": ") else {
+                continue;
+            };
+            if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+                continue;
+            }
+            let mut stream =
+                serde_json::Deserializer::from_str(value).into_iter::<serde_json::Value>();
+            let Some(Ok(expected)) = stream.next() else {
+                continue; // `[...]` or `…`
+            };
+            assert!(
+                same(&expected, &response[key]),
+                "README line {}: {key} = {expected}, the CLI gives {}",
+                k + 2,
+                response[key]
+            );
+            pairs += 1;
+        }
+        assert!(
+            pairs >= 5,
+            "README line {}: only {pairs} values read",
+            k + 2
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, 3, "the README's three nmci fuse examples");
+    // The prose figures of the paper's example.
+    let (code, out, _) = nmci(
+        &["fuse"],
+        r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, false], [false, true]], "method": "ci"}"#,
+    );
+    assert_eq!(code, 0);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!(readme.contains("`tr P = 3.088` (`ω = 0.556`)"));
+    assert_eq!(format!("{:.3}", v["trace"].as_f64().unwrap()), "3.088");
+    assert_eq!(format!("{:.3}", v["omega"][0].as_f64().unwrap()), "0.556");
+}
+
+/// Equal JSON values, numbers to 1e-12 relative.
+fn same(a: &serde_json::Value, b: &serde_json::Value) -> bool {
+    use serde_json::Value;
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            (x - y).abs() <= 1e-12 * x.abs().max(1.0)
+        }
+        (Value::Array(x), Value::Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(x, y)| same(x, y))
+        }
+        _ => a == b,
+    }
+}
+
+/// `nmci track` (parallel) writes exactly the sequential study's report; a configuration file
+/// is applied and the flags override it; a missing file, a TOML syntax error and an unknown
+/// key are refused with the reason.
+#[test]
+fn track_equals_the_sequential_study_and_applies_its_configuration() {
+    use nmci::sim::{run_study, StudyConfig, StudyReport};
+    let dir = std::env::temp_dir().join(format!("nmci-track-config-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cfg = dir.join("study.toml");
+    // The figure's network, 7 steps and seed 5 from the file; runs from the file, then
+    // overridden by the flag.
+    std::fs::write(
+        &cfg,
+        "steps = 7\nruns = 4\nseed = 5\ncoin = false\n[scenario]\nbridges = [[4, 7], [7, 11], [12, 13]]\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let (code, stdout, err) = nmci(
+        &[
+            "track",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--runs",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("2 runs × 7 steps"), "{stdout}");
+    let written: StudyReport =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let config = StudyConfig {
+        steps: 7,
+        runs: 2,
+        seed: 5,
+        coin: false,
+        scenario: nmci::sim::Scenario {
+            bridges: nmci::sim::FIGURE_BRIDGES.to_vec(),
+            ..Default::default()
+        },
+        ..StudyConfig::default()
+    };
+    let (_, sequential) = run_study(&config).unwrap();
+    assert_eq!(written, sequential);
+    // --steps and --seed override the file too.
+    let (code, stdout, err) = nmci(
+        &[
+            "track",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--runs",
+            "1",
+            "--steps",
+            "3",
+            "--seed",
+            "9",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("1 runs × 3 steps"), "{stdout}");
+    let written: StudyReport =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!((written.steps, written.runs, written.seed), (3, 1, 9));
+    // Bad configurations.
+    let missing = dir.join("missing.toml");
+    std::fs::write(dir.join("syntax.toml"), "steps = = 3\n").unwrap();
+    std::fs::write(dir.join("unknown.toml"), "[scenario]\nbridge = [[1, 2]]\n").unwrap();
+    for (file, expected) in [
+        (
+            missing.clone(),
+            format!("nmci: cannot read {}", missing.display()),
+        ),
+        (
+            dir.join("syntax.toml"),
+            "nmci: invalid configuration".to_string(),
+        ),
+        (
+            dir.join("unknown.toml"),
+            "nmci: invalid configuration".to_string(),
+        ),
+    ] {
+        let (code, _, err) = nmci(
+            &[
+                "track",
+                "--config",
+                file.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            "",
+        );
+        assert_eq!(code, 1, "{err}");
+        assert!(err.starts_with(&expected), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
+    let (_, _, err) = nmci(
+        &[
+            "track",
+            "--config",
+            dir.join("unknown.toml").to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(err.contains("unknown field `bridge`"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
