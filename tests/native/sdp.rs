@@ -59,6 +59,35 @@ fn sampled_sdp_is_a_lower_bound_on_nmci() {
         );
         let I = nalgebra::DMatrix::<f64>::identity(n, n);
         assert!((&opt.fused.K_a + &opt.fused.K_b - I).amax() < 1e-12);
+        // The solution satisfies its own sampled constraints, computed here independently:
+        // the same 100 samples (same sampler, same seed), and for each the margin
+        // λ_min(P̄ − K P' Kᵀ) with `P' = [[P_a, X], [Xᵀ, P_b]]` written out.
+        let drawn = sample_cross_covariances(&p, 100, 3, SamplerSettings::default()).unwrap();
+        let (K_a, K_b, P) = (&opt.fused.K_a, &opt.fused.K_b, &opt.fused.P);
+        let margin = drawn
+            .cross
+            .iter()
+            .map(|X| {
+                let KPK = K_a * &p.P_a * K_a.transpose()
+                    + K_a * X * K_b.transpose()
+                    + K_b * X.transpose() * K_a.transpose()
+                    + K_b * &p.P_b * K_b.transpose();
+                let D = P - KPK;
+                nalgebra::SymmetricEigen::new((&D + D.transpose()) * 0.5)
+                    .eigenvalues
+                    .min()
+            })
+            .fold(f64::INFINITY, f64::min);
+        let scale = p.P_a.amax().max(p.P_b.amax());
+        assert!(
+            margin >= -1e-7 * scale,
+            "n={n}: a sampled constraint is violated by {margin}"
+        );
+        assert!(
+            (margin - opt.worst_sample_margin).abs() <= 1e-9 * scale,
+            "n={n}: reported worst margin {} vs {margin}",
+            opt.worst_sample_margin
+        );
     }
 }
 
@@ -240,11 +269,19 @@ fn certified_gap_brackets_the_robust_optimum() {
             "{:?}",
             r.upper_bound_rule
         );
+        // The gap is the exact difference rounded up: with Knuth's TwoSum,
+        // `upper − lower = d + e` exactly, so the gap must be ≥ d + e, and within a few
+        // units in the last place of it.
+        let gap = r.gap.unwrap();
+        let d = upper - lower;
+        let bb = d - upper;
+        let e = (upper - (d - bb)) + (-lower - bb);
         assert!(
-            r.gap.unwrap() >= upper - lower && r.gap.unwrap() <= 1e-6,
-            "gap {:?}",
-            r.gap
+            gap > d || (gap == d && e <= 0.0),
+            "gap {gap} below {d} + {e}"
         );
+        assert!(gap - d <= 4.0 * f64::EPSILON * d.abs().max(f64::MIN_POSITIVE));
+        assert!(gap <= 1e-6, "gap {gap}");
     }
     // The README's figures for the paper's example, 100 samples, seed 0.
     let r = fuse(&request(diagonal, 100, 0)).unwrap();
@@ -305,15 +342,31 @@ fn certified_gap_brackets_the_robust_optimum() {
         // Both ends proven: no tolerance.
         assert!(lower <= upper, "n={n}: {lower} > {upper}");
         assert!(lower > 0.0, "n={n}: a trivial lower bound");
-        let json = serde_json::to_value(&r).unwrap();
-        for key in [
-            "lower_bound",
-            "upper_bound",
-            "upper_bound_rule",
-            "gap",
-            "gap_relative",
-        ] {
-            assert!(json.get(key).is_some(), "{key}");
+        // The upper end is the best rule's trace, rounded up: never above CI's or nmCI's
+        // (computed here) beyond rounding, and at least the named rule's own trace.
+        let ci = covariance_intersection(&p, Criterion::Trace)
+            .unwrap()
+            .fused
+            .trace();
+        let nm = non_monolithic_ci(&p, Criterion::Trace)
+            .unwrap()
+            .fused
+            .trace();
+        assert!(
+            upper <= ci.min(nm) * (1.0 + 1e-13),
+            "n={n}: {upper} vs CI {ci}, nmCI {nm}"
+        );
+        match r.upper_bound_rule {
+            Some(Method::Ci) => assert!(upper >= ci && upper <= ci * (1.0 + 1e-13)),
+            Some(Method::Nmci) => assert!(upper >= nm && upper <= nm * (1.0 + 1e-13)),
+            Some(Method::Certified) => assert!(upper < ci.min(nm)),
+            other => panic!("n={n}: upper bound rule {other:?}"),
         }
+        // The JSON carries the same numbers.
+        let json = serde_json::to_value(&r).unwrap();
+        assert_eq!(json["lower_bound"].as_f64(), Some(lower));
+        assert_eq!(json["upper_bound"].as_f64(), Some(upper));
+        assert_eq!(json["gap"].as_f64(), r.gap);
+        assert_eq!(json["gap_relative"].as_f64(), r.gap_relative);
     }
 }
