@@ -4,7 +4,6 @@
 //! (|k|√a + |1−k|√b)²`, the robust optimum `min(a, b)`, or `ab/(a+b)` with a known zero), a
 //! loose solver whose raw dual objective is *shown* to overshoot proven upper bounds while the
 //! proven lower bound never does, and the level hierarchy against the cutting planes.
-#![allow(non_snake_case)]
 
 use crate::common;
 

@@ -1,6 +1,5 @@
 //! Covariance intersection: exact optimal ω against a brute-force scan, endpoints, gains,
 //! and conservativeness against sampled admissible cross-covariances.
-#![allow(non_snake_case)]
 
 use crate::common;
 

@@ -1,5 +1,4 @@
 //! The explorer's analysis and the known-correlation fusion behind its region.
-#![allow(non_snake_case)]
 
 use crate::common;
 

@@ -2,6 +2,7 @@
 //! instead of one per file. Each module is one concern; its docs say what it checks.
 //! `tests/web.rs` runs in headless Chromium (wasm-pack test) and is not part of this binary.
 #![cfg(not(target_arch = "wasm32"))]
+#![allow(non_snake_case)] // textbook symbols: P_a, K_b, …
 
 #[path = "../common/mod.rs"]
 mod common;

@@ -1,6 +1,5 @@
 //! Non-monolithic CI: the paper's example, block detection on hand-made patterns, the
 //! one-block case, and conservativeness.
-#![allow(non_snake_case)]
 
 use crate::common;
 

@@ -1,6 +1,5 @@
 //! N-way CI and nmCI: pairwise results for two estimates, weights on the simplex and optimal
 //! against a brute-force grid, block splitting, and typed errors.
-#![allow(non_snake_case)]
 
 use crate::common;
 

@@ -1,5 +1,4 @@
 //! Property tests on random SPD pairs and patterns: no panic, conservative, symmetric output.
-#![allow(non_snake_case)]
 
 use nalgebra::{DMatrix, DVector};
 use nmci::*;

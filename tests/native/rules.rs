@@ -1,5 +1,4 @@
 //! ICI, EI and COIN against hand-derived values (derivations in each test).
-#![allow(non_snake_case)]
 
 use crate::common;
 

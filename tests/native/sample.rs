@@ -1,5 +1,4 @@
 //! The rejection sampler: admissibility, known zeros, seeding, acceptance, budget.
-#![allow(non_snake_case)]
 
 use crate::common;
 

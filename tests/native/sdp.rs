@@ -1,6 +1,5 @@
 //! The sampled SDP: the paper's example to 1e-6, lower bound against nmCI, working set
 //! equal to the full program, and solver failures reported as errors carrying the status.
-#![allow(non_snake_case)]
 
 use crate::common;
 

@@ -1,5 +1,4 @@
 //! Every validation error path, in the Rust API and through the JSON contract.
-#![allow(non_snake_case)]
 
 use crate::common;
 
