@@ -226,7 +226,7 @@ fn hit_and_run_has_the_exact_law_on_a_six_dimensional_box() {
     )
     .unwrap();
     let draws = 10_000;
-    let mut rho: Vec<Vec<f64>> = vec![Vec::with_capacity(draws); 6];
+    let mut rho: Vec<Vec<f64>> = (0..6).map(|_| Vec::with_capacity(draws)).collect();
     for seed in 0..draws as u64 {
         let s = sample_cross_covariances(&p, 1, seed, SamplerSettings::hit_and_run()).unwrap();
         for (i, r) in rho.iter_mut().enumerate() {
