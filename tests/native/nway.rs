@@ -298,3 +298,169 @@ fn json_nway_errors() {
             .contains("unknown field `q`")
     );
 }
+
+/// N-way fusion of estimates that share information, checked where it matters: 4 states in
+/// two independent blocks ({0, 1} and {2, 3}), three estimates built from one common prior and
+/// overlapping sets of measurements (each measurement sees one block), so their errors are
+/// correlated within blocks and independent across them. For trace and log-det:
+/// - nmCI equals N-way CI run on each block separately (P, x and weights to 1e-12);
+/// - each block's weights satisfy the KKT conditions of `min f(ω)` on the simplex, with the
+///   gradient computed here (`∂ tr P/∂ωᵢ = −tr(P Pᵢ⁻¹ P)`, `∂ log det P/∂ωᵢ = −tr(Pᵢ⁻¹ P)`):
+///   equal on the support, not smaller off it, to 1e-10 relative;
+/// - the reported `P` is `(Σ ωᵢ Pᵢ⁻¹)⁻¹` per block, and `x = Σ Kᵢ xᵢ`;
+/// - the fused `P` bounds the true error covariance `Σᵢⱼ Kᵢ Cᵢⱼ Kⱼᵀ` (`C` the exact joint
+///   covariance of the three estimates' errors) — for nmCI and for monolithic CI.
+#[test]
+fn shared_information_three_estimates_in_two_blocks() {
+    use nalgebra::SymmetricEigen;
+    let n = 4;
+    let inv = |m: &DMatrix<f64>| m.clone().try_inverse().unwrap();
+    // Truth x ~ N(0, P0); measurements z = h x + v, v ~ N(0, r); each sees one block.
+    let P0 = diag(&[4.0, 2.0, 3.0, 5.0]);
+    let rows: [([f64; 4], f64); 6] = [
+        ([1.0, 0.5, 0.0, 0.0], 0.5),
+        ([0.0, 1.0, 0.0, 0.0], 1.0),
+        ([0.3, -1.0, 0.0, 0.0], 0.8),
+        ([0.0, 0.0, 1.0, 0.2], 0.6),
+        ([0.0, 0.0, 0.4, 1.0], 1.5),
+        ([0.0, 0.0, 1.0, -0.7], 0.4),
+    ];
+    // Which measurements each estimate used (overlaps: shared information).
+    let used: [&[usize]; 3] = [&[0, 1, 3], &[1, 2, 4], &[0, 2, 4, 5]];
+    // Estimate i: information filter from the prior and its measurements. Its error is
+    // e_i = A_i x − Σ_m B_im v_m, linear in (x, v): the joint covariance is exact.
+    let mut P = Vec::new();
+    let mut A = Vec::new(); // e_i = A_i x + Σ_m B[i][m] v_m
+    let mut B = Vec::new();
+    for set in used {
+        let mut info = inv(&P0);
+        for &m in set {
+            let h = DMatrix::from_row_slice(1, n, &rows[m].0);
+            info += h.transpose() * &h / rows[m].1;
+        }
+        let Pi = inv(&info);
+        // x̂_i = Pi Σ hᵀ z / r, so e_i = (I − Pi Σ hᵀh/r) x − Σ Pi hᵀ v / r.
+        let mut Ai = DMatrix::identity(n, n);
+        let mut Bi = vec![DMatrix::zeros(n, 1); rows.len()];
+        for &m in set {
+            let h = DMatrix::from_row_slice(1, n, &rows[m].0);
+            Ai -= &Pi * h.transpose() * &h / rows[m].1;
+            Bi[m] = -(&Pi * h.transpose()) / rows[m].1;
+        }
+        P.push(Pi);
+        A.push(Ai);
+        B.push(Bi);
+    }
+    let C = |i: usize, j: usize| -> DMatrix<f64> {
+        let mut c = &A[i] * &P0 * A[j].transpose();
+        for (m, (_, r)) in rows.iter().enumerate() {
+            c += &B[i][m] * B[j][m].transpose() * *r;
+        }
+        c
+    };
+    // Sanity: each estimate is consistent (its P is its error covariance) and the blocks are
+    // independent in every C_ij.
+    for i in 0..3 {
+        assert!((C(i, i) - &P[i]).amax() < 1e-12);
+        for j in 0..3 {
+            let c = C(i, j);
+            for (a, b) in [(0, 2), (0, 3), (1, 2), (1, 3)] {
+                assert!(c[(a, b)].abs() < 1e-14 && c[(b, a)].abs() < 1e-14);
+            }
+        }
+    }
+    let x: Vec<DVector<f64>> = (0..3)
+        .map(|i| DVector::from_fn(n, |k, _| (i * n + k) as f64 * 0.1 - 0.3))
+        .collect();
+    let es: Vec<Estimate> = (0..3)
+        .map(|i| estimate(x[i].clone(), P[i].clone()))
+        .collect();
+    let block_pattern = CrossPattern::from_fn(n, |a, b| (a < 2) == (b < 2));
+    let pairs: Vec<PairPattern> = [(0, 1), (0, 2), (1, 2)]
+        .into_iter()
+        .map(|(i, j)| PairPattern {
+            i,
+            j,
+            pattern: block_pattern.clone(),
+        })
+        .collect();
+    let restrict =
+        |m: &DMatrix<f64>, b: &[usize]| DMatrix::from_fn(b.len(), b.len(), |i, j| m[(b[i], b[j])]);
+    for criterion in [Criterion::Trace, Criterion::Logdet] {
+        let nm = non_monolithic_ci_nway(&es, &pairs, criterion).unwrap();
+        assert_eq!(nm.blocks, vec![vec![0, 1], vec![2, 3]]);
+        for (k, block) in nm.blocks.iter().enumerate() {
+            // Per-block N-way CI.
+            let sub: Vec<Estimate> = (0..3)
+                .map(|i| {
+                    estimate(
+                        DVector::from_fn(2, |r, _| x[i][block[r]]),
+                        restrict(&P[i], block),
+                    )
+                })
+                .collect();
+            let alone = covariance_intersection_nway(&sub, criterion).unwrap();
+            assert!((restrict(&nm.P, block) - &alone.P).amax() < 1e-12);
+            assert!((DVector::from_fn(2, |r, _| nm.x[block[r]]) - &alone.x).amax() < 1e-12);
+            let w = &nm.omega[k];
+            assert!(w
+                .iter()
+                .zip(&alone.omega[0])
+                .all(|(a, b)| (a - b).abs() < 1e-12));
+            // P = (Σ ωᵢ Pᵢ⁻¹)⁻¹ per block, from the reported weights.
+            let Pb_inv: Vec<DMatrix<f64>> = sub.iter().map(|e| inv(&e.P)).collect();
+            let mut info = DMatrix::zeros(2, 2);
+            for (wi, pinv) in w.iter().zip(&Pb_inv) {
+                info += pinv * *wi;
+            }
+            let Pf = inv(&info);
+            assert!((&Pf - restrict(&nm.P, block)).amax() < 1e-10 * Pf.amax());
+            // KKT on the simplex.
+            let g: Vec<f64> = Pb_inv
+                .iter()
+                .map(|pinv| match criterion {
+                    Criterion::Trace => -(&Pf * pinv * &Pf).trace(),
+                    Criterion::Logdet => -(pinv * &Pf).trace(),
+                })
+                .collect();
+            let scale = g.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            let support: Vec<usize> = (0..3).filter(|&i| w[i] > 0.0).collect();
+            let lambda = g[support[0]];
+            for i in 0..3 {
+                if w[i] > 0.0 {
+                    assert!(
+                        (g[i] - lambda).abs() <= 1e-10 * scale,
+                        "{criterion:?} block {k}: {g:?} {w:?}"
+                    );
+                } else {
+                    assert!(
+                        g[i] >= lambda - 1e-10 * scale,
+                        "{criterion:?} block {k}: {g:?} {w:?}"
+                    );
+                }
+            }
+        }
+        // Conservative against the true joint error covariance, nmCI and monolithic CI.
+        let mono = covariance_intersection_nway(&es, criterion).unwrap();
+        for fused in [&nm, &mono] {
+            let mut E = DMatrix::zeros(n, n);
+            for i in 0..3 {
+                for j in 0..3 {
+                    E += &fused.gains[i] * C(i, j) * fused.gains[j].transpose();
+                }
+            }
+            let D = &fused.P - &E;
+            let min = SymmetricEigen::new((&D + D.transpose()) * 0.5)
+                .eigenvalues
+                .min();
+            assert!(min >= -1e-12 * fused.P.amax(), "{criterion:?}: λ_min {min}");
+            // And x = Σ Kᵢ xᵢ.
+            let mut xf = DVector::zeros(n);
+            for i in 0..3 {
+                xf += &fused.gains[i] * &x[i];
+            }
+            assert!((xf - &fused.x).amax() < 1e-12);
+        }
+        assert!(nm.P.trace() <= mono.P.trace() + 1e-12);
+    }
+}
