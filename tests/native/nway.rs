@@ -360,8 +360,8 @@ fn shared_information_three_estimates_in_two_blocks() {
     };
     // Sanity: each estimate is consistent (its P is its error covariance) and the blocks are
     // independent in every C_ij.
-    for i in 0..3 {
-        assert!((C(i, i) - &P[i]).amax() < 1e-12);
+    for (i, P_i) in P.iter().enumerate() {
+        assert!((C(i, i) - P_i).amax() < 1e-12);
         for j in 0..3 {
             let c = C(i, j);
             for (a, b) in [(0, 2), (0, 3), (1, 2), (1, 3)] {
@@ -456,8 +456,8 @@ fn shared_information_three_estimates_in_two_blocks() {
             assert!(min >= -1e-12 * fused.P.amax(), "{criterion:?}: λ_min {min}");
             // And x = Σ Kᵢ xᵢ.
             let mut xf = DVector::zeros(n);
-            for i in 0..3 {
-                xf += &fused.gains[i] * &x[i];
+            for (K_i, x_i) in fused.gains.iter().zip(&x) {
+                xf += K_i * x_i;
             }
             assert!((xf - &fused.x).amax() < 1e-12);
         }
