@@ -14,12 +14,11 @@
 //! 3. *every* path from an agent of groups 1–2 to agent 11 passes through agent 7: in the
 //!    network without agent 7, no agent of 1–8 reaches 11;
 //! 4. at least one route from groups 3–4 to agent 7 avoids agent 11: in the network without
-//!    agent 11, agent 7 reaches some agent of 9–16;
+//!    agent 11, agent 7 reaches some agent of 9–16.
 //!
-//! The text also calls agent 7 central; that it is more central than agent 11 follows from
-//! 1–4 (with the network connected, which every scenario must be), so it is not checked
-//! separately. With `D` the hop distance and
-//! `S_v = Σ_x D(v, x)`: by 3 every path from `x ∈ {1..8} ∖ {7}` to 11 passes through 7, so
+//! Agent 7 being more central than agent 11 (as in the figure's reading) follows from 1–4
+//! with the network connected (which every scenario must be), so it is not checked
+//! separately. With `D` the hop distance and `S_v = Σ_x D(v, x)`: by 3 every path from `x ∈ {1..8} ∖ {7}` to 11 passes through 7, so
 //! `D(11, x) = 1 + D(7, x)`; for `x ∈ {9..16} ∖ {11}`, `D(7, x) ≤ 1 + D(11, x)`. Both sets have 7
 //! agents, so `S_11 − S_7 = 7 + Σ_{x ∈ {9..16}∖{11}} (D(11, x) − D(7, x)) ≥ 0`, and it is `> 0` as
 //! soon as one `x` there has `D(7, x) < 1 + D(11, x)`. By 4 a path from 7 to some `y ∈ {9..16}`
