@@ -1,9 +1,10 @@
 //! The wasm module in headless Chromium (`scripts/wasm.sh test`): the exported `fuse` on the
-//! paper's example for every method, and invalid requests throwing with their message.
+//! paper's example for every method, every method against stored *native* responses
+//! (`tests/golden/native_responses.json`), and invalid requests throwing with their message.
 #![cfg(target_arch = "wasm32")]
 
 use js_sys::{Reflect, JSON};
-use nmci::{fuse_json, FuseResponse, Method};
+use nmci::{FuseResponse, Method};
 use wasm_bindgen::{JsCast, JsValue};
 use wasm_bindgen_test::*;
 
@@ -70,31 +71,14 @@ fn paper_example_sdp() {
 }
 
 #[wasm_bindgen_test]
-fn certified_rule_in_wasm_matches_native() {
-    // One known zero (P_ab[2,1]): nmCI = CI = 3.088; the certified rule proves diag(1, 1).
+fn certified_rule_in_wasm() {
+    // One known zero (P_ab[2,1]): nmCI = CI = 3.088; the certified rule proves diag(1, 1)
+    // (the comparison with native responses is `every_method_matches_the_stored_…`).
     let body = r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
         "pab_unknown": [[true, true], [false, true]], "method": "certified"}"#;
     let r = call(JSON::parse(body).unwrap()).unwrap();
     assert!((r.trace - 2.0).abs() < 1e-6, "trace {}", r.trace);
     assert_eq!(r.upper_bound_rule, Some(Method::Certified));
-    let native: FuseResponse = serde_json::from_str(&fuse_json(body).unwrap()).unwrap();
-    assert!((r.trace - native.trace).abs() < 1e-6);
-    assert!(r.repair.unwrap() >= 0.0);
-}
-
-#[wasm_bindgen_test]
-fn wasm_matches_native_formula() {
-    // The same request natively (the crate's Rust API in this wasm instance) and through JS.
-    let native: nmci::FuseRequest = serde_json::from_str(
-        r#"{"pa": [[2, 0.3], [0.3, 1]], "pb": [[1, -0.2], [-0.2, 3]], "method": "ci"}"#,
-    )
-    .unwrap();
-    let expected = nmci::fuse(&native).unwrap();
-    let js = JSON::parse(
-        r#"{"pa": [[2, 0.3], [0.3, 1]], "pb": [[1, -0.2], [-0.2, 3]], "method": "ci"}"#,
-    )
-    .unwrap();
-    assert_eq!(call(js).unwrap(), expected);
 }
 
 #[wasm_bindgen_test]
@@ -197,4 +181,17 @@ fn invalid_study_configuration_throws_its_message() {
         .as_string()
         .unwrap();
     assert!(message.contains("unknown field `stepz`"), "{message}");
+}
+
+#[wasm_bindgen_test]
+fn every_method_matches_the_stored_native_responses() {
+    let stored: Vec<serde_json::Value> = serde_json::from_str(golden::NATIVE_RESPONSES).unwrap();
+    assert!(stored.len() >= 15);
+    for case in &stored {
+        let request = &case["request"];
+        let js = nmci::wasm::fuse(JSON::parse(&request.to_string()).unwrap())
+            .unwrap_or_else(|e| panic!("{request}: {:?}", JsValue::from(e)));
+        let got: serde_json::Value = serde_wasm_bindgen::from_value(js).unwrap();
+        golden::same_response(request, &got, &case["response"]).unwrap();
+    }
 }

@@ -55,3 +55,115 @@ pub fn headline(r: &StudyReport) -> Vec<f64> {
     v.push(r.omega_7_11.ici);
     v
 }
+
+/// `tests/golden/native_responses.json`: `[{"request": …, "response": …}, …]`, native
+/// responses of every method, written by the native test with `NMCI_BLESS=1`.
+pub const NATIVE_RESPONSES: &str = include_str!("native_responses.json");
+
+/// The requests of the fixture: every method, on 3-D problems with known zeros (and N-way).
+pub fn fixture_requests() -> Vec<serde_json::Value> {
+    let pa = serde_json::json!([[3.0, 0.4, -0.2], [0.4, 1.5, 0.3], [-0.2, 0.3, 2.0]]);
+    let pb = serde_json::json!([[1.2, -0.3, 0.1], [-0.3, 2.5, 0.0], [0.1, 0.0, 0.8]]);
+    let pattern = serde_json::json!([
+        [true, false, true],
+        [false, true, false],
+        [true, false, true]
+    ]);
+    let chain = serde_json::json!([
+        [true, true, false],
+        [false, true, true],
+        [false, false, true]
+    ]);
+    let two = |method: &str, pattern: &serde_json::Value, extra: serde_json::Value| {
+        let mut r = serde_json::json!({
+            "pa": pa, "pb": pb, "xa": [1.0, -0.5, 0.25], "xb": [0.5, 0.5, -1.0],
+            "pab_unknown": pattern, "method": method,
+        });
+        for (k, v) in extra.as_object().unwrap() {
+            r[k] = v.clone();
+        }
+        r
+    };
+    let none = serde_json::json!({});
+    let mut out = Vec::new();
+    for method in ["ci", "nmci", "ici", "ei", "naive"] {
+        out.push(two(method, &pattern, none.clone()));
+        // Log-det where the method has a weight to choose; the other pattern otherwise.
+        let logdet = if matches!(method, "ei" | "naive") {
+            none.clone()
+        } else {
+            serde_json::json!({"criterion": "logdet"})
+        };
+        out.push(two(method, &chain, logdet));
+    }
+    out.push(two(
+        "sdp",
+        &pattern,
+        serde_json::json!({"samples": 100, "seed": 2}),
+    ));
+    out.push(two("sdp_cuts", &chain, none.clone()));
+    out.push(two("certified", &chain, none.clone()));
+    let estimates = serde_json::json!([
+        {"x": [1.0, 0.0, 0.5], "p": [[1.0, 0.0, 0.0], [0.0, 9.0, 0.0], [0.0, 0.0, 2.0]]},
+        {"x": [0.0, 1.0, -0.5], "p": [[9.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 3.0]]},
+        {"p": [[4.0, 0.5, 0.0], [0.5, 4.0, 0.0], [0.0, 0.0, 1.5]]}
+    ]);
+    out.push(serde_json::json!({"estimates": estimates, "method": "ci"}));
+    out.push(serde_json::json!({"estimates": estimates, "method": "nmci", "patterns": [
+        {"i": 0, "j": 1, "pab_unknown": [[true, true, false], [true, true, false], [false, false, true]]},
+        {"i": 0, "j": 2, "pab_unknown": [[true, true, false], [true, true, false], [false, false, true]]},
+        {"i": 1, "j": 2, "pab_unknown": [[true, true, false], [true, true, false], [false, false, true]]}
+    ]}));
+    out
+}
+
+/// The methods solved by an interior-point SDP (native uses faer's KKT solver, wasm QDLDL):
+/// compared at solver tolerance on the keys that carry the result. Their optimal gain need
+/// not be unique (the trace is; `sdp_cuts`' `x` differed by 8e-5 between the two builds), so
+/// `x`, `p`, `ka`, `kb` are not compared for them.
+const SOLVER_METHODS: [&str; 3] = ["sdp", "sdp_cuts", "certified"];
+const SOLVER_KEYS: [&str; 4] = ["method", "trace", "upper_bound", "blocks"];
+
+/// Compares a response with the stored one: every key (for solver methods the keys of
+/// `SOLVER_KEYS`), numbers to `1e-9` relative (`1e-6` for solver methods), the rest equal.
+pub fn same_response(
+    request: &serde_json::Value,
+    got: &serde_json::Value,
+    stored: &serde_json::Value,
+) -> Result<(), String> {
+    let method = request["method"].as_str().unwrap_or_default();
+    let solver = SOLVER_METHODS.contains(&method);
+    let tol = if solver { 1e-6 } else { 1e-9 };
+    let keys: Vec<String> = if solver {
+        SOLVER_KEYS.iter().map(|k| k.to_string()).collect()
+    } else {
+        let mut k: Vec<String> = stored.as_object().unwrap().keys().cloned().collect();
+        k.extend(got.as_object().unwrap().keys().cloned());
+        k.sort();
+        k.dedup();
+        k
+    };
+    for key in keys {
+        close(&got[&key], &stored[&key], tol).map_err(|e| format!("{method}: `{key}`: {e}"))?;
+    }
+    Ok(())
+}
+
+fn close(a: &serde_json::Value, b: &serde_json::Value, tol: f64) -> Result<(), String> {
+    use serde_json::Value;
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            if (x - y).abs() <= tol * x.abs().max(y.abs()).max(1.0) {
+                Ok(())
+            } else {
+                Err(format!("{x} vs {y}"))
+            }
+        }
+        (Value::Array(x), Value::Array(y)) if x.len() == y.len() => {
+            x.iter().zip(y).try_for_each(|(x, y)| close(x, y, tol))
+        }
+        _ if a == b => Ok(()),
+        _ => Err(format!("{a} vs {b}")),
+    }
+}

@@ -16,6 +16,7 @@ mod cli;
 mod cuts;
 mod explore;
 mod fig2;
+mod fixtures;
 mod nmci_rule;
 mod nway;
 mod properties;
