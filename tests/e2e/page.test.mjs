@@ -6,6 +6,7 @@ import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
 import { readFile, mkdir, writeFile } from "node:fs/promises";
 import { join } from "node:path";
+import { execFileSync } from "node:child_process";
 import { root, www, serveWww, launchChromium } from "./harness.mjs";
 
 const out = join(root, "test-output", "e2e");
@@ -82,15 +83,34 @@ test("choosing a preset and back restores the paper's numbers", async () => {
   assert.equal((await text("#row-nmci .trace")).trim(), "2.000");
 });
 
-test("editing P_a changes the numbers, and its mirror entry follows", async () => {
-  const before = await text("#row-ci .trace");
+/** The CLI's response to a fusion request (the same crate, natively). */
+function cli(request) {
+  const out = execFileSync("cargo", ["run", "--quiet", "--bin", "nmci", "--", "fuse"], { cwd: root, input: JSON.stringify(request) });
+  return JSON.parse(out.toString());
+}
+/** The page's rounding of a table number. */
+const three = (v) => v.toFixed(3);
+
+test("editing P_a changes the numbers to the CLI's for the same inputs, and its mirror entry follows", async () => {
+  const pb = [[1, 0], [0, 4]];
+  const diagonal = [[true, false], [false, true]];
   await cell("pa", 1, 1).fill("5");
   await settle();
-  assert.notEqual(await text("#row-ci .trace"), before);
+  for (const method of ["ci", "nmci", "ici", "naive"]) {
+    const r = cli({ pa: [[5, 0], [0, 1]], pb, pab_unknown: diagonal, method });
+    assert.equal((await text(`#row-${method} .trace`)).trim(), three(r.trace), method);
+  }
   await cell("pa", 1, 2).fill("0.5");
   await settle();
   assert.equal(await cell("pa", 2, 1).inputValue(), "0.5");
   assert.equal(await page.locator("#preset").inputValue(), "custom");
+  for (const method of ["ci", "nmci"]) {
+    const r = cli({ pa: [[5, 0.5], [0.5, 1]], pb, pab_unknown: diagonal, method });
+    assert.equal((await text(`#row-${method} .trace`)).trim(), three(r.trace), method);
+    const omega = (await text(`#row-${method} .omega`)).split(",").map((v) => Number(v));
+    assert.equal(omega.length, r.omega.length, method);
+    omega.forEach((w, k) => assert.ok(Math.abs(w - r.omega[k]) <= 5e-4, `${method} ω ${omega} vs ${r.omega}`));
+  }
 });
 
 test("a non-PD matrix shows an inline error, keeps the last picture, and the page still responds", async () => {
