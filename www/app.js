@@ -129,6 +129,11 @@ function clearErrors() {
 function showGeneral(msg) {
   $("err-general").textContent = msg;
 }
+/** Why the URL's state was not used (kept until a readable link is loaded: the page's own
+ * errors and results clear `err-general`, not this). */
+function showLinkError(msg) {
+  $("err-link").textContent = msg;
+}
 function showInputError(msg) {
   clearErrors();
   markBadCells();
@@ -598,12 +603,14 @@ function init() {
   window.addEventListener("hashchange", () => {
     if (location.hash === encodeHash(state)) return;
     const { state: s, error } = decodeHash(location.hash);
-    if (s) load(s);
-    else if (error) showGeneral(error);
+    if (s) {
+      showLinkError("");
+      load(s);
+    } else if (error) showLinkError(error);
   });
   const { state: fromHash, error } = decodeHash(location.hash);
   load(fromHash ?? preset("paper"));
-  if (error) showGeneral(error);
+  if (error) showLinkError(error);
 }
 
 init();

@@ -210,6 +210,27 @@ test("a URL hash restores the whole state", async () => {
   await other.close();
 });
 
+test("a malformed or out-of-range URL hash says so and opens on the paper's example", async () => {
+  const cases = [
+    ["#%7Bnot-json", "the link's state could not be read"],
+    [`#${encodeURIComponent(JSON.stringify({ n: 9, pa: [[1]], pb: [[1]], pattern: ["1"] }))}`, "the link's state is incomplete or out of range"],
+    [`#${encodeURIComponent(JSON.stringify({ n: 2, pa: [[1, 0], [0, 1]], pb: [[1, 0], [0, "x"]], pattern: ["10", "01"] }))}`, "the link's state is incomplete or out of range"],
+  ];
+  for (const [hash, message] of cases) {
+    const other = await browser.newPage();
+    const errors = [];
+    other.on("pageerror", (e) => errors.push(e.message));
+    await other.goto(base + hash);
+    await other.waitForFunction(() => document.body.dataset.ready === "true", null, { timeout: 60_000 });
+    // The reason stays after the first results arrive (they clear the other messages).
+    assert.equal(await other.locator("#err-link").innerText(), message, hash);
+    assert.equal(await other.locator("#preset").inputValue(), "paper");
+    assert.equal((await other.locator("#row-nmci .trace").innerText()).trim(), "2.000");
+    assert.deepEqual(errors, [], hash);
+    await other.close();
+  }
+});
+
 test("dragging the P_a major-axis handle rotates and stretches P_a, and the grid follows", async () => {
   await page.selectOption("#preset", "paper");
   await settle();
