@@ -60,3 +60,27 @@ pub fn block_spd(n: usize, groups: &[Vec<usize>], rng: &mut ChaCha8Rng) -> DMatr
     }
     m
 }
+
+/// `min λ_min(P̄ − K P' Kᵀ)` over the cross-covariances `cross`, with
+/// `P' = [[P_a, X], [Xᵀ, P_b]]` and the product written out (not the library's check).
+pub fn margin_by_hand(
+    p: &FusionProblem,
+    K_a: &DMatrix<f64>,
+    K_b: &DMatrix<f64>,
+    P: &DMatrix<f64>,
+    cross: &[DMatrix<f64>],
+) -> f64 {
+    cross
+        .iter()
+        .map(|X| {
+            let KPK = K_a * &p.P_a * K_a.transpose()
+                + K_a * X * K_b.transpose()
+                + K_b * X.transpose() * K_a.transpose()
+                + K_b * &p.P_b * K_b.transpose();
+            let D = P - KPK;
+            nalgebra::SymmetricEigen::new((&D + D.transpose()) * 0.5)
+                .eigenvalues
+                .min()
+        })
+        .fold(f64::INFINITY, f64::min)
+}

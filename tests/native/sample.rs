@@ -104,6 +104,35 @@ fn admissible(p: &FusionProblem, s: &nalgebra::DMatrix<f64>) -> bool {
     zeros && nalgebra::Cholesky::new(p.joint_covariance(s)).is_some()
 }
 
+/// The histograms of correlation `C_ij` over 10 bins of [−1, 1] agree bin by bin within `tol`
+/// (fractions of the samples) between the rejection sampler's and hit-and-run's samples.
+fn same_histogram(
+    p: &FusionProblem,
+    rejection: &CrossSamples,
+    chain: &CrossSamples,
+    i: usize,
+    j: usize,
+    tol: f64,
+) {
+    let histogram = |s: &CrossSamples| {
+        let mut h = [0.0; 10];
+        for c in &s.cross {
+            let v = correlation(p, c, i, j);
+            h[(((v + 1.0) / 0.2) as usize).min(9)] += 1.0 / s.cross.len() as f64;
+        }
+        h
+    };
+    let (a, b) = (histogram(rejection), histogram(chain));
+    for k in 0..10 {
+        assert!(
+            (a[k] - b[k]).abs() < tol,
+            "C_{i}{j} bin {k}: rejection {:.4} vs hit-and-run {:.4}",
+            a[k],
+            b[k]
+        );
+    }
+}
+
 #[test]
 fn hit_and_run_samples_are_admissible_at_n_14_where_rejection_gets_none() {
     let mut r = rng(14);
@@ -151,23 +180,7 @@ fn hit_and_run_and_rejection_cover_the_same_set_in_2d() {
     .unwrap();
     // Histograms of each correlation entry over 10 bins of [−1, 1]: the same law.
     for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-        let histogram = |s: &CrossSamples| {
-            let mut h = [0.0; 10];
-            for c in &s.cross {
-                let v = correlation(&p, c, i, j);
-                h[(((v + 1.0) / 0.2) as usize).min(9)] += 1.0 / count as f64;
-            }
-            h
-        };
-        let (a, b) = (histogram(&rejection), histogram(&chain));
-        for k in 0..10 {
-            assert!(
-                (a[k] - b[k]).abs() < 0.015,
-                "C_{i}{j} bin {k}: rejection {:.4} vs hit-and-run {:.4}",
-                a[k],
-                b[k]
-            );
-        }
+        same_histogram(&p, &rejection, &chain, i, j, 0.015);
     }
     // And a joint feature: how often two correlations share a sign.
     let same_sign = |s: &CrossSamples| {
@@ -279,23 +292,7 @@ fn hit_and_run_and_rejection_agree_in_3d_with_known_zeros() {
                 assert!(chain.cross.iter().all(|c| c[(i, j)] == 0.0));
                 continue;
             }
-            let histogram = |s: &CrossSamples| {
-                let mut h = [0.0; 10];
-                for c in &s.cross {
-                    let v = correlation(&p, c, i, j);
-                    h[(((v + 1.0) / 0.2) as usize).min(9)] += 1.0 / count as f64;
-                }
-                h
-            };
-            let (a, b) = (histogram(&rejection), histogram(&chain));
-            for k in 0..10 {
-                assert!(
-                    (a[k] - b[k]).abs() < 0.02,
-                    "C_{i}{j} bin {k}: rejection {:.4} vs hit-and-run {:.4}",
-                    a[k],
-                    b[k]
-                );
-            }
+            same_histogram(&p, &rejection, &chain, i, j, 0.02);
         }
     }
 }

@@ -63,20 +63,7 @@ fn sampled_sdp_is_a_lower_bound_on_nmci() {
         // λ_min(P̄ − K P' Kᵀ) with `P' = [[P_a, X], [Xᵀ, P_b]]` written out.
         let drawn = sample_cross_covariances(&p, 100, 3, SamplerSettings::default()).unwrap();
         let (K_a, K_b, P) = (&opt.fused.K_a, &opt.fused.K_b, &opt.fused.P);
-        let margin = drawn
-            .cross
-            .iter()
-            .map(|X| {
-                let KPK = K_a * &p.P_a * K_a.transpose()
-                    + K_a * X * K_b.transpose()
-                    + K_b * X.transpose() * K_a.transpose()
-                    + K_b * &p.P_b * K_b.transpose();
-                let D = P - KPK;
-                nalgebra::SymmetricEigen::new((&D + D.transpose()) * 0.5)
-                    .eigenvalues
-                    .min()
-            })
-            .fold(f64::INFINITY, f64::min);
+        let margin = margin_by_hand(&p, K_a, K_b, P, &drawn.cross);
         let scale = p.P_a.amax().max(p.P_b.amax());
         assert!(
             margin >= -1e-7 * scale,

@@ -5,6 +5,23 @@
 use nalgebra::{DMatrix, DVector};
 use nmci::sim::*;
 
+/// Run `run` of `steps` steps (seed `seed`), done: truth and every estimator's agents.
+fn finished_run(model: &Model, steps: usize, seed: u64, run: u64) -> RunState {
+    let spec = RunSpec {
+        steps,
+        seed,
+        run,
+        agent: 0,
+        watched: 1,
+        storage: Storage::Blocks,
+    };
+    let mut state = RunState::new(model, &spec);
+    while !state.finished() {
+        state.step(model).unwrap();
+    }
+    state
+}
+
 /// The full `n × n` matrix of per-block matrices.
 fn assemble(model: &Model, blocks: &[DMatrix<f64>]) -> DMatrix<f64> {
     let mut full = DMatrix::zeros(model.dim(), model.dim());
@@ -50,18 +67,7 @@ fn exact_error_covariance_matches_monte_carlo() {
     let n = model.dim();
     let mut sample = vec![DMatrix::<f64>::zeros(n, n); estimators.len()];
     for r in 0..runs {
-        let spec = RunSpec {
-            steps,
-            seed: 11,
-            run: r,
-            agent: 0,
-            watched: 1,
-            storage: Storage::Blocks,
-        };
-        let mut run = RunState::new(&model, &spec);
-        while !run.finished() {
-            run.step(&model).unwrap();
-        }
+        let run = finished_run(&model, steps, 11, r);
         for (s, acc) in sample.iter_mut().enumerate() {
             let e: DVector<f64> = run.error(s, 0).unwrap();
             acc.ger(1.0 / runs as f64, &e, &e, 1.0);
@@ -123,18 +129,7 @@ fn exact_error_covariance_whitens_the_simulated_errors_of_a_chained_network() {
         .collect();
     let mut sums: Vec<Vec<f64>> = factors.iter().map(|f| vec![0.0; f.len()]).collect();
     for r in 0..runs {
-        let spec = RunSpec {
-            steps,
-            seed: 12,
-            run: r,
-            agent: 0,
-            watched: 1,
-            storage: Storage::Blocks,
-        };
-        let mut run = RunState::new(&model, &spec);
-        while !run.finished() {
-            run.step(&model).unwrap();
-        }
+        let run = finished_run(&model, steps, 12, r);
         for (s, per_agent) in sums.iter_mut().enumerate() {
             for (a, sum) in per_agent.iter_mut().enumerate() {
                 let e: DVector<f64> = run.error(s, a).unwrap();
