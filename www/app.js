@@ -604,7 +604,7 @@ function init() {
     if (location.hash === encodeHash(state)) return;
     const { state: s, error } = decodeHash(location.hash);
     if (s) {
-      showLinkError("");
+      showLinkError(error ?? "");
       load(s);
     } else if (error) showLinkError(error);
   });

@@ -101,17 +101,27 @@ export function decodeHash(hash) {
     return { state: null, error: "the link's state is incomplete or out of range" };
   }
   const base = preset("paper");
-  const view = Array.isArray(c.view) && c.view.length === 2 && c.view.every((v) => Number.isInteger(v) && v >= 0 && v < n) && c.view[0] !== c.view[1] ? c.view : [0, 1];
-  const int = (v, d, lo, hi) => (Number.isInteger(v) && v >= lo && v <= hi ? v : d);
-  return {
-    state: {
-      ...base, n, pa: c.pa, pb: c.pb,
-      pattern: c.pattern.map((r) => [...r].map((ch) => ch === "1")),
-      samples: int(c.samples, 200, 1, 5000), seed: int(c.seed, 0, 0, Number.MAX_SAFE_INTEGER), region: int(c.region, 300, 0, 5000),
-      criterion: c.criterion === "logdet" ? "logdet" : "trace", view,
-      sampler: c.sampler === "hit_and_run" ? "hit_and_run" : "rejection",
-      layers: Array.isArray(c.layers) ? Object.fromEntries(LAYERS.map((l) => [l, c.layers.includes(l)])) : base.layers,
-      preset: typeof c.preset === "string" ? c.preset : "custom",
-    },
+  // Optional settings: absent → the default; present but invalid → the default, and named in
+  // the returned error (never replaced silently).
+  const ignored = [];
+  const pick = (key, ok, value, fallback) => {
+    if (c[key] === undefined) return fallback;
+    if (ok) return value;
+    ignored.push(key);
+    return fallback;
   };
+  const view = pick("view", Array.isArray(c.view) && c.view.length === 2 && c.view.every((v) => Number.isInteger(v) && v >= 0 && v < n) && c.view[0] !== c.view[1], c.view, [0, 1]);
+  const int = (key, d, lo, hi) => pick(key, Number.isInteger(c[key]) && c[key] >= lo && c[key] <= hi, c[key], d);
+  const state = {
+    ...base, n, pa: c.pa, pb: c.pb,
+    pattern: c.pattern.map((r) => [...r].map((ch) => ch === "1")),
+    samples: int("samples", 200, 1, 5000), seed: int("seed", 0, 0, Number.MAX_SAFE_INTEGER), region: int("region", 300, 0, 5000),
+    criterion: pick("criterion", c.criterion === "trace" || c.criterion === "logdet", c.criterion, "trace"), view,
+    sampler: pick("sampler", c.sampler === "rejection" || c.sampler === "hit_and_run", c.sampler, "rejection"),
+    layers: pick("layers", Array.isArray(c.layers), Array.isArray(c.layers) && Object.fromEntries(LAYERS.map((l) => [l, c.layers.includes(l)])), base.layers),
+    preset: pick("preset", typeof c.preset === "string", c.preset, "custom"),
+  };
+  return ignored.length
+    ? { state, error: `the link's ${ignored.join(", ")} ${ignored.length === 1 ? "was" : "were"} out of range; the default${ignored.length === 1 ? " is" : "s are"} used` }
+    : { state };
 }

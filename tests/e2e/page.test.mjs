@@ -210,12 +210,23 @@ test("a URL hash restores the whole state", async () => {
   await other.close();
 });
 
-test("a malformed or out-of-range URL hash says so and opens on the paper's example", async () => {
+test("a malformed or out-of-range URL hash says so: the paper's example, or the defaults for bad settings, named", async () => {
   const cases = [
     ["#%7Bnot-json", "the link's state could not be read"],
     [`#${encodeURIComponent(JSON.stringify({ n: 9, pa: [[1]], pb: [[1]], pattern: ["1"] }))}`, "the link's state is incomplete or out of range"],
     [`#${encodeURIComponent(JSON.stringify({ n: 2, pa: [[1, 0], [0, 1]], pb: [[1, 0], [0, "x"]], pattern: ["10", "01"] }))}`, "the link's state is incomplete or out of range"],
   ];
+  // Readable, with optional settings out of range: loaded, the defaults used and named.
+  const good = { n: 2, pa: [[3, 0], [0, 1]], pb: [[1, 0], [0, 4]], pattern: ["10", "01"], samples: 0, sampler: "gibbs", preset: "paper" };
+  {
+    const other = await browser.newPage();
+    await other.goto(`${base}#${encodeURIComponent(JSON.stringify(good))}`);
+    await other.waitForFunction(() => document.body.dataset.ready === "true", null, { timeout: 60_000 });
+    assert.equal(await other.locator("#err-link").innerText(), "the link's samples, sampler were out of range; the defaults are used");
+    assert.equal(await other.locator("#samples").inputValue(), "200");
+    assert.equal((await other.locator("#row-nmci .trace").innerText()).trim(), "2.000");
+    await other.close();
+  }
   for (const [hash, message] of cases) {
     const other = await browser.newPage();
     const errors = [];
