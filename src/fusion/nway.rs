@@ -17,8 +17,9 @@
 //! full Newton step is accepted when it shrinks the spread of the gradients on the support
 //! (judged on the gradients, not the criterion). It ends when the KKT conditions hold to
 //! `1e-10` relative (`|∂ᵢ − λ| ≤ 10⁻¹⁰ max|∂|` on the support, `∂ⱼ ≥ λ − 10⁻¹⁰ max|∂|` off it),
-//! or, failing that, when neither the criterion nor the gradients' spread can be reduced in
-//! floating point, or after 200 iterations; a test checks the KKT conditions to `1e-10`
+//! or, failing that, when the Newton step (with backtracking) lowers neither the criterion nor
+//! the gradients' spread in floating point, or after 200 iterations (the result's `iterations`
+//! reports the count); a test checks the KKT conditions to `1e-10`
 //! with gradients computed independently. Two estimates are handed to
 //! the exact two-estimate CI ([`covariance_intersection`](crate::covariance_intersection)),
 //! so `k = 2` gives exactly the pairwise results.

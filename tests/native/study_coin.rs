@@ -271,28 +271,21 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
                 row.view_mut((0, a * n), (n, n))
                     .copy_from(&DMatrix::identity(n, n));
                 for &b in &nb[a] {
+                    let problem = FusionProblem::new_trusted(
+                        DVector::zeros(n),
+                        P[a].clone(),
+                        DVector::zeros(n),
+                        sent[b].clone(),
+                        model.cross_pattern.clone(),
+                    );
                     let (K_a, K_b, fused) = match rule {
                         Rule::Ci => {
-                            let problem = FusionProblem::new_trusted(
-                                DVector::zeros(n),
-                                P[a].clone(),
-                                DVector::zeros(n),
-                                sent[b].clone(),
-                                model.cross_pattern.clone(),
-                            );
                             let ci = covariance_intersection(&problem, Criterion::Trace).unwrap();
                             let w = ci.omega;
                             let F = ci.fused.P;
                             (&F * inv(&P[a]) * w, &F * inv(&sent[b]) * (1.0 - w), F)
                         }
                         Rule::Nmci => {
-                            let problem = FusionProblem::new_trusted(
-                                DVector::zeros(n),
-                                P[a].clone(),
-                                DVector::zeros(n),
-                                sent[b].clone(),
-                                model.cross_pattern.clone(),
-                            );
                             let nm = non_monolithic_ci(&problem, Criterion::Trace).unwrap();
                             // ω of each state's block (the estimates are block-diagonal).
                             let mut w = DVector::zeros(n);
