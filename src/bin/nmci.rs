@@ -2,7 +2,8 @@
 //!
 //! `nmci fuse [FILE]` reads a JSON fusion request from FILE (or standard input) and prints
 //! the JSON response; invalid input exits non-zero with a one-line message on stderr.
-//! `nmci track` runs the tracking study (see `configs/paper.toml`).
+//! `nmci track` runs the tracking study (see `configs/paper.toml`), or with `--first-run` a
+//! shard of its runs; `nmci merge` puts shards together.
 
 #[cfg(not(target_arch = "wasm32"))]
 mod cli {
@@ -47,7 +48,23 @@ mod cli {
             /// Skip the exact COIN (overrides `coin = true` of the configuration).
             #[arg(long)]
             no_coin: bool,
-            /// Output folder: summary.json, nees/rmse/two_sigma/omega/coin CSVs, nees/rmse/omega/coin SVGs.
+            /// Run a shard: runs FIRST_RUN..FIRST_RUN + runs of the study, written to
+            /// OUT/shard-FIRST-END.json for `nmci merge` (the exact COIN goes with the shard
+            /// holding run 0).
+            #[arg(long)]
+            first_run: Option<usize>,
+            /// Output folder: summary.json, nees/rmse/two_sigma/omega/coin CSVs, nees/rmse/omega/coin SVGs
+            /// (or the shard file with --first-run).
+            #[arg(long, default_value = "out/track")]
+            out: PathBuf,
+        },
+        /// Merge shards of a study (`nmci track --first-run`) into the study itself, bit for bit
+        /// what one `nmci track` of all the runs gives, and write its files.
+        Merge {
+            /// Shard files, or folders whose shard-*.json files are all read.
+            #[arg(required = true)]
+            inputs: Vec<PathBuf>,
+            /// Output folder, as for `nmci track`.
             #[arg(long, default_value = "out/track")]
             out: PathBuf,
         },
@@ -269,106 +286,6 @@ mod cli {
         Ok(())
     }
 
-    /// One SVG line chart: `series` of `(label, colour, values)` against time, optional
-    /// horizontal bounds.
-    fn line_chart(
-        path: &std::path::Path,
-        title: &str,
-        y_label: &str,
-        dt: f64,
-        series: &[(&str, plotters::style::RGBColor, &[f64])],
-        bounds: Option<(f64, f64)>,
-        log_y: bool,
-    ) -> Result<(), String> {
-        use plotters::prelude::*;
-        let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
-        let steps = series.iter().map(|s| s.2.len()).max().unwrap_or(0).max(1);
-        let t_max = steps as f64 * dt;
-        let finite = series
-            .iter()
-            .flat_map(|s| s.2.iter().copied())
-            .chain(bounds.iter().flat_map(|b| [b.0, b.1]))
-            .filter(|v| v.is_finite() && (!log_y || *v > 0.0));
-        let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(v), b.max(v))
-        });
-        let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
-        let root = SVGBackend::new(path, (900, 520)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(&e))?;
-        let mut builder = ChartBuilder::on(&root);
-        builder
-            .caption(title, ("sans-serif", 20))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(70);
-        let x_range = 0.0..t_max;
-        macro_rules! draw {
-            ($chart:expr) => {{
-                let mut chart = $chart;
-                chart
-                    .configure_mesh()
-                    .x_desc("time [s]")
-                    .y_desc(y_label)
-                    .y_label_formatter(&|v| {
-                        format!("{:.4}", v)
-                            .trim_end_matches('0')
-                            .trim_end_matches('.')
-                            .to_string()
-                    })
-                    .draw()
-                    .map_err(|e| err(&e))?;
-                if let Some((b_lo, b_hi)) = bounds {
-                    for (b, name) in [(b_lo, "95 % lower"), (b_hi, "95 % upper")] {
-                        chart
-                            .draw_series(LineSeries::new(
-                                [(0.0, b), (t_max, b)],
-                                BLACK.mix(0.6).stroke_width(1),
-                            ))
-                            .map_err(|e| err(&e))?
-                            .label(name)
-                            .legend(|(x, y)| {
-                                PathElement::new([(x, y), (x + 18, y)], BLACK.mix(0.6))
-                            });
-                    }
-                }
-                for (label, colour, values) in series {
-                    let colour = *colour;
-                    chart
-                        .draw_series(LineSeries::new(
-                            values
-                                .iter()
-                                .enumerate()
-                                .filter(|(_, v)| v.is_finite() && (!log_y || **v > 0.0))
-                                .map(|(k, v)| ((k + 1) as f64 * dt, *v)),
-                            colour.stroke_width(2),
-                        ))
-                        .map_err(|e| err(&e))?
-                        .label(*label)
-                        .legend(move |(x, y)| {
-                            PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(2))
-                        });
-                }
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK.mix(0.3))
-                    .draw()
-                    .map_err(|e| err(&e))?;
-            }};
-        }
-        if log_y {
-            draw!(builder
-                .build_cartesian_2d(x_range, (lo * 0.8..hi * 1.25).log_scale())
-                .map_err(|e| err(&e))?);
-        } else {
-            let pad = 0.05 * (hi - lo).max(1e-12);
-            draw!(builder
-                .build_cartesian_2d(x_range, (lo - pad)..(hi + pad))
-                .map_err(|e| err(&e))?);
-        }
-        root.present().map_err(|e| err(&e))
-    }
-
     /// A study configuration from a TOML file, or the defaults.
     fn load_config(path: Option<PathBuf>) -> Result<nmci::sim::StudyConfig, String> {
         match path {
@@ -512,12 +429,14 @@ mod cli {
         ))
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn track(
         config: Option<PathBuf>,
         runs: Option<usize>,
         steps: Option<usize>,
         seed: Option<u64>,
         no_coin: bool,
+        first_run: Option<usize>,
         out: PathBuf,
     ) -> Result<String, String> {
         use indicatif::{ProgressBar, ProgressStyle};
@@ -529,7 +448,8 @@ mod cli {
         cfg.seed = seed.unwrap_or(cfg.seed);
         cfg.coin &= !no_coin;
         cfg.validate().map_err(|e| e.to_string())?;
-        let coin_pieces = if cfg.coin { estimators().count() } else { 0 };
+        let with_coin = cfg.coin && first_run.unwrap_or(0) == 0;
+        let coin_pieces = if with_coin { estimators().count() } else { 0 };
         let bar = ProgressBar::new((cfg.runs * RULES.len() + coin_pieces) as u64).with_style(
             ProgressStyle::with_template(
                 "{bar:40} {pos}/{len} runs × rules (+ exact COIN per estimator), {elapsed} (eta {eta})",
@@ -538,182 +458,85 @@ mod cli {
         );
         let started = std::time::Instant::now();
         let model = Model::new(&cfg.scenario).map_err(|e| e.to_string())?;
-        let (traces, summary) =
-            study_parallel(&cfg, &model, || bar.inc(1)).map_err(|e| e.to_string())?;
+        if let Some(first_run) = first_run {
+            let shard =
+                run_shard(&cfg, &model, first_run, || bar.inc(1)).map_err(|e| e.to_string())?;
+            bar.finish_and_clear();
+            std::fs::create_dir_all(&out)
+                .map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+            let path = out.join(shard_file_name(first_run, cfg.runs));
+            let text = serde_json::to_string(&shard).map_err(|e| e.to_string())?;
+            std::fs::write(&path, text)
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            return Ok(format!(
+                "runs {first_run}..{} × {} steps in {:.1} s; wrote the shard {} (merge shards with `nmci merge`)",
+                first_run + cfg.runs,
+                cfg.steps,
+                started.elapsed().as_secs_f64(),
+                path.display()
+            ));
+        }
+        let study = study_parallel(&cfg, &model, || bar.inc(1)).map_err(|e| e.to_string())?;
         bar.finish_and_clear();
-        let report = StudyReport::new(&cfg, &summary);
-        std::fs::create_dir_all(&out)
-            .map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-        let write = |name: &str, text: String| {
-            std::fs::write(out.join(name), text)
-                .map_err(|e| format!("cannot write {}: {e}", out.join(name).display()))
-        };
-        write(
-            "summary.json",
-            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?,
-        )?;
-        write(
-            "network.svg",
-            network_svg(&cfg.scenario, cfg.agent, cfg.watched),
-        )?;
-        let names: Vec<&str> = estimators().map(estimator_name).collect();
-        for (file, series) in [
-            ("nees.csv", &summary.nees_series),
-            ("rmse.csv", &summary.rmse_series),
-            ("two_sigma.csv", &summary.two_sigma_series),
-            ("coin.csv", &summary.coin_series),
-        ] {
-            if series.is_empty() {
-                continue;
-            }
-            let mut csv = format!("step,time,{}\n", names.join(","));
-            for k in 0..cfg.steps {
-                let row: Vec<String> = series.iter().map(|s| s[k].to_string()).collect();
-                csv += &format!(
-                    "{},{},{}\n",
-                    k + 1,
-                    (k + 1) as f64 * cfg.scenario.dt,
-                    row.join(",")
-                );
-            }
-            write(file, csv)?;
-        }
-        let mut csv = String::from("step,run,omega_ci");
-        let blocks = traces
-            .first()
-            .and_then(|t| t.omega_nmci.first())
-            .map_or(0, Vec::len);
-        for b in 0..blocks {
-            csv += &format!(",omega_nmci_{}", b + 1);
-        }
-        csv += ",omega_ici\n";
-        for (r, t) in traces.iter().enumerate() {
-            for k in 0..t.omega_ci.len() {
-                csv += &format!("{},{},{}", k + 1, r, t.omega_ci[k]);
-                for w in &t.omega_nmci[k] {
-                    csv += &format!(",{w}");
-                }
-                csv += &format!(",{}\n", t.omega_ici[k]);
-            }
-        }
-        write("omega.csv", csv)?;
-
-        // Figures (SVG): NEES with the 95 % χ² band, RMSE and 2σ, ω of the watched fusion.
-        use plotters::style::RGBColor;
-        let colours = [
-            RGBColor(0, 0, 0),
-            RGBColor(31, 119, 180),
-            RGBColor(214, 39, 40),
-            RGBColor(150, 150, 150),
-            RGBColor(44, 160, 44),
-        ];
-        // The estimators drawn on the NEES, RMSE and COIN charts: all but naive fusion.
-        let shown = [0, 1, 2, 4];
-        let dt = cfg.scenario.dt;
-        // Naive fusion's NEES grows by orders of magnitude (see nees.csv): left off the chart
-        // so the consistent estimators stay readable against the band.
-        let nees: Vec<_> = shown
-            .iter()
-            .map(|&s| (names[s], colours[s], summary.nees_series[s].as_slice()))
-            .collect();
-        line_chart(
-            &out.join("nees.svg"),
-            &format!(
-                "NEES of agent {} ({} runs, {} dof; naive fusion is far above, see nees.csv)",
-                cfg.agent,
-                cfg.runs,
-                model.dim()
-            ),
-            "mean NEES",
-            dt,
-            &nees,
-            Some(summary.nees_bounds),
-            false,
-        )?;
-        let labels: Vec<String> = (0..names.len())
-            .flat_map(|s| [format!("{} RMSE", names[s]), format!("{} 2σ", names[s])])
-            .collect();
-        let mut rmse = Vec::new();
-        for s in shown {
-            rmse.push((
-                labels[2 * s].as_str(),
-                colours[s],
-                summary.rmse_series[s].as_slice(),
-            ));
-            rmse.push((
-                labels[2 * s + 1].as_str(),
-                RGBColor(
-                    colours[s].0 / 2 + 120,
-                    colours[s].1 / 2 + 120,
-                    colours[s].2 / 2 + 120,
-                ),
-                summary.two_sigma_series[s].as_slice(),
-            ));
-        }
-        line_chart(
-            &out.join("rmse.svg"),
-            &format!(
-                "position RMSE and 2σ of agent {} (mean over runs)",
-                cfg.agent
-            ),
-            "metres",
-            dt,
-            &rmse,
-            None,
-            false,
-        )?;
-        let omega_ci = &summary.omega_ci_series;
-        let omega_blocks = &summary.omega_nmci_series;
-        let block_labels: Vec<String> = (0..blocks)
-            .map(|b| format!("nmCI G{}{}", b / 2 + 1, if b % 2 == 0 { "x" } else { "y" }))
-            .collect();
-        let mut omega = vec![("CI", RGBColor(31, 119, 180), omega_ci.as_slice())];
-        for b in 0..blocks {
-            let shade = (40 * b) as u8;
-            omega.push((
-                block_labels[b].as_str(),
-                RGBColor(200, shade, shade / 2),
-                omega_blocks[b].as_slice(),
-            ));
-        }
-        omega.push(("ICI", colours[4], summary.omega_ici_series.as_slice()));
-        line_chart(
-            &out.join("omega.svg"),
-            &format!(
-                "ω when agent {} fuses agent {} (mean over runs)",
-                cfg.agent, cfg.watched
-            ),
-            "ω",
-            dt,
-            &omega,
-            None,
-            false,
-        )?;
-        if !summary.coin_series.is_empty() {
-            let coin: Vec<_> = shown
-                .iter()
-                .map(|&s| (names[s], colours[s], summary.coin_series[s].as_slice()))
-                .collect();
-            line_chart(
-                &out.join("coin.svg"),
-                &format!(
-                    "exact COIN of agent {} (≤ 1 conservative; naive fusion is far above, see coin.csv)",
-                    cfg.agent
-                ),
-                "COIN",
-                dt,
-                &coin,
-                None,
-                false,
-            )?;
-        }
+        write_study(&study, &out).map_err(|e| e.to_string())?;
         Ok(format!(
             "{} runs × {} steps in {:.1} s; wrote {}/summary.json, per-step CSVs and SVG figures\n{}",
             cfg.runs,
             cfg.steps,
             started.elapsed().as_secs_f64(),
             out.display(),
-            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
+            serde_json::to_string_pretty(&study.report()).map_err(|e| e.to_string())?
+        ))
+    }
+
+    /// The file name of the shard of runs `first..first + runs`.
+    fn shard_file_name(first: usize, runs: usize) -> String {
+        format!("shard-{first:06}-{:06}.json", first + runs)
+    }
+
+    /// `nmci merge`: reads shards (files, or every `shard-*.json` in folders), merges them
+    /// into one study and writes what `nmci track` writes.
+    fn merge(inputs: Vec<PathBuf>, out: PathBuf) -> Result<String, String> {
+        use nmci::sim::*;
+        let mut files = Vec::new();
+        for input in inputs {
+            if input.is_dir() {
+                let mut found: Vec<PathBuf> = std::fs::read_dir(&input)
+                    .map_err(|e| format!("cannot read {}: {e}", input.display()))?
+                    .filter_map(|entry| entry.ok().map(|e| e.path()))
+                    .filter(|p| {
+                        p.file_name()
+                            .and_then(|n| n.to_str())
+                            .is_some_and(|n| n.starts_with("shard-") && n.ends_with(".json"))
+                    })
+                    .collect();
+                if found.is_empty() {
+                    return Err(format!("{} holds no shard-*.json file", input.display()));
+                }
+                found.sort();
+                files.extend(found);
+            } else {
+                files.push(input);
+            }
+        }
+        let shards = files
+            .iter()
+            .map(|path| {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+                serde_json::from_str::<StudyShard>(&text)
+                    .map_err(|e| format!("{} is not a study shard: {e}", path.display()))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let count = shards.len();
+        let study = merge_shards(shards).map_err(|e| e.to_string())?;
+        write_study(&study, &out).map_err(|e| e.to_string())?;
+        Ok(format!(
+            "merged {count} shards: {} runs × {} steps; wrote {}/summary.json, per-step CSVs and SVG figures\n{}",
+            study.config.runs,
+            study.config.steps,
+            out.display(),
+            serde_json::to_string_pretty(&study.report()).map_err(|e| e.to_string())?
         ))
     }
 
@@ -780,8 +603,10 @@ mod cli {
                 steps,
                 seed,
                 no_coin,
+                first_run,
                 out,
-            } => track(config, runs, steps, seed, no_coin, out),
+            } => track(config, runs, steps, seed, no_coin, first_run, out),
+            Command::Merge { inputs, out } => merge(inputs, out),
             Command::Sweep {
                 config,
                 extra,

@@ -8,14 +8,19 @@
 //! covariance exactly (no Monte Carlo: all covariances and gains are deterministic), giving
 //! each estimator's conservativeness index (COIN) per step next to its NEES;
 //! [`LiveStudy`] advances a study a few steps at a time (the page's live Study tab) and
-//! [`simulate_runs_parallel`] runs it on every core (the CLI). [`sweep`] searches the networks
+//! [`study_parallel`] runs it on every core (the CLI); [`run_shard`] runs a slice of its runs
+//! anywhere and [`merge_shards`] puts slices back together into the one study, bit for bit;
+//! [`write_study`] writes a study's files. [`sweep`] searches the networks
 //! the paper's text allows for the one its numbers fit (its figure is not in the source).
 
 mod coin;
 mod draw;
 mod live;
 mod model;
+#[cfg(not(target_arch = "wasm32"))]
+mod report;
 mod scenario;
+mod shard;
 mod study;
 mod sweep;
 
@@ -23,7 +28,10 @@ pub use coin::{coin_series, ErrorPropagation};
 pub use draw::network_svg;
 pub use live::{LiveStudy, StudyView};
 pub use model::Model;
+#[cfg(not(target_arch = "wasm32"))]
+pub use report::{write_study, ReportError};
 pub use scenario::{ScalarMeasurement, Scenario};
+pub use shard::{merge_shards, MergeError, Study, StudyShard, SHARD_FORMAT};
 pub use study::{
     merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, Rule, RunSpec, RunState,
     RunTrace, Storage, RULES,
@@ -302,9 +310,20 @@ pub fn simulate_runs_parallel(
     model: &Model,
     on_piece: impl Fn() + Sync,
 ) -> Result<Vec<RunTrace>, SimError> {
+    simulate_run_range_parallel(config, model, 0, on_piece)
+}
+
+/// Runs `first_run..first_run + config.runs` as [`simulate_runs_parallel`] runs `0..runs`.
+#[cfg(not(target_arch = "wasm32"))]
+fn simulate_run_range_parallel(
+    config: &StudyConfig,
+    model: &Model,
+    first_run: usize,
+    on_piece: impl Fn() + Sync,
+) -> Result<Vec<RunTrace>, SimError> {
     use rayon::prelude::*;
     config.validate()?;
-    let pieces: Vec<(u64, Rule)> = (0..config.runs as u64)
+    let pieces: Vec<(u64, Rule)> = (first_run as u64..(first_run + config.runs) as u64)
         .flat_map(|r| RULES.iter().map(move |&rule| (r, rule)))
         .collect();
     let mut traces = pieces
@@ -352,31 +371,46 @@ pub fn coin_parallel(
         .collect()
 }
 
-/// A whole study on every core, as `nmci track` runs it: the Monte Carlo runs
-/// ([`simulate_runs_parallel`]) and, with `config.coin`, every estimator's exact COIN
-/// ([`coin_parallel`]) side by side; `on_piece` is called after each piece
-/// (`runs × RULES.len()` run pieces, plus one per estimator with COIN).
+/// Runs `first_run..first_run + config.runs` of a study on every core as a [`StudyShard`]
+/// (see [`merge_shards`]): the Monte Carlo runs and — in the shard holding run 0, when
+/// `config.coin` — every estimator's exact COIN ([`coin_parallel`]) side by side; `on_piece`
+/// is called after each piece (`runs × RULES.len()` run pieces, plus one per estimator with
+/// COIN).
+#[cfg(not(target_arch = "wasm32"))]
+pub fn run_shard(
+    config: &StudyConfig,
+    model: &Model,
+    first_run: usize,
+    on_piece: impl Fn() + Sync,
+) -> Result<StudyShard, SimError> {
+    config.validate()?;
+    let with_coin = config.coin && first_run == 0;
+    let (traces, coin) = rayon::join(
+        || simulate_run_range_parallel(config, model, first_run, &on_piece),
+        || {
+            with_coin
+                .then(|| coin_parallel(config, model, &on_piece))
+                .transpose()
+        },
+    );
+    Ok(StudyShard {
+        format: SHARD_FORMAT.into(),
+        config: config.clone(),
+        first_run,
+        traces: traces?,
+        coin: coin?,
+    })
+}
+
+/// A whole study on every core, as `nmci track` runs it: [`run_shard`] from run 0, summarized.
 #[cfg(not(target_arch = "wasm32"))]
 pub fn study_parallel(
     config: &StudyConfig,
     model: &Model,
     on_piece: impl Fn() + Sync,
-) -> Result<(Vec<RunTrace>, StudySummary), SimError> {
-    let (traces, coin) = rayon::join(
-        || simulate_runs_parallel(config, model, &on_piece),
-        || {
-            config
-                .coin
-                .then(|| coin_parallel(config, model, &on_piece))
-                .transpose()
-        },
-    );
-    let traces = traces?;
-    let mut summary = summarize(&traces, model.dim());
-    if let Some(coin) = coin? {
-        summary.attach_coin(coin);
-    }
-    Ok((traces, summary))
+) -> Result<Study, SimError> {
+    let shard = run_shard(config, model, 0, on_piece)?;
+    Ok(shard::study_of(config.clone(), shard.traces, shard.coin))
 }
 
 /// Runs a whole study sequentially (the CLI runs the same runs in parallel).

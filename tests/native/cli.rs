@@ -532,3 +532,82 @@ fn track_equals_the_sequential_study_and_applies_its_configuration() {
     assert!(err.contains("unknown field `bridge`"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `nmci track --first-run` shards merged by `nmci merge` write byte for byte the files of one
+/// `nmci track` of all the runs; shards that do not make one study exit non-zero with the
+/// reason.
+#[test]
+fn track_shards_merged_write_the_files_of_one_track() {
+    let dir = std::env::temp_dir().join(format!("nmci-shards-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let path = |p: &str| dir.join(p).to_str().unwrap().to_string();
+    let run = |args: &[&str]| {
+        let (code, out, err) = nmci(args, "");
+        assert_eq!(code, 0, "{args:?}: {err}");
+        out
+    };
+    let common = ["--steps", "9", "--seed", "6"];
+    let one = path("one");
+    run(&[&["track", "--runs", "3", "--out", &one][..], &common].concat());
+    let shards = path("shards");
+    for (first, runs) in [("2", "1"), ("0", "2")] {
+        let out = run(&[
+            &[
+                "track",
+                "--first-run",
+                first,
+                "--runs",
+                runs,
+                "--out",
+                &shards,
+            ][..],
+            &common,
+        ]
+        .concat());
+        assert!(out.contains("wrote the shard"), "{out}");
+    }
+    let merged = path("merged");
+    let out = run(&["merge", &shards, "--out", &merged]);
+    assert!(out.contains("merged 2 shards: 3 runs × 9 steps"), "{out}");
+    let mut names: Vec<_> = std::fs::read_dir(&one)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 11, "{names:?}");
+    for name in &names {
+        let a = std::fs::read(dir.join("one").join(name)).unwrap();
+        let b = std::fs::read(dir.join("merged").join(name)).unwrap();
+        assert!(a == b, "{name:?} differs");
+    }
+    // Refused: a gap, a shard of another study, a file that is not a shard, no shards.
+    let lone = path("shards/shard-000002-000003.json");
+    let (code, _, err) = nmci(&["merge", &lone, "--out", &merged], "");
+    assert_ne!(code, 0);
+    assert!(err.contains("runs 0..2 are in no shard"), "{err}");
+    let other = path("other");
+    run(&[
+        "track",
+        "--first-run",
+        "2",
+        "--runs",
+        "1",
+        "--steps",
+        "9",
+        "--seed",
+        "7",
+        "--out",
+        &other,
+    ]);
+    let first = path("shards/shard-000000-000002.json");
+    let (code, _, err) = nmci(&["merge", &first, &other, "--out", &merged], "");
+    assert_ne!(code, 0);
+    assert!(err.contains("its `seed` differs"), "{err}");
+    let (code, _, err) = nmci(&["merge", &path("one/summary.json"), "--out", &merged], "");
+    assert_ne!(code, 0);
+    assert!(err.contains("is not a study shard"), "{err}");
+    let (code, _, err) = nmci(&["merge", &one, "--out", &merged], "");
+    assert_ne!(code, 0);
+    assert!(err.contains("holds no shard-*.json file"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

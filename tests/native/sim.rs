@@ -756,3 +756,110 @@ fn the_documented_weights_and_two_sigma_of_both_networks() {
         assert!((r - reduction).abs() < 5e-4, "{name}: 2σ {r}");
     }
 }
+
+/// Shards of a study, run separately and merged in any order, are the one study bit for bit
+/// (traces, summary with COIN, report); every way shards can fail to make one study is
+/// refused with its reason.
+#[test]
+fn shards_merged_in_any_order_are_the_whole_study_bit_for_bit() {
+    use nmci::sim::{
+        merge_shards, run_shard, study_parallel, MergeError, StudyShard, SHARD_FORMAT,
+    };
+    let config = StudyConfig {
+        runs: 5,
+        steps: 8,
+        seed: 4,
+        ..StudyConfig::default()
+    };
+    let model = Model::new(&config.scenario).unwrap();
+    let whole = study_parallel(&config, &model, || {}).unwrap();
+    assert!(!whole.summary.coin_series.is_empty());
+    let shard = |first: usize, runs: usize| {
+        run_shard(
+            &StudyConfig {
+                runs,
+                ..config.clone()
+            },
+            &model,
+            first,
+            || {},
+        )
+        .unwrap()
+    };
+    let (a, b, c) = (shard(0, 2), shard(2, 1), shard(3, 2));
+    assert!(a.coin.is_some() && b.coin.is_none() && c.coin.is_none());
+    // Through JSON, as shards travel between machines.
+    let travel = |s: &StudyShard| -> StudyShard {
+        serde_json::from_str(&serde_json::to_string(s).unwrap()).unwrap()
+    };
+    for order in [[&a, &b, &c], [&c, &a, &b], [&b, &c, &a]] {
+        let merged = merge_shards(order.iter().map(|s| travel(s)).collect()).unwrap();
+        assert_eq!(merged, whole);
+        assert_eq!(merged.report(), whole.report());
+    }
+    // Refusals.
+    let err = |shards: Vec<StudyShard>| merge_shards(shards).unwrap_err();
+    assert_eq!(err(vec![]), MergeError::NoShards);
+    assert_eq!(
+        err(vec![a.clone(), c.clone()]),
+        MergeError::Missing { first: 2, end: 3 }
+    );
+    assert_eq!(
+        err(vec![a.clone(), b.clone(), shard(2, 3)]),
+        MergeError::Overlap { run: 2 }
+    );
+    assert_eq!(
+        err(vec![b.clone(), c.clone()]),
+        MergeError::Missing { first: 0, end: 2 }
+    );
+    let other_seed = run_shard(
+        &StudyConfig {
+            runs: 1,
+            seed: 5,
+            ..config.clone()
+        },
+        &model,
+        2,
+        || {},
+    )
+    .unwrap();
+    assert_eq!(
+        err(vec![a.clone(), other_seed, c.clone()]),
+        MergeError::ConfigMismatch {
+            index: 1,
+            first_run: 2,
+            field: "seed".into()
+        }
+    );
+    let mut bad = b.clone();
+    bad.format = "something else".into();
+    assert_eq!(
+        err(vec![a.clone(), bad, c.clone()]),
+        MergeError::Format {
+            index: 1,
+            found: "something else".into()
+        }
+    );
+    let mut short = c.clone();
+    short.traces.pop();
+    assert_eq!(
+        err(vec![a.clone(), b.clone(), short]),
+        MergeError::TraceCount {
+            index: 2,
+            first_run: 3,
+            expected: 2,
+            found: 1
+        }
+    );
+    let mut no_coin = a.clone();
+    no_coin.coin = None;
+    assert!(
+        matches!(err(vec![no_coin, b.clone(), c.clone()]), MergeError::Coin(m) if m.contains("carries no COIN"))
+    );
+    let mut extra_coin = b.clone();
+    extra_coin.coin = a.coin.clone();
+    assert!(
+        matches!(err(vec![a.clone(), extra_coin, c.clone()]), MergeError::Coin(m) if m.contains("belongs only"))
+    );
+    assert_eq!(a.format, SHARD_FORMAT);
+}
