@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # Every test: install what is missing, then native (cargo test), wasm in headless Chromium
-# (wasm-pack test), and the page end-to-end in headless Chromium.
+# (wasm-pack test), the page end-to-end in headless Chromium, and the Python package (pytest).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="$HOME/.cargo/bin:$PATH"
 scripts/setup.sh test
 
 echo "== native: cargo test (crate, BLAS/LAPACK shims, CLI, doc examples)"
-cargo test --workspace
+cargo test --workspace --exclude nmci-python
 
 echo "== wasm: wasm-pack test in headless Chromium"
 scripts/wasm.sh test
@@ -15,3 +15,6 @@ scripts/wasm.sh test
 echo "== page: build the package and drive the explorer in headless Chromium"
 scripts/wasm.sh build
 node --test tests/e2e/
+
+echo "== python: build the wheel (maturin) into target/py and run pytest"
+scripts/python.sh test

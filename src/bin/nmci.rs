@@ -292,8 +292,11 @@ mod cli {
             Some(path) => {
                 let text = std::fs::read_to_string(&path)
                     .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-                toml::from_str(&text).map_err(|e| {
-                    format!("invalid configuration {}: {}", path.display(), e.message())
+                nmci::sim::StudyConfig::from_toml(&text).map_err(|e| match e {
+                    nmci::sim::SimError::InvalidConfig(m) => {
+                        format!("invalid configuration {}: {m}", path.display())
+                    }
+                    e => e.to_string(),
                 })
             }
             None => Ok(nmci::sim::StudyConfig::default()),

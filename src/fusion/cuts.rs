@@ -621,6 +621,9 @@ fn worst_cross_for_direction(
     let cones = [SupportedConeT::PSDTriangleConeT(m)];
     let clarabel_settings = DefaultSettings {
         verbose: false,
+        // One thread, as every other program of the crate: a worst-case search is small, and
+        // its caller (a study, a Python process pool, a page's worker) owns the parallelism.
+        max_threads: 1,
         max_iter: settings.sdp.max_iter,
         tol_gap_abs: settings.sdp.tolerance,
         tol_gap_rel: settings.sdp.tolerance,

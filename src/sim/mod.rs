@@ -61,6 +61,9 @@ pub enum SimError {
     /// A filter diverged.
     #[error("the simulation diverged: {0}")]
     Diverged(String),
+    /// A configuration text that does not parse (syntax, unknown key, wrong type).
+    #[error("invalid configuration: {0}")]
+    InvalidConfig(String),
 }
 
 impl Scenario {
@@ -216,6 +219,13 @@ impl StudyConfig {
             )));
         }
         Ok(())
+    }
+
+    /// A configuration from TOML text (the form of `configs/paper.toml`; missing keys take
+    /// their defaults, unknown keys are refused). Not validated: see [`StudyConfig::validate`].
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn from_toml(text: &str) -> Result<Self, SimError> {
+        toml::from_str(text).map_err(|e| SimError::InvalidConfig(e.message().to_string()))
     }
 
     /// The specification of run `run`.

@@ -1,0 +1,612 @@
+"""nmci — conservative fusion when the cross-covariance is unknown except for known zeros.
+
+Two estimates ``(x_a, P_a)``, ``(x_b, P_b)`` are fused into ``x = K_a x_a + K_b x_b`` with a
+bound ``P`` that holds for every cross-covariance ``P_ab`` consistent with what is known: the
+joint covariance is positive definite and the entries of ``P_ab`` marked ``False`` in
+``pab_unknown`` are zero. This package is a thin layer over nmci's Rust crate: the same rules,
+defaults, checks and messages as the CLI (``nmci fuse``) and the browser explorer, with numpy
+arrays in and out, and the GIL released during every solve and study.
+
+>>> import numpy as np, nmci
+>>> Pa, Pb = np.diag([3.0, 1.0]), np.diag([1.0, 4.0])
+>>> known_zero_off_diagonal = np.eye(2, dtype=bool)
+>>> r = nmci.nmci(Pa, Pb, pab_unknown=known_zero_off_diagonal)
+>>> r.P
+array([[1., 0.],
+       [0., 1.]])
+>>> r.omega
+array([0., 1.])
+>>> round(nmci.ci(Pa, Pb).trace, 4)  # CI ignores the known zeros
+3.0882
+
+Rules: :func:`ci`, :func:`nmci`, :func:`optimal` (the paper's sampled SDP), :func:`sdp_cuts`
+(cutting planes with a proven bracket), :func:`certified` (a bound proven by a sum-of-squares
+certificate), :func:`ici`, :func:`ei`, :func:`naive`, and N-way :func:`ci_nway`,
+:func:`nmci_nway`; :func:`fuse` is the JSON contract itself. Tools:
+:func:`conservativeness_index`, :func:`sample_cross_covariances`. The paper's studies:
+:func:`track` (the 16-agent tracking study; shards with ``first_run`` and :func:`merge` split it
+across processes and machines) and :func:`fig2`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _nmci
+from ._errors import (
+    InputError,
+    InternalError,
+    MergeError,
+    NmciError,
+    OutputError,
+    RequestError,
+    SampleError,
+    SimulationError,
+    SolveError,
+    StudyError,
+    TimeLimitError,
+)
+from ._nmci import Shard
+
+__version__: str = _nmci.__version__
+
+ArrayLike = Any
+PathLike = Union[str, "os.PathLike[str]"]
+
+__all__ = [
+    "Fused",
+    "Study",
+    "Shard",
+    "Fig2",
+    "fuse",
+    "ci",
+    "nmci",
+    "optimal",
+    "sdp_cuts",
+    "certified",
+    "ici",
+    "ei",
+    "naive",
+    "ci_nway",
+    "nmci_nway",
+    "conservativeness_index",
+    "sample_cross_covariances",
+    "track",
+    "merge",
+    "load_shard",
+    "default_config",
+    "fig2",
+    "NmciError",
+    "RequestError",
+    "InputError",
+    "SampleError",
+    "SolveError",
+    "TimeLimitError",
+    "StudyError",
+    "SimulationError",
+    "MergeError",
+    "OutputError",
+    "InternalError",
+]
+
+
+# ---------------------------------------------------------------------------------------------
+# Fusion
+
+
+class Fused:
+    """A fused estimate: the contract's response (README, "JSON contract") with numpy arrays.
+
+    Every field of the response is an attribute (``None`` when the method does not report it);
+    ``P``, ``Ka`` and ``Kb`` are the contract's ``p``, ``ka`` and ``kb``. ``r["field"]`` reads
+    the response by its contract name, ``r.to_dict()`` gives it with lists, as ``nmci fuse``
+    prints it.
+    """
+
+    __slots__ = ("_r",)
+
+    method: str
+    criterion: str
+    x: np.ndarray
+    P: np.ndarray
+    Ka: Optional[np.ndarray]
+    Kb: Optional[np.ndarray]
+    gains: Optional[np.ndarray]
+    weights: Optional[np.ndarray]
+    trace: float
+    det: float
+    omega: Optional[np.ndarray]
+    blocks: Optional[List[List[int]]]
+    samples: Optional[int]
+    status: Optional[str]
+    iterations: Optional[int]
+    acceptance_rate: Optional[float]
+    lmis: Optional[int]
+    worst_sample_margin: Optional[float]
+    lower_bound: Optional[float]
+    upper_bound: Optional[float]
+    upper_bound_rule: Optional[str]
+    gap: Optional[float]
+    gap_relative: Optional[float]
+    repair: Optional[float]
+    gain_certified_trace: Optional[float]
+    levels: Optional[List[int]]
+    stop: Optional[str]
+    violation: Optional[float]
+    converged: Optional[bool]
+    gap_closed: Optional[bool]
+    conservative_for: Optional[str]
+
+    _ALIASES = {"P": "p", "Ka": "ka", "Kb": "kb"}
+
+    def __init__(self, response: Dict[str, Any]) -> None:
+        object.__setattr__(self, "_r", response)
+
+    def __getattr__(self, name: str) -> Any:
+        if name in Fused.__annotations__:
+            return self._r.get(Fused._ALIASES.get(name, name))
+        raise AttributeError(f"Fused has no attribute {name!r}")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError("Fused is read-only")
+
+    def __getitem__(self, key: str) -> Any:
+        return self._r[key]
+
+    def __contains__(self, key: str) -> bool:
+        return key in self._r
+
+    def keys(self) -> List[str]:
+        """The contract's fields present in this response."""
+        return list(self._r)
+
+    def to_dict(self) -> Dict[str, Any]:
+        """The response with lists instead of arrays (the JSON ``nmci fuse`` prints)."""
+        return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in self._r.items()}
+
+    def __repr__(self) -> str:
+        shown = ", ".join(
+            f"{k}={self._r[k]!r}"
+            for k in ("method", "trace", "lower_bound", "upper_bound", "gap_closed")
+            if k in self._r
+        )
+        return f"Fused({shown})"
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def fuse(request: Mapping[str, Any]) -> Dict[str, Any]:
+    """Runs a request of the JSON contract and returns its response, exactly as ``nmci fuse``.
+
+    ``request`` is the contract's object (numpy arrays may stand for nested lists); the
+    response is a plain dict with lists. Errors raise the exceptions of this package with the
+    CLI's messages.
+    """
+    try:
+        text = json.dumps(request, default=_jsonable, allow_nan=True)
+    except (TypeError, ValueError) as e:
+        raise RequestError(f"invalid request: {e}") from None
+    return json.loads(_nmci.fuse_json(text))
+
+
+def _matrix(name: str, a: ArrayLike) -> np.ndarray:
+    try:
+        m = np.asarray(a, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{name} is not a numeric array: {e}") from None
+    if m.ndim != 2:
+        raise InputError(f"{name} must be a 2-D array (got {m.ndim}-D)")
+    return np.ascontiguousarray(m)
+
+
+def _vector(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
+    if a is None:
+        return None
+    try:
+        v = np.asarray(a, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{name} is not a numeric array: {e}") from None
+    if v.ndim != 1:
+        raise InputError(f"{name} must be a 1-D array (got {v.ndim}-D)")
+    return np.ascontiguousarray(v)
+
+
+def _pattern(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
+    if a is None:
+        return None
+    m = np.asarray(a)
+    if m.dtype != np.bool_:
+        raise InputError(
+            f"{name} must be an array of booleans (True = may be non-zero, False = known zero), got dtype {m.dtype}"
+        )
+    if m.ndim != 2:
+        raise InputError(f"{name} must be a 2-D array (got {m.ndim}-D)")
+    return np.ascontiguousarray(m)
+
+
+def _options(method: str, **options: Any) -> str:
+    return json.dumps(
+        {"method": method, **{k: v for k, v in options.items() if v is not None}},
+        default=_jsonable,
+    )
+
+
+def _two(
+    method: str,
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike],
+    xb: Optional[ArrayLike],
+    pab_unknown: Optional[ArrayLike],
+    **options: Any,
+) -> Fused:
+    return Fused(
+        _nmci.fuse_arrays(
+            _options(method, **options),
+            _matrix("P_a", Pa),
+            _matrix("P_b", Pb),
+            _vector("x_a", xa),
+            _vector("x_b", xb),
+            _pattern("pab_unknown", pab_unknown),
+        )
+    )
+
+
+def ci(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike] = None,
+    xb: Optional[ArrayLike] = None,
+    *,
+    pab_unknown: Optional[ArrayLike] = None,
+    criterion: str = "trace",
+) -> Fused:
+    """Covariance intersection with the exactly optimal ``ω`` (``criterion`` "trace" or
+    "logdet"): conservative for every cross-covariance. ``omega`` is ``[ω]``."""
+    return _two("ci", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
+
+
+def nmci(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike] = None,
+    xb: Optional[ArrayLike] = None,
+    *,
+    pab_unknown: Optional[ArrayLike] = None,
+    criterion: str = "trace",
+) -> Fused:
+    """Non-monolithic CI: one ``ω`` per independent block of the known-zero pattern
+    (``blocks``, ``omega``); conservative for every admissible cross-covariance."""
+    return _two("nmci", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
+
+
+def optimal(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike] = None,
+    xb: Optional[ArrayLike] = None,
+    *,
+    pab_unknown: Optional[ArrayLike] = None,
+    samples: int = 200,
+    seed: int = 0,
+    sampler: str = "rejection",
+    max_trials: Optional[int] = None,
+    time_limit: Optional[float] = None,
+    level: Optional[int] = None,
+) -> Fused:
+    """The paper's sampled SDP (method "sdp"): the tightest bound over ``samples`` sampled
+    cross-covariances — a lower bound on the robust optimum, not guaranteed conservative.
+    The response carries the proven bracket ``[lower_bound, upper_bound]`` on the robust
+    optimum."""
+    return _two(
+        "sdp",
+        Pa,
+        Pb,
+        xa,
+        xb,
+        pab_unknown,
+        samples=samples,
+        seed=seed,
+        sampler=sampler,
+        max_trials=max_trials,
+        time_limit=time_limit,
+        level=level,
+    )
+
+
+def sdp_cuts(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike] = None,
+    xb: Optional[ArrayLike] = None,
+    *,
+    pab_unknown: Optional[ArrayLike] = None,
+    seed: int = 0,
+    time_limit: Optional[float] = None,
+    level: Optional[int] = None,
+) -> Fused:
+    """The robust SDP by cutting planes: worst-case cross-covariances as constraints, with a
+    proven bracket on the robust optimum (``lower_bound``, ``upper_bound``, ``gap_closed``,
+    ``stop``)."""
+    return _two(
+        "sdp_cuts", Pa, Pb, xa, xb, pab_unknown, seed=seed, time_limit=time_limit, level=level
+    )
+
+
+def certified(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike] = None,
+    xb: Optional[ArrayLike] = None,
+    *,
+    pab_unknown: Optional[ArrayLike] = None,
+    level: Optional[int] = None,
+    time_limit: Optional[float] = None,
+) -> Fused:
+    """A bound proven to dominate ``K P' Kᵀ`` for every admissible ``P'`` by a sum-of-squares
+    certificate of level ``level`` (``levels`` per block); its trace never above nmCI's or
+    CI's beyond rounding."""
+    return _two("certified", Pa, Pb, xa, xb, pab_unknown, level=level, time_limit=time_limit)
+
+
+def ici(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike] = None,
+    xb: Optional[ArrayLike] = None,
+    *,
+    pab_unknown: Optional[ArrayLike] = None,
+    criterion: str = "trace",
+) -> Fused:
+    """Inverse covariance intersection: conservative for common-information correlation only
+    (``conservative_for``)."""
+    return _two("ici", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
+
+
+def ei(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike] = None,
+    xb: Optional[ArrayLike] = None,
+    *,
+    pab_unknown: Optional[ArrayLike] = None,
+) -> Fused:
+    """Ellipsoidal intersection: not guaranteed conservative."""
+    return _two("ei", Pa, Pb, xa, xb, pab_unknown)
+
+
+def naive(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    xa: Optional[ArrayLike] = None,
+    xb: Optional[ArrayLike] = None,
+    *,
+    pab_unknown: Optional[ArrayLike] = None,
+) -> Fused:
+    """Naive fusion (as if the estimates were independent): not conservative when they are
+    correlated."""
+    return _two("naive", Pa, Pb, xa, xb, pab_unknown)
+
+
+Estimates = Sequence[Union[ArrayLike, Tuple[Optional[ArrayLike], ArrayLike]]]
+Patterns = Union[Mapping[Tuple[int, int], ArrayLike], Sequence[Tuple[int, int, ArrayLike]]]
+
+
+def _nway(method: str, estimates: Estimates, patterns: Optional[Patterns], criterion: str) -> Fused:
+    items = []
+    for k, e in enumerate(estimates):
+        if isinstance(e, tuple):
+            if len(e) != 2:
+                raise InputError(f"estimate {k} must be P or a pair (x, P)")
+            x, P = e
+        else:
+            x, P = None, e
+        items.append((_vector(f"x_{k}", x), _matrix(f"P_{k}", P)))
+    pairs = None
+    if patterns is not None:
+        entries = patterns.items() if isinstance(patterns, Mapping) else patterns
+        pairs = []
+        for entry in entries:
+            (i, j), mask = entry if isinstance(patterns, Mapping) else ((entry[0], entry[1]), entry[2])
+            pairs.append((int(i), int(j), _pattern(f"pattern ({i}, {j})", mask)))
+    return Fused(
+        _nmci.fuse_arrays(_options(method, criterion=criterion), estimates=items, patterns=pairs)
+    )
+
+
+def ci_nway(
+    estimates: Estimates, *, patterns: Optional[Patterns] = None, criterion: str = "trace"
+) -> Fused:
+    """N-way CI: one weight per estimate on the simplex (``weights``, ``gains``). Each estimate
+    is ``P`` or ``(x, P)``; ``patterns`` maps a pair ``(i, j)`` to the pattern of ``P_ij``
+    (pairs not listed are fully unknown; CI does not use them)."""
+    return _nway("ci", estimates, patterns, criterion)
+
+
+def nmci_nway(
+    estimates: Estimates, *, patterns: Optional[Patterns] = None, criterion: str = "trace"
+) -> Fused:
+    """N-way nmCI: one weight vector per independent block of the pairs' known-zero patterns."""
+    return _nway("nmci", estimates, patterns, criterion)
+
+
+def conservativeness_index(P: ArrayLike, E: ArrayLike) -> float:
+    """``λ_max(P^{-1/2} E P^{-1/2})``: ``≤ 1`` when ``P`` bounds the error covariance ``E``."""
+    return _nmci.conservativeness_index(_matrix("P", P), _matrix("E", E))
+
+
+def sample_cross_covariances(
+    Pa: ArrayLike,
+    Pb: ArrayLike,
+    pab_unknown: Optional[ArrayLike] = None,
+    *,
+    count: int = 100,
+    seed: int = 0,
+    sampler: str = "rejection",
+    max_trials: Optional[int] = None,
+) -> np.ndarray:
+    """``count`` admissible cross-covariances ``P_ab'`` (an array ``count × n × n``): the
+    paper's rejection sampler, or "hit_and_run" (any dimension; correlated samples)."""
+    stack, _trials = _nmci.sample_cross_covariances(
+        _matrix("P_a", Pa),
+        _matrix("P_b", Pb),
+        _pattern("pab_unknown", pab_unknown),
+        int(count),
+        int(seed),
+        sampler,
+        max_trials,
+    )
+    return stack
+
+
+# ---------------------------------------------------------------------------------------------
+# Studies
+
+
+class Study:
+    """A tracking study's results: ``config`` and ``summary`` (the CLI's ``summary.json``) as
+    dicts, and the per-step series as numpy arrays — ``nees``, ``rmse``, ``two_sigma``, ``coin``
+    (``estimators × steps``; ``coin`` is empty without COIN), ``omega_ci``, ``omega_ici``
+    (per step), ``omega_nmci`` (``blocks × steps``), ``time`` (seconds)."""
+
+    def __init__(self, inner: "_nmci.Study") -> None:
+        self._inner = inner
+        self.config: Dict[str, Any] = json.loads(inner.config_json())
+        self.summary: Dict[str, Any] = json.loads(inner.report_json())
+        self.estimators: List[str] = inner.estimators()
+        self.nees: np.ndarray = inner.series2("nees")
+        self.rmse: np.ndarray = inner.series2("rmse")
+        self.two_sigma: np.ndarray = inner.series2("two_sigma")
+        self.coin: np.ndarray = inner.series2("coin")
+        self.omega_nmci: np.ndarray = inner.series2("omega_nmci")
+        self.omega_ci: np.ndarray = inner.series1("omega_ci")
+        self.omega_ici: np.ndarray = inner.series1("omega_ici")
+        self.nees_bounds: Tuple[float, float] = inner.nees_bounds()
+        steps = self.config["steps"]
+        self.time: np.ndarray = np.arange(1, steps + 1) * self.config["scenario"]["dt"]
+
+    def write(self, out: PathLike) -> List[str]:
+        """Writes what ``nmci track`` writes (summary.json, CSVs, SVG charts, network.svg) into
+        the folder ``out``; returns the files."""
+        return self._inner.write(os.fspath(out))
+
+    def __repr__(self) -> str:
+        c = self.config
+        return f"Study(runs={c['runs']}, steps={c['steps']}, seed={c['seed']}, estimators={self.estimators})"
+
+
+def default_config() -> Dict[str, Any]:
+    """The default study configuration (``configs/paper.toml``) as a dict."""
+    return json.loads(_nmci.default_config())
+
+
+def _config(config: Union[None, Mapping[str, Any], PathLike]) -> Dict[str, Any]:
+    if config is None:
+        return default_config()
+    if isinstance(config, Mapping):
+        return dict(config)
+    path = os.fspath(config)
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except OSError as e:
+        raise StudyError(f"cannot read {path}: {e.strerror}") from None
+    return json.loads(_nmci.config_from_toml(text))
+
+
+def track(
+    config: Union[None, Mapping[str, Any], PathLike] = None,
+    *,
+    runs: Optional[int] = None,
+    steps: Optional[int] = None,
+    seed: Optional[int] = None,
+    coin: Optional[bool] = None,
+    first_run: Optional[int] = None,
+) -> Union[Study, Shard]:
+    """Runs the 16-agent tracking study on every core (``nmci track``).
+
+    ``config`` is ``None`` (the defaults), a dict of configuration keys (the form of
+    ``configs/paper.toml``; missing keys take their defaults) or the path of a TOML file;
+    ``runs``, ``steps``, ``seed`` and ``coin`` override it. With ``first_run`` the call runs
+    only runs ``first_run .. first_run + runs`` and returns a :class:`Shard`; :func:`merge`
+    puts shards back together into exactly the :class:`Study` of one call.
+    """
+    cfg = _config(config)
+    for key, value in (("runs", runs), ("steps", steps), ("seed", seed), ("coin", coin)):
+        if value is not None:
+            cfg[key] = value
+    text = json.dumps(cfg, default=_jsonable)
+    if first_run is not None:
+        return _nmci.run_shard(text, int(first_run))
+    return Study(_nmci.run_study(text))
+
+
+def load_shard(path: PathLike) -> Shard:
+    """Reads a shard file (``Shard.save``, ``nmci track --first-run``)."""
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except OSError as e:
+        raise MergeError(f"cannot read {path}: {e.strerror}") from None
+    return Shard(text)
+
+
+def merge(shards: Iterable[Union[Shard, PathLike]]) -> Study:
+    """Merges shards (objects, shard files, or folders of ``shard-*.json`` files) into the one
+    study they are slices of, bit for bit (``nmci merge``)."""
+    items: List[Shard] = []
+    for s in shards:
+        if isinstance(s, Shard):
+            items.append(s)
+            continue
+        path = os.fspath(s)
+        if os.path.isdir(path):
+            files = sorted(
+                f for f in os.listdir(path) if f.startswith("shard-") and f.endswith(".json")
+            )
+            if not files:
+                raise MergeError(f"{path} holds no shard-*.json file")
+            items.extend(load_shard(os.path.join(path, f)) for f in files)
+        else:
+            items.append(load_shard(path))
+    return Study(_nmci.merge(items))
+
+
+class Fig2:
+    """The paper's fig. 2 (``nmci fig2``): per sample-set size, the median, minimum and maximum
+    over the runs of ``‖P_nmCI − P_opt‖₂`` (``dev``), of ``λ_min(P − K P_true Kᵀ)`` for nmCI and
+    the sampled SDP (``eig_nmci``, ``eig_opt``) and of their COIN; arrays ``sizes × 3``."""
+
+    def __init__(self, rows: List[Dict[str, Any]]) -> None:
+        self.rows = rows
+        self.samples: np.ndarray = np.array([r["samples"] for r in rows])
+        self.failures: np.ndarray = np.array([r["failures"] for r in rows])
+        column = lambda k: np.array([r[k] for r in rows], dtype=np.float64)  # noqa: E731
+        self.dev: np.ndarray = column("dev")
+        self.eig_nmci: np.ndarray = column("eig_nmci")
+        self.eig_opt: np.ndarray = column("eig_opt")
+        self.coin_nmci: np.ndarray = column("coin_nmci")
+        self.coin_opt: np.ndarray = column("coin_opt")
+
+    def __repr__(self) -> str:
+        return f"Fig2(samples={self.samples.tolist()})"
+
+
+def fig2(
+    runs: int = 1000,
+    sizes: Sequence[int] = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000),
+    seed: int = 0,
+) -> Fig2:
+    """The paper's fig. 2 on the 2-D example, in parallel over runs."""
+    return Fig2(json.loads(_nmci.fig2(int(runs), [int(s) for s in sizes], int(seed))))

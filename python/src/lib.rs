@@ -1,0 +1,547 @@
+//! `nmci._nmci`: the Python extension module, a thin layer over nmci's Rust API.
+//!
+//! The Python package `nmci` (python/nmci/__init__.py) wraps these functions in typed, documented
+//! functions and classes. Here:
+//! - arrays cross as numpy `float64` (and `bool` patterns) and go out as numpy arrays;
+//! - requests go through the same [`nmci::FuseRequest`] / [`nmci::fuse`] contract as the CLI and
+//!   the page (the array entry point fills the request's matrices from numpy instead of JSON),
+//!   so every rule, default, check and error message is the Rust one;
+//! - every solve, sample and study runs with the GIL released ([`Python::detach`]) and inside
+//!   `catch_unwind`, so Python threads run in parallel and a Rust panic surfaces as
+//!   `nmci.InternalError` instead of a crash;
+//! - studies and fig. 2 run on a rayon pool built per call, never rayon's global pool, so they
+//!   also run in processes forked from one that used nmci (Python's process pools on Linux);
+//! - errors become the exceptions of `nmci._errors` (one class per Rust error concern).
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+use numpy::{PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use nmci::sim::{MergeError, SimError, StudyConfig, StudyShard};
+use nmci::{FuseRequest, FuseResponse, InputError, RequestError, SampleError, SolveError};
+
+/// The exception of `nmci._errors` named `kind`, carrying `message`.
+fn error(py: Python<'_>, kind: &str, message: String) -> PyErr {
+    let class = match py.import("nmci._errors").and_then(|m| m.getattr(kind)) {
+        Ok(class) => class,
+        Err(e) => return e,
+    };
+    match class.call1((message,)) {
+        Ok(value) => PyErr::from_value(value),
+        Err(e) => e,
+    }
+}
+
+/// The exception class of a request's error.
+fn request_error_kind(e: &RequestError) -> &'static str {
+    match e {
+        RequestError::Malformed(_) | RequestError::Invalid(_) => "RequestError",
+        RequestError::Input(_) => "InputError",
+        RequestError::Sample(SampleError::InvalidSettings(_)) => "RequestError",
+        RequestError::Sample(_) => "SampleError",
+        RequestError::Solve(e) => match e {
+            SolveError::TimeLimit { .. } => "TimeLimitError",
+            SolveError::InvalidSettings(_) => "RequestError",
+            SolveError::Input(_) => "InputError",
+            SolveError::Sample(SampleError::InvalidSettings(_)) => "RequestError",
+            SolveError::Sample(_) => "SampleError",
+            _ => "SolveError",
+        },
+    }
+}
+
+fn request_error(py: Python<'_>, e: RequestError) -> PyErr {
+    error(py, request_error_kind(&e), e.to_string())
+}
+
+fn sim_error(py: Python<'_>, e: SimError) -> PyErr {
+    let kind = match e {
+        SimError::InvalidScenario(_) | SimError::InvalidConfig(_) => "StudyError",
+        SimError::Fusion(_) | SimError::Diverged(_) => "SimulationError",
+    };
+    error(py, kind, e.to_string())
+}
+
+/// Runs `work` without the GIL; a panic becomes `nmci.InternalError`.
+fn detached<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+    py.detach(|| catch_unwind(AssertUnwindSafe(work)))
+        .map_err(|panic| {
+            let message = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            error(
+                py,
+                "InternalError",
+                format!("nmci panicked (a bug: please report it): {message}"),
+            )
+        })
+}
+
+/// Runs `work` as [`detached`] does, on a rayon pool built for this call (every core, or
+/// `RAYON_NUM_THREADS`): rayon's global pool does not survive `fork`, and Python's process pools
+/// fork on Linux — a worker process calling a study would wait forever for the parent's threads.
+fn parallel<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+    detached(py, || {
+        rayon::ThreadPoolBuilder::new()
+            .build()
+            .map(|pool| pool.install(work))
+            .map_err(|e| e.to_string())
+    })?
+    .map_err(|e| {
+        error(
+            py,
+            "InternalError",
+            format!("cannot start a thread pool: {e}"),
+        )
+    })
+}
+
+fn rows(a: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
+    a.as_array().outer_iter().map(|r| r.to_vec()).collect()
+}
+
+fn bool_rows(a: &PyReadonlyArray2<'_, bool>) -> Vec<Vec<bool>> {
+    a.as_array().outer_iter().map(|r| r.to_vec()).collect()
+}
+
+fn matrix(a: &PyReadonlyArray2<'_, f64>) -> nalgebra::DMatrix<f64> {
+    let v = a.as_array();
+    nalgebra::DMatrix::from_fn(v.nrows(), v.ncols(), |i, j| v[(i, j)])
+}
+
+/// A JSON value as a Python object (`null` → `None`, arrays → lists, objects → dicts).
+fn to_python<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
+    use pyo3::IntoPyObjectExt;
+    Ok(match v {
+        serde_json::Value::Null => py.None().into_bound(py),
+        serde_json::Value::Bool(b) => b.into_bound_py_any(py)?,
+        serde_json::Value::Number(n) => match (n.as_u64(), n.as_i64()) {
+            (Some(u), _) => u.into_bound_py_any(py)?,
+            (None, Some(i)) => i.into_bound_py_any(py)?,
+            _ => n.as_f64().unwrap_or(f64::NAN).into_bound_py_any(py)?,
+        },
+        serde_json::Value::String(s) => s.into_bound_py_any(py)?,
+        serde_json::Value::Array(items) => {
+            let list = PyList::empty(py);
+            for item in items {
+                list.append(to_python(py, item)?)?;
+            }
+            list.into_any()
+        }
+        serde_json::Value::Object(map) => {
+            let dict = PyDict::new(py);
+            for (k, item) in map {
+                dict.set_item(k, to_python(py, item)?)?;
+            }
+            dict.into_any()
+        }
+    })
+}
+
+/// `n × m` nested rows as a 2-D numpy array.
+fn array2<'py>(py: Python<'py>, rows: &[Vec<f64>]) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    PyArray2::from_vec2(py, rows).map_err(|e| error(py, "InternalError", e.to_string()))
+}
+
+/// A response as a dict with the contract's keys: the estimate, bound and gains (`x`, `p`,
+/// `ka`, `kb`, `gains`, `omega`, `weights`) as numpy arrays, the rest as in the JSON.
+fn response_dict<'py>(py: Python<'py>, mut r: FuseResponse) -> PyResult<Bound<'py, PyDict>> {
+    let x = std::mem::take(&mut r.x);
+    let p = std::mem::take(&mut r.p);
+    let (ka, kb, gains) = (r.ka.take(), r.kb.take(), r.gains.take());
+    let (omega, weights) = (r.omega.take(), r.weights.take());
+    let rest = serde_json::to_value(&r).map_err(|e| error(py, "InternalError", e.to_string()))?;
+    let dict = to_python(py, &rest)?.cast_into::<PyDict>()?;
+    dict.set_item("x", PyArray1::from_vec(py, x))?;
+    dict.set_item("p", array2(py, &p)?)?;
+    for (key, m) in [("ka", ka), ("kb", kb)] {
+        if let Some(m) = m {
+            dict.set_item(key, array2(py, &m)?)?;
+        }
+    }
+    if let Some(gains) = gains {
+        let v: Vec<Vec<Vec<f64>>> = gains;
+        dict.set_item(
+            "gains",
+            PyArray3::from_vec3(py, &v).map_err(|e| error(py, "InternalError", e.to_string()))?,
+        )?;
+    }
+    if let Some(omega) = omega {
+        dict.set_item("omega", PyArray1::from_vec(py, omega))?;
+    }
+    if let Some(weights) = weights {
+        dict.set_item("weights", array2(py, &weights)?)?;
+    }
+    Ok(dict)
+}
+
+/// One estimate of an N-way request: `(x or None, P)`.
+type NumpyEstimate<'py> = (
+    Option<PyReadonlyArray1<'py, f64>>,
+    PyReadonlyArray2<'py, f64>,
+);
+
+/// The JSON contract as text: exactly `nmci fuse`.
+#[pyfunction]
+fn fuse_json(py: Python<'_>, request: String) -> PyResult<String> {
+    detached(py, move || nmci::fuse_json(&request))?.map_err(|e| request_error(py, e))
+}
+
+/// The JSON contract with the matrices given as numpy arrays: `options` is the rest of the
+/// request as JSON text (method, criterion, samples, …).
+#[pyfunction]
+#[pyo3(signature = (options, pa=None, pb=None, xa=None, xb=None, pab_unknown=None, estimates=None, patterns=None))]
+#[allow(clippy::too_many_arguments)]
+fn fuse_arrays<'py>(
+    py: Python<'py>,
+    options: &str,
+    pa: Option<PyReadonlyArray2<'py, f64>>,
+    pb: Option<PyReadonlyArray2<'py, f64>>,
+    xa: Option<PyReadonlyArray1<'py, f64>>,
+    xb: Option<PyReadonlyArray1<'py, f64>>,
+    pab_unknown: Option<PyReadonlyArray2<'py, bool>>,
+    estimates: Option<Vec<NumpyEstimate<'py>>>,
+    patterns: Option<Vec<(usize, usize, PyReadonlyArray2<'py, bool>)>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut request: FuseRequest = serde_json::from_str(options)
+        .map_err(|e| request_error(py, RequestError::Malformed(e.to_string())))?;
+    if let Some(pa) = &pa {
+        request.pa = rows(pa);
+    }
+    if let Some(pb) = &pb {
+        request.pb = rows(pb);
+    }
+    request.xa = xa.map(|v| v.as_array().to_vec());
+    request.xb = xb.map(|v| v.as_array().to_vec());
+    request.pab_unknown = pab_unknown.as_ref().map(bool_rows);
+    request.estimates = estimates.map(|list| {
+        list.iter()
+            .map(|(x, p)| nmci::NwayEstimate {
+                x: x.as_ref().map(|v| v.as_array().to_vec()),
+                p: rows(p),
+            })
+            .collect()
+    });
+    request.patterns = patterns.map(|list| {
+        list.iter()
+            .map(|(i, j, m)| nmci::NwayPair {
+                i: *i,
+                j: *j,
+                pab_unknown: bool_rows(m),
+            })
+            .collect()
+    });
+    let response = detached(py, move || nmci::fuse(&request))?.map_err(|e| request_error(py, e))?;
+    response_dict(py, response)
+}
+
+/// `λ_max(P^{-1/2} E P^{-1/2})`.
+#[pyfunction]
+#[allow(non_snake_case)]
+fn conservativeness_index(
+    py: Python<'_>,
+    P: PyReadonlyArray2<'_, f64>,
+    E: PyReadonlyArray2<'_, f64>,
+) -> PyResult<f64> {
+    let (P, E) = (matrix(&P), matrix(&E));
+    let check = |name: &str, m: &nalgebra::DMatrix<f64>| -> Result<(), InputError> {
+        if m.nrows() != m.ncols() || m.nrows() == 0 {
+            return Err(InputError::NotSquare {
+                name: name.into(),
+                rows: m.nrows(),
+                cols: m.ncols(),
+            });
+        }
+        nmci::validate_covariance(name, m)
+    };
+    check("P", &P)
+        .and_then(|_| check("E", &E))
+        .map_err(|e| error(py, "InputError", e.to_string()))?;
+    detached(py, move || nmci::conservativeness_index(&P, &E))?
+        .map_err(|e| error(py, "InputError", e.to_string()))
+}
+
+/// Admissible cross-covariances `P_ab'` (a `count × n × n` array) and the trials used.
+#[pyfunction]
+#[pyo3(signature = (pa, pb, pab_unknown, count, seed, sampler, max_trials))]
+#[allow(clippy::too_many_arguments)]
+fn sample_cross_covariances<'py>(
+    py: Python<'py>,
+    pa: PyReadonlyArray2<'py, f64>,
+    pb: PyReadonlyArray2<'py, f64>,
+    pab_unknown: Option<PyReadonlyArray2<'py, bool>>,
+    count: usize,
+    seed: u64,
+    sampler: &str,
+    max_trials: Option<u64>,
+) -> PyResult<(Bound<'py, PyArray3<f64>>, u64)> {
+    let kind: nmci::SamplerKind = serde_json::from_value(serde_json::Value::from(sampler))
+        .map_err(|_| {
+            error(
+                py,
+                "RequestError",
+                format!("invalid request: unknown sampler {sampler:?} (\"rejection\" or \"hit_and_run\")"),
+            )
+        })?;
+    // The request's problem builder: the same checks and messages as `fuse`.
+    let request: FuseRequest = serde_json::from_value(serde_json::json!({
+        "pa": rows(&pa),
+        "pb": rows(&pb),
+        "pab_unknown": pab_unknown.as_ref().map(bool_rows),
+        "method": "ci",
+    }))
+    .map_err(|e| request_error(py, RequestError::Malformed(e.to_string())))?;
+    let problem = request.problem().map_err(|e| request_error(py, e))?;
+    let defaults = nmci::SamplerSettings::default();
+    let settings = nmci::SamplerSettings {
+        kind,
+        max_trials: max_trials.unwrap_or(defaults.max_trials),
+        ..defaults
+    };
+    let samples = detached(py, move || {
+        nmci::sample_cross_covariances(&problem, count, seed, settings)
+    })?
+    .map_err(|e| request_error(py, RequestError::Sample(e)))?;
+    let stack: Vec<Vec<Vec<f64>>> = samples
+        .cross
+        .iter()
+        .map(|m| m.row_iter().map(|r| r.iter().copied().collect()).collect())
+        .collect();
+    let n = pa.as_array().nrows();
+    let array = if stack.is_empty() {
+        PyArray3::zeros(py, [0, n, n], false)
+    } else {
+        PyArray3::from_vec3(py, &stack).map_err(|e| error(py, "InternalError", e.to_string()))?
+    };
+    Ok((array, samples.trials))
+}
+
+/// A study configuration (JSON text) from TOML text, defaults filled in.
+#[pyfunction]
+fn config_from_toml(py: Python<'_>, text: &str) -> PyResult<String> {
+    let config = StudyConfig::from_toml(text).map_err(|e| sim_error(py, e))?;
+    serde_json::to_string(&config).map_err(|e| error(py, "InternalError", e.to_string()))
+}
+
+/// The default study configuration as JSON text.
+#[pyfunction]
+fn default_config() -> String {
+    serde_json::to_string(&StudyConfig::default()).expect("the default configuration serialises")
+}
+
+fn parse_config(py: Python<'_>, config: &str) -> PyResult<StudyConfig> {
+    let config: StudyConfig = serde_json::from_str(config)
+        .map_err(|e| sim_error(py, SimError::InvalidConfig(e.to_string())))?;
+    config.validate().map_err(|e| sim_error(py, e))?;
+    Ok(config)
+}
+
+/// A whole study: configuration, every run's trace and the summary.
+#[pyclass(module = "nmci._nmci", frozen)]
+struct Study {
+    inner: nmci::sim::Study,
+}
+
+#[pymethods]
+impl Study {
+    /// The configuration as JSON text.
+    fn config_json(&self) -> String {
+        serde_json::to_string(&self.inner.config).expect("a configuration serialises")
+    }
+
+    /// `summary.json` as JSON text.
+    fn report_json(&self) -> String {
+        serde_json::to_string(&self.inner.report()).expect("a report serialises")
+    }
+
+    /// The estimators' names in series order.
+    fn estimators(&self) -> Vec<String> {
+        self.inner
+            .summary
+            .estimators
+            .iter()
+            .map(|(name, _)| name.clone())
+            .collect()
+    }
+
+    /// A per-estimator series (`nees`, `rmse`, `two_sigma`, `coin`, `omega_nmci`) as an
+    /// `estimators × steps` (or `blocks × steps`) array.
+    fn series2<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let s = &self.inner.summary;
+        let rows = match name {
+            "nees" => &s.nees_series,
+            "rmse" => &s.rmse_series,
+            "two_sigma" => &s.two_sigma_series,
+            "coin" => &s.coin_series,
+            "omega_nmci" => &s.omega_nmci_series,
+            _ => return Err(error(py, "InternalError", format!("no series {name}"))),
+        };
+        if rows.is_empty() {
+            return Ok(PyArray2::zeros(py, [0, self.inner.config.steps], false));
+        }
+        array2(py, rows)
+    }
+
+    /// A single series (`omega_ci`, `omega_ici`) per step.
+    fn series1<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let s = &self.inner.summary;
+        match name {
+            "omega_ci" => Ok(PyArray1::from_slice(py, &s.omega_ci_series)),
+            "omega_ici" => Ok(PyArray1::from_slice(py, &s.omega_ici_series)),
+            _ => Err(error(py, "InternalError", format!("no series {name}"))),
+        }
+    }
+
+    /// The 95 % bounds of the run-averaged NEES.
+    fn nees_bounds(&self) -> (f64, f64) {
+        self.inner.summary.nees_bounds
+    }
+
+    /// Writes what `nmci track` writes into `out`; returns the files.
+    fn write(&self, py: Python<'_>, out: std::path::PathBuf) -> PyResult<Vec<String>> {
+        let study = self.inner.clone();
+        let files = detached(py, move || nmci::sim::write_study(&study, &out))?
+            .map_err(|e| error(py, "OutputError", e.to_string()))?;
+        Ok(files.iter().map(|p| p.display().to_string()).collect())
+    }
+}
+
+/// Runs `first_run..first_run + runs` of a study (see `nmci::sim::merge_shards`).
+#[pyclass(module = "nmci._nmci", frozen)]
+struct Shard {
+    inner: StudyShard,
+}
+
+#[pymethods]
+impl Shard {
+    /// A shard from its JSON text (what `to_json` and `nmci track --first-run` write).
+    #[new]
+    fn new(py: Python<'_>, text: &str) -> PyResult<Self> {
+        let inner = serde_json::from_str(text)
+            .map_err(|e| error(py, "MergeError", format!("not a study shard: {e}")))?;
+        Ok(Self { inner })
+    }
+
+    /// The JSON text (the file `nmci track --first-run` writes).
+    fn to_json(&self) -> String {
+        serde_json::to_string(&self.inner).expect("a shard serialises")
+    }
+
+    /// Writes the JSON text to `path` (a file `nmci merge` reads).
+    fn save(&self, py: Python<'_>, path: std::path::PathBuf) -> PyResult<()> {
+        std::fs::write(&path, self.to_json()).map_err(|e| {
+            error(
+                py,
+                "OutputError",
+                format!("cannot write {}: {e}", path.display()),
+            )
+        })
+    }
+
+    /// Index of the first run.
+    #[getter]
+    fn first_run(&self) -> usize {
+        self.inner.first_run
+    }
+
+    /// Runs in the shard.
+    #[getter]
+    fn runs(&self) -> usize {
+        self.inner.config.runs
+    }
+
+    /// Whether the shard carries the study's exact COIN (the shard holding run 0).
+    #[getter]
+    fn has_coin(&self) -> bool {
+        self.inner.coin.is_some()
+    }
+
+    /// Pickling (process pools, Dask, Ray): rebuilt from the JSON text.
+    fn __getnewargs__(&self) -> (String,) {
+        (self.to_json(),)
+    }
+}
+
+/// Runs a whole study on every core.
+#[pyfunction]
+fn run_study(py: Python<'_>, config: &str) -> PyResult<Study> {
+    let config = parse_config(py, config)?;
+    let study = parallel(py, move || -> Result<_, SimError> {
+        let model = nmci::sim::Model::new(&config.scenario)?;
+        nmci::sim::study_parallel(&config, &model, || {})
+    })?
+    .map_err(|e| sim_error(py, e))?;
+    Ok(Study { inner: study })
+}
+
+/// Runs a shard of a study on every core.
+#[pyfunction]
+fn run_shard(py: Python<'_>, config: &str, first_run: usize) -> PyResult<Shard> {
+    let config = parse_config(py, config)?;
+    let shard = parallel(py, move || -> Result<_, SimError> {
+        let model = nmci::sim::Model::new(&config.scenario)?;
+        nmci::sim::run_shard(&config, &model, first_run, || {})
+    })?
+    .map_err(|e| sim_error(py, e))?;
+    Ok(Shard { inner: shard })
+}
+
+/// Merges shards into the one study.
+#[pyfunction]
+fn merge(py: Python<'_>, shards: Vec<PyRef<'_, Shard>>) -> PyResult<Study> {
+    let shards: Vec<StudyShard> = shards.iter().map(|s| s.inner.clone()).collect();
+    let study = detached(py, move || nmci::sim::merge_shards(shards))?.map_err(|e| {
+        let kind = match e {
+            MergeError::Invalid(_) => "StudyError",
+            _ => "MergeError",
+        };
+        error(py, kind, e.to_string())
+    })?;
+    Ok(Study { inner: study })
+}
+
+/// The paper's fig. 2 (runs in parallel): the rows of `fig2.csv` as JSON text.
+#[pyfunction]
+fn fig2(py: Python<'_>, runs: usize, sizes: Vec<usize>, seed: u64) -> PyResult<String> {
+    use rayon::prelude::*;
+    let config = nmci::Fig2Config { runs, sizes, seed };
+    let rows = parallel(py, move || -> Result<_, RequestError> {
+        config.validate()?;
+        let records = (0..config.runs)
+            .into_par_iter()
+            .map(|r| nmci::fig2_run(&config, r))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(nmci::fig2_summary(&config, &records))
+    })?
+    .map_err(|e| request_error(py, e))?;
+    serde_json::to_string(&rows).map_err(|e| error(py, "InternalError", e.to_string()))
+}
+
+/// Panics inside a detached solve: the tests check it arrives as `nmci.InternalError`.
+#[pyfunction]
+fn _panic_for_test(py: Python<'_>) -> PyResult<()> {
+    detached(py, || panic!("a panic raised on purpose by the tests"))
+}
+
+#[pymodule]
+fn _nmci(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(fuse_json, m)?)?;
+    m.add_function(wrap_pyfunction!(fuse_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(conservativeness_index, m)?)?;
+    m.add_function(wrap_pyfunction!(sample_cross_covariances, m)?)?;
+    m.add_function(wrap_pyfunction!(config_from_toml, m)?)?;
+    m.add_function(wrap_pyfunction!(default_config, m)?)?;
+    m.add_function(wrap_pyfunction!(run_study, m)?)?;
+    m.add_function(wrap_pyfunction!(run_shard, m)?)?;
+    m.add_function(wrap_pyfunction!(merge, m)?)?;
+    m.add_function(wrap_pyfunction!(fig2, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic_for_test, m)?)?;
+    m.add_class::<Study>()?;
+    m.add_class::<Shard>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

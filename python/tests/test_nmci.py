@@ -1,0 +1,396 @@
+"""nmci for Python: the contract equals the CLI's to the bit, the rules match independent
+numpy/scipy references and hold on sampled cross-covariances, bad input raises the right
+exception with the CLI's message, shards merged equal one run (also from a process pool), the
+GIL is released, a panic becomes an exception, and the examples run.
+
+Run by scripts/test.sh (scripts/python.sh test) against the wheel it builds; NMCI_CLI names the
+`nmci` binary to compare with."""
+
+import concurrent.futures
+import doctest
+import json
+import os
+import pickle
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.optimize
+
+import nmci
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def cli() -> str:
+    path = os.environ.get("NMCI_CLI")
+    assert path, "NMCI_CLI must name the nmci binary (scripts/python.sh sets it)"
+    assert Path(path).is_file(), f"NMCI_CLI={path} does not exist"
+    return path
+
+
+def run_cli(args, stdin=""):
+    return subprocess.run([cli(), *args], input=stdin, capture_output=True, text=True)
+
+
+def spd(rng, n, scale=1.0):
+    a = rng.standard_normal((n, n))
+    return scale * (a @ a.T / n + 0.3 * np.eye(n))
+
+
+def random_pattern(rng, n, p=0.6):
+    """A pattern with at least one known zero and one unknown entry, not separable-trivial."""
+    while True:
+        m = rng.random((n, n)) < p
+        if m.any() and not m.all():
+            return m
+
+
+PAPER = dict(pa=[[3.0, 0.0], [0.0, 1.0]], pb=[[1.0, 0.0], [0.0, 4.0]])
+ONE_ZERO = [[True, True], [False, True]]
+
+REQUESTS = [
+    {**PAPER, "method": "ci"},
+    {**PAPER, "method": "ci", "criterion": "logdet", "xa": [1.0, 2.0], "xb": [0.5, -1.0]},
+    {**PAPER, "method": "nmci", "pab_unknown": [[True, False], [False, True]]},
+    {**PAPER, "method": "sdp", "pab_unknown": [[True, False], [False, True]]},
+    {**PAPER, "method": "sdp", "samples": 50, "sampler": "hit_and_run", "seed": 3},
+    {**PAPER, "method": "sdp_cuts", "pab_unknown": ONE_ZERO},
+    {**PAPER, "method": "certified", "pab_unknown": ONE_ZERO, "level": 2},
+    {**PAPER, "method": "ici"},
+    {**PAPER, "method": "ei"},
+    {**PAPER, "method": "naive"},
+    {
+        "method": "nmci",
+        "estimates": [
+            {"p": [[2.0, 0.3], [0.3, 1.0]], "x": [1.0, 0.0]},
+            {"p": [[1.0, 0.0], [0.0, 3.0]]},
+            {"p": [[1.5, -0.2], [-0.2, 2.0]]},
+        ],
+        "patterns": [{"i": 0, "j": 1, "pab_unknown": [[True, False], [False, True]]}],
+    },
+]
+
+BAD_REQUESTS = [
+    ({"pa": [[1, 2], [2, 1]], "pb": [[1, 0], [0, 1]], "method": "ci"}, nmci.InputError),
+    ({"pa": [[1]], "pb": [[1]], "method": "ci", "oops": True}, nmci.RequestError),
+    ({**PAPER, "method": "sdp", "samples": 0}, nmci.RequestError),
+    ({**PAPER, "method": "ci", "level": 2}, nmci.RequestError),
+    ({"pa": [[1, 0], [0, 1]], "pb": [[1]], "method": "nmci"}, nmci.InputError),
+    ({**PAPER, "method": "sdp", "max_trials": 5}, nmci.SampleError),
+    ({"pa": [[1.0, 0.5], [0.4, 1.0]], "pb": [[1, 0], [0, 1]], "method": "ci"}, nmci.InputError),
+    ({"method": "ci"}, nmci.RequestError),
+]
+
+
+@pytest.mark.parametrize("request_", REQUESTS, ids=lambda r: r["method"])
+def test_the_contract_returns_what_the_cli_returns_to_the_bit(request_):
+    done = run_cli(["fuse"], json.dumps(request_))
+    assert done.returncode == 0, done.stderr
+    assert nmci.fuse(request_) == json.loads(done.stdout)
+
+
+@pytest.mark.parametrize("request_,error", BAD_REQUESTS)
+def test_bad_requests_raise_the_cli_s_message(request_, error):
+    done = run_cli(["fuse"], json.dumps(request_))
+    assert done.returncode != 0
+    message = done.stderr.strip().removeprefix("nmci: ")
+    with pytest.raises(error) as raised:
+        nmci.fuse(request_)
+    assert str(raised.value) == message
+    assert isinstance(raised.value, nmci.NmciError)
+
+
+def test_the_array_functions_return_the_contract_s_response():
+    rng = np.random.default_rng(1)
+    calls = {
+        "ci": lambda a, b, m: nmci.ci(a, b, pab_unknown=m),
+        "nmci": lambda a, b, m: nmci.nmci(a, b, pab_unknown=m),
+        "sdp": lambda a, b, m: nmci.optimal(a, b, pab_unknown=m, samples=30, sampler="hit_and_run"),
+        "sdp_cuts": lambda a, b, m: nmci.sdp_cuts(a, b, pab_unknown=m),
+        "certified": lambda a, b, m: nmci.certified(a, b, pab_unknown=m),
+        "ici": lambda a, b, m: nmci.ici(a, b, pab_unknown=m),
+        "ei": lambda a, b, m: nmci.ei(a, b, pab_unknown=m),
+        "naive": lambda a, b, m: nmci.naive(a, b, pab_unknown=m),
+    }
+    for method, call in calls.items():
+        a, b, m = spd(rng, 3), spd(rng, 3), random_pattern(rng, 3)
+        request = {"pa": a, "pb": b, "pab_unknown": m, "method": method}
+        if method == "sdp":
+            request.update(samples=30, sampler="hit_and_run")
+        got = call(a, b, m)
+        assert got.to_dict() == nmci.fuse(request), method
+        assert isinstance(got.P, np.ndarray) and got.P.shape == (3, 3)
+        assert np.array_equal(got.P, got["p"])
+        assert got.method == method
+
+
+def test_every_response_field_is_a_typed_attribute_of_fused():
+    rng = np.random.default_rng(2)
+    keys = set()
+    for request in REQUESTS:
+        keys |= set(nmci.fuse(request))
+    a, b = spd(rng, 2), spd(rng, 2)
+    keys |= set(nmci.fuse({"pa": a, "pb": b, "method": "ci"}))
+    declared = {nmci.Fused._ALIASES.get(k, k) for k in nmci.Fused.__annotations__}
+    # The attributes are exactly the fields these requests make the contract emit.
+    assert keys == declared, (keys - declared, declared - keys)
+    r = nmci.nmci(PAPER["pa"], PAPER["pb"], pab_unknown=np.eye(2, dtype=bool))
+    assert r.lower_bound is None and r.blocks == [[0], [1]]
+    with pytest.raises(AttributeError):
+        r.no_such_field  # noqa: B018
+    with pytest.raises(AttributeError):
+        r.trace = 1.0
+
+
+def ci_reference(a, b):
+    """CI by scipy's bounded scalar minimiser on tr((ω A⁻¹ + (1 − ω) B⁻¹)⁻¹)."""
+    ai, bi = np.linalg.inv(a), np.linalg.inv(b)
+    f = lambda w: np.trace(np.linalg.inv(w * ai + (1 - w) * bi))  # noqa: E731
+    res = scipy.optimize.minimize_scalar(f, bounds=(0.0, 1.0), method="bounded", options={"xatol": 1e-12})
+    best = min([(f(0.0), 0.0), (f(1.0), 1.0), (res.fun, res.x)])
+    return best[1], best[0]
+
+
+def test_ci_matches_a_scipy_reference_on_random_problems():
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        n = int(rng.integers(1, 9))
+        a, b = spd(rng, n, rng.uniform(0.1, 10)), spd(rng, n, rng.uniform(0.1, 10))
+        r = nmci.ci(a, b)
+        w_ref, t_ref = ci_reference(a, b)
+        # nmci's ω is the exact minimiser: never worse than scipy's beyond rounding.
+        assert r.trace <= t_ref * (1 + 1e-12), (trial, r.trace, t_ref)
+        assert r.trace >= t_ref * (1 - 1e-8), (trial, r.trace, t_ref)
+        w = r.omega[0]
+        expected = np.linalg.inv(w * np.linalg.inv(a) + (1 - w) * np.linalg.inv(b))
+        np.testing.assert_allclose(r.P, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+        np.testing.assert_allclose(r.Ka + r.Kb, np.eye(n), atol=1e-12)
+
+
+def admissible_cross(rng, a, b, mask, radius):
+    """An admissible P_ab' drawn independently of nmci: zeros where `mask` is False, scaled so
+    that ‖P_a^{-1/2} P_ab' P_b^{-1/2}‖₂ = radius < 1 (the joint covariance is then PD)."""
+    c = rng.standard_normal(a.shape) * mask
+    la, lb = np.linalg.cholesky(a), np.linalg.cholesky(b)
+    whitened = np.linalg.solve(la, np.linalg.solve(lb, c.T).T)
+    return c * radius / np.linalg.norm(whitened, 2)
+
+
+def margin(fused, a, b, cross):
+    k = np.hstack([fused.Ka, fused.Kb])
+    joint = np.block([[a, cross], [cross.T, b]])
+    return np.linalg.eigvalsh(fused.P - k @ joint @ k.T).min()
+
+
+def test_conservative_rules_hold_on_sampled_cross_covariances():
+    rng = np.random.default_rng(4)
+    for trial in range(12):
+        n = int(rng.integers(2, 4))
+        a, b, m = spd(rng, n), spd(rng, n), random_pattern(rng, n)
+        rules = {
+            "ci": nmci.ci(a, b, pab_unknown=m),
+            "nmci": nmci.nmci(a, b, pab_unknown=m),
+            "certified": nmci.certified(a, b, pab_unknown=m),
+        }
+        crosses = list(nmci.sample_cross_covariances(a, b, m, count=50, sampler="hit_and_run", seed=trial))
+        crosses += [admissible_cross(rng, a, b, m, r) for r in rng.uniform(0.5, 0.999999, 50)]
+        for c in crosses:
+            assert np.all(c[~m] == 0)
+            for name, fused in rules.items():
+                scale = np.abs(fused.P).max()
+                assert margin(fused, a, b, c) >= -1e-10 * scale, (trial, name)
+        # Certified never looser than nmCI or CI in trace beyond rounding (1e-14 relative).
+        assert rules["certified"].trace <= min(rules["ci"].trace, rules["nmci"].trace) * (1 + 1e-14)
+
+
+def test_naive_fusion_is_caught_overconfident_by_the_index():
+    a, b = np.diag([3.0, 1.0]), np.diag([1.0, 4.0])
+    fused = nmci.naive(a, b)
+    cross = np.diag([0.9 * np.sqrt(3.0), 0.9 * 2.0])
+    k = np.hstack([fused.Ka, fused.Kb])
+    error = k @ np.block([[a, cross], [cross.T, b]]) @ k.T
+    assert nmci.conservativeness_index(fused.P, error) > 1
+    assert nmci.conservativeness_index(nmci.ci(a, b).P, error) <= 1 + 1e-12
+
+
+def test_sampled_cross_covariances_are_admissible():
+    rng = np.random.default_rng(5)
+    a, b, m = spd(rng, 3), spd(rng, 3), random_pattern(rng, 3)
+    for sampler in ("rejection", "hit_and_run"):
+        stack = nmci.sample_cross_covariances(a, b, m, count=40, seed=1, sampler=sampler)
+        assert stack.shape == (40, 3, 3)
+        for c in stack:
+            assert np.all(c[~m] == 0)
+            assert np.linalg.eigvalsh(np.block([[a, c], [c.T, b]])).min() > 0
+    again = nmci.sample_cross_covariances(a, b, m, count=40, seed=1)
+    assert np.array_equal(again, nmci.sample_cross_covariances(a, b, m, count=40, seed=1))
+
+
+def test_n_way_rules_take_numpy_estimates_and_patterns():
+    rng = np.random.default_rng(6)
+    ps = [spd(rng, 2) for _ in range(3)]
+    xs = [rng.standard_normal(2) for _ in range(3)]
+    r = nmci.ci_nway(list(zip(xs, ps)))
+    assert r.weights.shape == (1, 3) and abs(r.weights.sum() - 1) < 1e-12
+    assert r.gains.shape == (3, 2, 2)
+    np.testing.assert_allclose(sum(r.gains), np.eye(2), atol=1e-12)
+    np.testing.assert_allclose(r.x, sum(g @ x for g, x in zip(r.gains, xs)), atol=1e-12)
+    # Diagonal covariances and diagonal cross patterns: two independent blocks.
+    ds = [np.diag(rng.uniform(0.5, 3, 2)) for _ in range(3)]
+    diag = np.eye(2, dtype=bool)
+    by_map = nmci.nmci_nway(ds, patterns={(0, 1): diag, (0, 2): diag, (1, 2): diag})
+    by_list = nmci.nmci_nway(ds, patterns=[(0, 1, diag), (0, 2, diag), (1, 2, diag)])
+    assert by_map.to_dict() == by_list.to_dict()
+    assert by_map.weights.shape == (2, 3) and by_map.blocks == [[0], [1]]
+    assert by_map.trace <= nmci.ci_nway(ds).trace * (1 + 1e-12)
+
+
+BAD_CALLS = [
+    (lambda: nmci.ci(np.eye(2), np.eye(3)), nmci.InputError, "P_b has size 3, expected 2"),
+    (lambda: nmci.ci(np.ones(3), np.eye(3)), nmci.InputError, "P_a must be a 2-D array"),
+    (lambda: nmci.ci([["a"]], np.eye(1)), nmci.InputError, "P_a is not a numeric array"),
+    (lambda: nmci.ci(np.eye(2) * np.nan, np.eye(2)), nmci.InputError, "non-finite"),
+    (lambda: nmci.ci(np.eye(2), np.eye(2), criterion="volume"), nmci.RequestError, "unknown variant `volume`"),
+    (lambda: nmci.nmci(np.eye(2), np.eye(2), pab_unknown=np.eye(2)), nmci.InputError, "array of booleans"),
+    (lambda: nmci.nmci(np.eye(2), np.eye(2), xa=np.zeros(3)), nmci.InputError, "x_a has size 3"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), samples=0), nmci.RequestError, "`samples` must be at least 1"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), sampler="gibbs"), nmci.RequestError, "unknown variant `gibbs`"),
+    (lambda: nmci.certified(np.eye(2), np.eye(2), level=99), nmci.RequestError, "`level` must be in 1..="),
+    (lambda: nmci.certified(np.eye(2), np.eye(2), time_limit=-1), nmci.RequestError, "`time_limit` must be a positive number"),
+    (lambda: nmci.optimal(np.eye(6), np.eye(6), max_trials=10), nmci.SampleError, "rejection sampler accepted only"),
+    (lambda: nmci.ci_nway([np.eye(2)]), nmci.InputError, "invalid estimates"),
+    (lambda: nmci.conservativeness_index(np.eye(2), np.eye(3)), nmci.InputError, "E has size 3"),
+    (lambda: nmci.conservativeness_index(-np.eye(2), np.eye(2)), nmci.InputError, "P is not positive definite"),
+    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), sampler="x"), nmci.RequestError, "unknown sampler"),
+    (lambda: nmci.track({"runs": 0}), nmci.StudyError, "runs at least 1"),
+    (lambda: nmci.track({"rnus": 3}), nmci.StudyError, "unknown field `rnus`"),
+    (lambda: nmci.track({"agent": 7, "watched": 1}), nmci.StudyError, "agent 7 has no link to agent 1"),
+    (lambda: nmci.track("/no/such/study.toml"), nmci.StudyError, "cannot read /no/such/study.toml"),
+    (lambda: nmci.merge([]), nmci.MergeError, "no shards to merge"),
+    (lambda: nmci.Shard("{}"), nmci.MergeError, "not a study shard"),
+    (lambda: nmci.fig2(runs=0), nmci.RequestError, "fig2 needs at least one run"),
+]
+
+
+@pytest.mark.parametrize("call,error,needle", BAD_CALLS, ids=[c[2] for c in BAD_CALLS])
+def test_bad_input_raises_the_right_exception_with_its_message(call, error, needle):
+    with pytest.raises(error) as raised:
+        call()
+    assert needle in str(raised.value)
+    assert isinstance(raised.value, nmci.NmciError)
+    assert isinstance(raised.value, (ValueError, RuntimeError))
+
+
+def test_a_time_limit_raises_time_limit_error():
+    rng = np.random.default_rng(7)
+    a, b = spd(rng, 4), spd(rng, 4)
+    with pytest.raises(nmci.TimeLimitError) as raised:
+        nmci.certified(a, b, level=2, time_limit=1e-6)
+    assert isinstance(raised.value, nmci.SolveError) and isinstance(raised.value, RuntimeError)
+    assert "time limit" in str(raised.value)
+
+
+def test_a_panic_becomes_internal_error_not_a_crash():
+    with pytest.raises(nmci.InternalError) as raised:
+        nmci._nmci._panic_for_test()
+    assert "a panic raised on purpose" in str(raised.value)
+    assert nmci.ci(np.eye(2), np.eye(2)).trace == 2.0  # the interpreter goes on
+
+
+def test_the_gil_is_released_during_a_study():
+    ticks = []
+    state = {}
+
+    def work():
+        state["start"] = True
+        nmci.track(runs=2, steps=150, coin=False)
+        state["end"] = True
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    while "end" not in state:
+        if "start" in state:
+            ticks.append(1)
+    worker.join()
+    # With the GIL held for the whole study this loop could not run at all meanwhile.
+    assert len(ticks) > 1000, len(ticks)
+
+
+def shard(first_run, runs):
+    return nmci.track(runs=runs, steps=25, seed=9, first_run=first_run)
+
+
+def test_shards_from_a_process_pool_merge_into_one_run_bit_for_bit(tmp_path):
+    whole = nmci.track(runs=5, steps=25, seed=9)
+    with concurrent.futures.ProcessPoolExecutor(max_workers=2) as pool:
+        shards = list(pool.map(shard, [3, 0, 1], [2, 1, 2]))
+    assert [s.first_run for s in shards] == [3, 0, 1] and shards[1].has_coin
+    merged = nmci.merge(shards)
+    assert merged.summary == whole.summary and merged.config == whole.config
+    for name in ("nees", "rmse", "two_sigma", "coin", "omega_nmci", "omega_ci", "omega_ici", "time"):
+        assert np.array_equal(getattr(merged, name), getattr(whole, name)), name
+    # Through files, and the CLI's files are those of Python's study.
+    for s in shards:
+        s.save(tmp_path / f"shard-{s.first_run:06}.json")
+    from_files = nmci.merge([tmp_path])
+    assert from_files.summary == whole.summary
+    assert pickle.loads(pickle.dumps(shards[0])).to_json() == shards[0].to_json()
+    written = whole.write(tmp_path / "py")
+    done = run_cli(["merge", str(tmp_path), "--out", str(tmp_path / "cli")])
+    assert done.returncode == 0, done.stderr
+    for f in written:
+        name = Path(f).name
+        assert (tmp_path / "cli" / name).read_bytes() == Path(f).read_bytes(), name
+    # Refusals name the problem.
+    with pytest.raises(nmci.MergeError, match=r"runs 1\.\.3 are in no shard"):
+        nmci.merge([shards[1], shards[0]])
+    with pytest.raises(nmci.MergeError, match="run 3 is in more than one shard"):
+        nmci.merge(shards + [shard(3, 1)])
+
+
+def test_a_study_from_a_configuration_file_and_overrides(tmp_path):
+    cfg = tmp_path / "study.toml"
+    cfg.write_text("steps = 7\nruns = 4\nseed = 5\ncoin = false\n")
+    s = nmci.track(cfg, runs=2)
+    assert (s.config["steps"], s.config["runs"], s.config["seed"], s.config["coin"]) == (7, 2, 5, False)
+    assert s.coin.shape == (0, 7) and s.nees.shape == (5, 7)
+    assert s.estimators == ["central", "ci", "nmci", "naive", "ici"]
+    done = run_cli(["track", "--config", str(cfg), "--runs", "2", "--out", str(tmp_path / "cli")])
+    assert done.returncode == 0, done.stderr
+    assert json.loads((tmp_path / "cli" / "summary.json").read_text()) == s.summary
+    assert nmci.track({"steps": 7, "runs": 2, "seed": 5, "coin": False}).summary == s.summary
+    bad = tmp_path / "bad.toml"
+    bad.write_text("steps = \n")
+    with pytest.raises(nmci.StudyError, match="invalid configuration"):
+        nmci.track(bad)
+
+
+def test_fig2_matches_the_cli(tmp_path):
+    f = nmci.fig2(runs=12, sizes=[1, 20], seed=2)
+    done = run_cli(["fig2", "--runs", "12", "--sizes", "1,20", "--seed", "2", "--out", str(tmp_path)])
+    assert done.returncode == 0, done.stderr
+    lines = (tmp_path / "fig2.csv").read_text().strip().splitlines()
+    header = lines[0].split(",")
+    for row, line in zip(f.rows, lines[1:]):
+        values = dict(zip(header, line.split(",")))
+        assert int(values["samples"]) == row["samples"]
+        assert float(values["dev_median"]) == row["dev"][0]
+    assert f.dev.shape == (2, 3)
+
+
+def test_the_module_docstring_examples_run():
+    failures, tried = doctest.testmod(nmci, verbose=False)
+    assert tried > 0 and failures == 0
+
+
+@pytest.mark.parametrize("example", sorted((ROOT / "examples" / "python").glob("*.py")), ids=lambda p: p.name)
+def test_the_examples_run(example):
+    done = subprocess.run(
+        [sys.executable, str(example), "--quick"], capture_output=True, text=True, cwd=ROOT, timeout=600
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip()

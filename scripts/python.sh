@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# The Python package (python/): a virtual environment in target/py with maturin, numpy and the
+# test tools from PyPI (created once, idempotent), the abi3 wheel built by maturin into
+# target/wheels and installed there.
+#   scripts/python.sh build   -> the wheel, installed into target/py
+#   scripts/python.sh test    -> build, then pytest python/tests against the `nmci` CLI
+#   scripts/python.sh bench   -> build, then scripts/bench_python.py (installs scipy and cvxpy)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export PATH="$HOME/.cargo/bin:$PATH"
+what=${1:-test}
+venv=target/py
+py=$venv/bin/python
+say() { printf '[python] %s\n' "$*"; }
+
+if [ ! -x "$py" ]; then
+  say "creating the virtual environment $venv"
+  python3 -m venv "$venv"
+fi
+need=(maturin numpy pytest scipy)
+[ "$what" = bench ] && need+=(cvxpy clarabel)
+missing=()
+for p in "${need[@]}"; do
+  "$py" -c "import $p" 2>/dev/null || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  say "installing ${missing[*]} from PyPI"
+  "$py" -m pip install -q --disable-pip-version-check "${missing[@]}"
+fi
+
+say "building the wheel (maturin, release)"
+rm -rf target/wheels
+(cd python && VIRTUAL_ENV="$PWD/../$venv" "../$venv/bin/maturin" build --release --quiet -i "../$py" -o ../target/wheels)
+"$py" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/nmci-*.whl
+
+case "$what" in
+  build) ;;
+  test)
+    # The CLI to compare with: the dev build (`cargo test` has built its dependencies); the
+    # contract tests compare its output with the release wheel's to the bit.
+    cargo build --quiet --bin nmci
+    NMCI_CLI="$PWD/target/debug/nmci" "$py" -m pytest -q python/tests
+    ;;
+  bench)
+    "$py" scripts/bench_python.py
+    ;;
+  *) echo "usage: scripts/python.sh build|test|bench" >&2; exit 2 ;;
+esac
