@@ -17,7 +17,8 @@ if [ ! -x "$py" ]; then
   say "creating the virtual environment $venv"
   python3 -m venv "$venv"
 fi
-need=(maturin numpy pytest scipy)
+# distributed: Dask's local cluster, which examples/python/sharded_study.py runs shards on.
+need=(maturin numpy pytest scipy distributed)
 [ "$what" = bench ] && need+=(cvxpy clarabel)
 missing=()
 for p in "${need[@]}"; do
