@@ -394,3 +394,17 @@ def test_the_examples_run(example):
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip()
+
+
+def test_the_readme_python_example_runs_and_says_true_things():
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("## Python") :]
+    block = section[section.index("```python\n") + len("```python\n") :]
+    block = block[: block.index("```")]
+    namespace = {}
+    exec(compile(block, "README.md", "exec"), namespace)
+    # "proven: trace 2.0000000031 vs CI's 3.0882"
+    assert f"{namespace['cert'].trace:.10f}" == "2.0000000031"
+    assert f"{namespace['ci'].trace:.4f}" == "3.0882"
+    assert namespace["cuts"].gap_closed is True
+    assert namespace["study"].nees.shape == (5, 400)
