@@ -1,6 +1,8 @@
 //! One error enum per concern, as in Clarabel: bad input, sampling, solving, and the
 //! request/response contract that wraps them.
 
+use std::path::PathBuf;
+
 use thiserror::Error;
 
 /// An input matrix, vector or pattern that cannot be fused.
@@ -204,4 +206,33 @@ pub enum RequestError {
     /// Sampling admissible cross-covariances failed.
     #[error(transparent)]
     Sample(#[from] SampleError),
+}
+
+/// A report's files (a study's, fig. 2's) could not be written.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ReportError {
+    /// The output folder could not be created.
+    #[error("cannot create {}: {message}", path.display())]
+    Create {
+        /// The folder.
+        path: PathBuf,
+        /// The system's message.
+        message: String,
+    },
+    /// A file could not be written.
+    #[error("cannot write {}: {message}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The system's message.
+        message: String,
+    },
+    /// A chart could not be drawn.
+    #[error("cannot draw {}: {message}", path.display())]
+    Draw {
+        /// The chart's file.
+        path: PathBuf,
+        /// The plotting library's message.
+        message: String,
+    },
 }

@@ -13,6 +13,8 @@
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 
+#[cfg(not(target_arch = "wasm32"))]
+use crate::error::ReportError;
 use crate::error::RequestError;
 use crate::fusion::check::{conservativeness_margin, fused_coin};
 use crate::fusion::nmci::non_monolithic_ci;
@@ -226,4 +228,154 @@ pub fn fig2_csv(rows: &[Fig2Row]) -> String {
         );
     }
     csv
+}
+
+/// Writes `fig2.csv` ([`fig2_csv`]) and the two-panel `fig2.svg` of `runs` runs into `out`
+/// (created if missing): what `nmci fig2` writes. Returns the files. Native only.
+#[cfg(not(target_arch = "wasm32"))]
+pub fn write_fig2(
+    rows: &[Fig2Row],
+    runs: usize,
+    out: &std::path::Path,
+) -> Result<Vec<std::path::PathBuf>, ReportError> {
+    std::fs::create_dir_all(out).map_err(|e| ReportError::Create {
+        path: out.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let csv = out.join("fig2.csv");
+    std::fs::write(&csv, fig2_csv(rows)).map_err(|e| ReportError::Write {
+        path: csv.clone(),
+        message: e.to_string(),
+    })?;
+    let svg = out.join("fig2.svg");
+    fig2_chart(&svg, rows, runs)?;
+    Ok(vec![csv, svg])
+}
+
+/// The paper's fig. 2 layout: top, `‖P_nmCI − P_opt‖₂` against the sample-set size (log–log,
+/// median with min and max); bottom, `λ_min(P − K P_true Kᵀ)` of nmCI and of the SDP.
+#[cfg(not(target_arch = "wasm32"))]
+fn fig2_chart(path: &std::path::Path, rows: &[Fig2Row], runs: usize) -> Result<(), ReportError> {
+    use plotters::prelude::*;
+    let err = |e: &dyn std::fmt::Display| ReportError::Draw {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let root = SVGBackend::new(path, (900, 760)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let (top, bottom) = root.split_vertically(380);
+    let n_max = rows.iter().map(|r| r.samples).max().unwrap_or(1).max(2) as f64;
+    let x_range = (0.8_f64..n_max * 1.25).log_scale();
+    let positive: Vec<f64> = rows
+        .iter()
+        .flat_map(|r| r.dev)
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    let (lo, hi) = positive
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let (lo, hi) = if lo.is_finite() {
+        (lo / 2.0, hi * 2.0)
+    } else {
+        (1e-12, 1.0)
+    };
+    let mut chart = ChartBuilder::on(&top)
+        .caption(
+            format!("‖P_nmCI − P_opt‖₂ over {runs} runs (median, min, max)"),
+            ("sans-serif", 18),
+        )
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x_range.clone(), (lo..hi).log_scale())
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("samples N")
+        .y_desc("deviation")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(|e| err(&e))?;
+    let series = |pick: &dyn Fn(&Fig2Row) -> f64, positive_only: bool| -> Vec<(f64, f64)> {
+        rows.iter()
+            .map(|r| (r.samples as f64, pick(r)))
+            .filter(|(_, v)| v.is_finite() && (!positive_only || *v > 0.0))
+            .collect()
+    };
+    let blue = RGBColor(31, 119, 180);
+    let red = RGBColor(214, 39, 40);
+    let green = RGBColor(42, 157, 63);
+    for (k, width) in [(0, 3), (1, 1), (2, 1)] {
+        chart
+            .draw_series(LineSeries::new(
+                series(&|r| r.dev[k], true),
+                blue.stroke_width(width),
+            ))
+            .map_err(|e| err(&e))?;
+    }
+    let values: Vec<f64> = rows
+        .iter()
+        .flat_map(|r| r.eig_nmci.iter().chain(&r.eig_opt).copied())
+        .filter(|v| v.is_finite())
+        .collect();
+    let (lo, hi) = values
+        .iter()
+        .fold((0.0_f64, 0.0_f64), |(a, b), &v| (a.min(v), b.max(v)));
+    let pad = 0.05 * (hi - lo).max(1e-9);
+    let mut chart = ChartBuilder::on(&bottom)
+        .caption(
+            "λ_min(P − K P_true Kᵀ): below 0 = not conservative for the true P_ab",
+            ("sans-serif", 18),
+        )
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x_range, (lo - pad)..(hi + pad))
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("samples N")
+        .y_desc("λ_min")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .draw()
+        .map_err(|e| err(&e))?;
+    chart
+        .draw_series(LineSeries::new(
+            vec![(0.8, 0.0), (n_max * 1.25, 0.0)],
+            BLACK.stroke_width(1),
+        ))
+        .map_err(|e| err(&e))?;
+    for (label, colour, pick) in [
+        (
+            "nmCI",
+            red,
+            &(|r: &Fig2Row| r.eig_nmci) as &dyn Fn(&Fig2Row) -> [f64; 3],
+        ),
+        ("optimal (sampled SDP)", green, &|r: &Fig2Row| r.eig_opt),
+    ] {
+        for (k, width) in [(0, 3), (1, 1), (2, 1)] {
+            let s = chart
+                .draw_series(LineSeries::new(
+                    series(&|r| pick(r)[k], false),
+                    colour.stroke_width(width),
+                ))
+                .map_err(|e| err(&e))?;
+            if k == 0 {
+                s.label(label).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(3))
+                });
+            }
+        }
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
 }

@@ -52,8 +52,10 @@ pub use api::{
     fuse, fuse_json, FuseRequest, FuseResponse, Method, NwayEstimate, NwayPair,
     BRACKET_CERTIFY_MAX_BLOCK,
 };
-pub use error::{InputError, RequestError, SampleError, SolveError};
+pub use error::{InputError, ReportError, RequestError, SampleError, SolveError};
 pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
+#[cfg(not(target_arch = "wasm32"))]
+pub use fig2::write_fig2;
 pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
 pub use fusion::bracket::{
     ci_upper_bound, lower_bound as lagrangian_lower_bound, nmci_upper_bound, trace_upper_bound,

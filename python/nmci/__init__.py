@@ -588,8 +588,11 @@ class Fig2:
     over the runs of ``‖P_nmCI − P_opt‖₂`` (``dev``), of ``λ_min(P − K P_true Kᵀ)`` for nmCI and
     the sampled SDP (``eig_nmci``, ``eig_opt``) and of their COIN; arrays ``sizes × 3``."""
 
-    def __init__(self, rows: List[Dict[str, Any]]) -> None:
+    def __init__(self, inner: "_nmci.Fig2Rows", runs: int) -> None:
+        self._inner = inner
+        rows: List[Dict[str, Any]] = json.loads(inner.json())
         self.rows = rows
+        self.runs = runs
         self.samples: np.ndarray = np.array([r["samples"] for r in rows])
         self.failures: np.ndarray = np.array([r["failures"] for r in rows])
         column = lambda k: np.array([r[k] for r in rows], dtype=np.float64)  # noqa: E731
@@ -599,8 +602,13 @@ class Fig2:
         self.coin_nmci: np.ndarray = column("coin_nmci")
         self.coin_opt: np.ndarray = column("coin_opt")
 
+    def write(self, out: PathLike) -> List[str]:
+        """Writes what ``nmci fig2`` writes (fig2.csv, fig2.svg) into the folder ``out``; returns
+        the files."""
+        return self._inner.write(os.fspath(out))
+
     def __repr__(self) -> str:
-        return f"Fig2(samples={self.samples.tolist()})"
+        return f"Fig2(runs={self.runs}, samples={self.samples.tolist()})"
 
 
 def fig2(
@@ -609,4 +617,4 @@ def fig2(
     seed: int = 0,
 ) -> Fig2:
     """The paper's fig. 2 on the 2-D example, in parallel over runs."""
-    return Fig2(json.loads(_nmci.fig2(int(runs), [int(s) for s in sizes], int(seed))))
+    return Fig2(_nmci.fig2(int(runs), [int(s) for s in sizes], int(seed)), int(runs))

@@ -504,9 +504,32 @@ fn merge(py: Python<'_>, shards: Vec<PyRef<'_, Shard>>) -> PyResult<Study> {
     Ok(Study { inner: study })
 }
 
-/// The paper's fig. 2 (runs in parallel): the rows of `fig2.csv` as JSON text.
+/// The rows of `fig2.csv` (one per sample-set size) and the number of runs behind them.
+#[pyclass(module = "nmci._nmci", frozen)]
+struct Fig2Rows {
+    rows: Vec<nmci::Fig2Row>,
+    runs: usize,
+}
+
+#[pymethods]
+impl Fig2Rows {
+    /// The rows as JSON text (a statistic over no finite value is `null`).
+    fn json(&self) -> String {
+        serde_json::to_string(&self.rows).expect("rows serialise")
+    }
+
+    /// Writes what `nmci fig2` writes (`fig2.csv`, `fig2.svg`) into `out`; returns the files.
+    fn write(&self, py: Python<'_>, out: std::path::PathBuf) -> PyResult<Vec<String>> {
+        let (rows, runs) = (self.rows.clone(), self.runs);
+        let files = detached(py, move || nmci::write_fig2(&rows, runs, &out))?
+            .map_err(|e| error(py, "OutputError", e.to_string()))?;
+        Ok(files.iter().map(|p| p.display().to_string()).collect())
+    }
+}
+
+/// The paper's fig. 2, runs in parallel.
 #[pyfunction]
-fn fig2(py: Python<'_>, runs: usize, sizes: Vec<usize>, seed: u64) -> PyResult<String> {
+fn fig2(py: Python<'_>, runs: usize, sizes: Vec<usize>, seed: u64) -> PyResult<Fig2Rows> {
     use rayon::prelude::*;
     let config = nmci::Fig2Config { runs, sizes, seed };
     let rows = parallel(py, move || -> Result<_, RequestError> {
@@ -518,7 +541,7 @@ fn fig2(py: Python<'_>, runs: usize, sizes: Vec<usize>, seed: u64) -> PyResult<S
         Ok(nmci::fig2_summary(&config, &records))
     })?
     .map_err(|e| request_error(py, e))?;
-    serde_json::to_string(&rows).map_err(|e| error(py, "InternalError", e.to_string()))
+    Ok(Fig2Rows { rows, runs })
 }
 
 /// Panics inside a detached solve: the tests check it arrives as `nmci.InternalError`.
@@ -542,6 +565,7 @@ fn _nmci(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_panic_for_test, m)?)?;
     m.add_class::<Study>()?;
     m.add_class::<Shard>()?;
+    m.add_class::<Fig2Rows>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -380,6 +380,10 @@ def test_fig2_matches_the_cli(tmp_path):
         assert int(values["samples"]) == row["samples"]
         assert float(values["dev_median"]) == row["dev"][0]
     assert f.dev.shape == (2, 3)
+    # The same files, byte for byte.
+    for written in f.write(tmp_path / "py"):
+        name = Path(written).name
+        assert Path(written).read_bytes() == (tmp_path / name).read_bytes(), name
 
 
 def test_the_module_docstring_examples_run():

@@ -119,7 +119,7 @@ mod cli {
     /// `nmci fig2`: runs in parallel, `fig2.csv` and the two-panel `fig2.svg`.
     fn fig2(runs: usize, sizes: Vec<usize>, seed: u64, out: PathBuf) -> Result<String, String> {
         use indicatif::{ProgressBar, ProgressStyle};
-        use nmci::{fig2_csv, fig2_run, fig2_summary, Fig2Config};
+        use nmci::{fig2_run, fig2_summary, Fig2Config};
         use rayon::prelude::*;
 
         let config = Fig2Config { runs, sizes, seed };
@@ -140,12 +140,8 @@ mod cli {
             .map_err(|e| e.to_string())?;
         bar.finish_and_clear();
         let rows = fig2_summary(&config, &records);
-        std::fs::create_dir_all(&out)
-            .map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+        nmci::write_fig2(&rows, runs, &out).map_err(|e| e.to_string())?;
         let csv_path = out.join("fig2.csv");
-        std::fs::write(&csv_path, fig2_csv(&rows))
-            .map_err(|e| format!("cannot write {}: {e}", csv_path.display()))?;
-        fig2_chart(&out.join("fig2.svg"), &rows, runs)?;
         let failures: usize = rows.iter().map(|r| r.failures).sum();
         Ok(format!(
             "{runs} runs × {} sizes in {:.1} s; {failures} SDP failures (counted in fig2.csv); wrote {} and fig2.svg",
@@ -153,137 +149,6 @@ mod cli {
             started.elapsed().as_secs_f64(),
             csv_path.display()
         ))
-    }
-
-    /// The paper's fig. 2 layout: top, `‖P_nmCI − P_opt‖₂` against the sample-set size (log–log,
-    /// median with min and max); bottom, `λ_min(P − K P_true Kᵀ)` of nmCI and of the SDP.
-    fn fig2_chart(
-        path: &std::path::Path,
-        rows: &[nmci::Fig2Row],
-        runs: usize,
-    ) -> Result<(), String> {
-        use plotters::prelude::*;
-        let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
-        let root = SVGBackend::new(path, (900, 760)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(&e))?;
-        let (top, bottom) = root.split_vertically(380);
-        let n_max = rows.iter().map(|r| r.samples).max().unwrap_or(1).max(2) as f64;
-        let x_range = (0.8_f64..n_max * 1.25).log_scale();
-        let positive: Vec<f64> = rows
-            .iter()
-            .flat_map(|r| r.dev)
-            .filter(|v| v.is_finite() && *v > 0.0)
-            .collect();
-        let (lo, hi) = positive
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                (a.min(v), b.max(v))
-            });
-        let (lo, hi) = if lo.is_finite() {
-            (lo / 2.0, hi * 2.0)
-        } else {
-            (1e-12, 1.0)
-        };
-        let mut chart = ChartBuilder::on(&top)
-            .caption(
-                format!("‖P_nmCI − P_opt‖₂ over {runs} runs (median, min, max)"),
-                ("sans-serif", 18),
-            )
-            .margin(12)
-            .x_label_area_size(36)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x_range.clone(), (lo..hi).log_scale())
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc("samples N")
-            .y_desc("deviation")
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .draw()
-            .map_err(|e| err(&e))?;
-        let series =
-            |pick: &dyn Fn(&nmci::Fig2Row) -> f64, positive_only: bool| -> Vec<(f64, f64)> {
-                rows.iter()
-                    .map(|r| (r.samples as f64, pick(r)))
-                    .filter(|(_, v)| v.is_finite() && (!positive_only || *v > 0.0))
-                    .collect()
-            };
-        let blue = RGBColor(31, 119, 180);
-        let red = RGBColor(214, 39, 40);
-        let green = RGBColor(42, 157, 63);
-        for (k, width) in [(0, 3), (1, 1), (2, 1)] {
-            chart
-                .draw_series(LineSeries::new(
-                    series(&|r| r.dev[k], true),
-                    blue.stroke_width(width),
-                ))
-                .map_err(|e| err(&e))?;
-        }
-        let values: Vec<f64> = rows
-            .iter()
-            .flat_map(|r| r.eig_nmci.iter().chain(&r.eig_opt).copied())
-            .filter(|v| v.is_finite())
-            .collect();
-        let (lo, hi) = values
-            .iter()
-            .fold((0.0_f64, 0.0_f64), |(a, b), &v| (a.min(v), b.max(v)));
-        let pad = 0.05 * (hi - lo).max(1e-9);
-        let mut chart = ChartBuilder::on(&bottom)
-            .caption(
-                "λ_min(P − K P_true Kᵀ): below 0 = not conservative for the true P_ab",
-                ("sans-serif", 18),
-            )
-            .margin(12)
-            .x_label_area_size(36)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x_range, (lo - pad)..(hi + pad))
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc("samples N")
-            .y_desc("λ_min")
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .draw()
-            .map_err(|e| err(&e))?;
-        chart
-            .draw_series(LineSeries::new(
-                vec![(0.8, 0.0), (n_max * 1.25, 0.0)],
-                BLACK.stroke_width(1),
-            ))
-            .map_err(|e| err(&e))?;
-        for (label, colour, pick) in [
-            (
-                "nmCI",
-                red,
-                &(|r: &nmci::Fig2Row| r.eig_nmci) as &dyn Fn(&nmci::Fig2Row) -> [f64; 3],
-            ),
-            ("optimal (sampled SDP)", green, &|r: &nmci::Fig2Row| {
-                r.eig_opt
-            }),
-        ] {
-            for (k, width) in [(0, 3), (1, 1), (2, 1)] {
-                let s = chart
-                    .draw_series(LineSeries::new(
-                        series(&|r| pick(r)[k], false),
-                        colour.stroke_width(width),
-                    ))
-                    .map_err(|e| err(&e))?;
-                if k == 0 {
-                    s.label(label).legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(3))
-                    });
-                }
-            }
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| err(&e))?;
-        root.present().map_err(|e| err(&e))?;
-        Ok(())
     }
 
     /// A study configuration from a TOML file, or the defaults.

@@ -4,38 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
-use thiserror::Error;
+pub use crate::error::ReportError;
 
 use super::{estimator_name, estimators, network_svg, Study};
-
-/// A study's files could not be written.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum ReportError {
-    /// The output folder could not be created.
-    #[error("cannot create {}: {message}", path.display())]
-    Create {
-        /// The folder.
-        path: PathBuf,
-        /// The system's message.
-        message: String,
-    },
-    /// A file could not be written.
-    #[error("cannot write {}: {message}", path.display())]
-    Write {
-        /// The file.
-        path: PathBuf,
-        /// The system's message.
-        message: String,
-    },
-    /// A chart could not be drawn.
-    #[error("cannot draw {}: {message}", path.display())]
-    Draw {
-        /// The chart's file.
-        path: PathBuf,
-        /// The plotting library's message.
-        message: String,
-    },
-}
 
 /// Writes a study's files into `out` (created if missing): `summary.json` (the
 /// [`StudyReport`](super::StudyReport)), `nees.csv`, `rmse.csv`, `two_sigma.csv`, `coin.csv`
