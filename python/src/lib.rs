@@ -248,7 +248,9 @@ fn conservativeness_index(
     E: PyReadonlyArray2<'_, f64>,
 ) -> PyResult<f64> {
     let (P, E) = (matrix(&P), matrix(&E));
-    let check = |name: &str, m: &nalgebra::DMatrix<f64>| -> Result<(), InputError> {
+    // P: a covariance (square, finite, symmetric, positive definite). E: square and finite
+    // (an error covariance may be singular); its size is checked against P's by the Rust API.
+    let square = |name: &str, m: &nalgebra::DMatrix<f64>| -> Result<(), InputError> {
         if m.nrows() != m.ncols() || m.nrows() == 0 {
             return Err(InputError::NotSquare {
                 name: name.into(),
@@ -256,10 +258,18 @@ fn conservativeness_index(
                 cols: m.ncols(),
             });
         }
-        nmci::validate_covariance(name, m)
+        if let Some(k) = m.iter().position(|v| !v.is_finite()) {
+            return Err(InputError::NotFinite {
+                name: name.into(),
+                row: k % m.nrows(),
+                col: k / m.nrows(),
+            });
+        }
+        Ok(())
     };
-    check("P", &P)
-        .and_then(|_| check("E", &E))
+    square("P", &P)
+        .and_then(|_| nmci::validate_covariance("P", &P))
+        .and_then(|_| square("E", &E))
         .map_err(|e| error(py, "InputError", e.to_string()))?;
     detached(py, move || nmci::conservativeness_index(&P, &E))?
         .map_err(|e| error(py, "InputError", e.to_string()))

@@ -215,6 +215,8 @@ def test_naive_fusion_is_caught_overconfident_by_the_index():
     error = k @ np.block([[a, cross], [cross.T, b]]) @ k.T
     assert nmci.conservativeness_index(fused.P, error) > 1
     assert nmci.conservativeness_index(nmci.ci(a, b).P, error) <= 1 + 1e-12
+    # A singular error covariance is a valid E.
+    assert nmci.conservativeness_index(np.eye(2), np.diag([0.5, 0.0])) == 0.5
 
 
 def test_sampled_cross_covariances_are_admissible():
@@ -265,6 +267,7 @@ BAD_CALLS = [
     (lambda: nmci.ci_nway([np.eye(2)]), nmci.InputError, "invalid estimates"),
     (lambda: nmci.conservativeness_index(np.eye(2), np.eye(3)), nmci.InputError, "E has size 3"),
     (lambda: nmci.conservativeness_index(-np.eye(2), np.eye(2)), nmci.InputError, "P is not positive definite"),
+    (lambda: nmci.conservativeness_index(np.eye(2), np.full((2, 2), np.inf)), nmci.InputError, "E has a non-finite entry at (0, 0)"),
     (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), sampler="x"), nmci.RequestError, "unknown sampler"),
     (lambda: nmci.track({"runs": 0}), nmci.StudyError, "runs at least 1"),
     (lambda: nmci.track({"rnus": 3}), nmci.StudyError, "unknown field `rnus`"),

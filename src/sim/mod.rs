@@ -394,6 +394,12 @@ pub fn run_shard(
     on_piece: impl Fn() + Sync,
 ) -> Result<StudyShard, SimError> {
     config.validate()?;
+    if first_run.checked_add(config.runs).is_none() {
+        return Err(SimError::InvalidScenario(format!(
+            "first_run {first_run} + runs {} is past the last run index",
+            config.runs
+        )));
+    }
     let with_coin = config.coin && first_run == 0;
     let (traces, coin) = rayon::join(
         || simulate_run_range_parallel(config, model, first_run, &on_piece),

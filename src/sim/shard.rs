@@ -197,7 +197,7 @@ pub fn merge_shards(shards: Vec<StudyShard>) -> Result<Study, MergeError> {
                 end: s.first_run,
             });
         }
-        next = s.first_run + s.config.runs;
+        next = s.first_run.saturating_add(s.config.runs);
     }
     let mut slots: Vec<Option<StudyShard>> = shards.into_iter().map(Some).collect();
     let mut traces = Vec::with_capacity(next);

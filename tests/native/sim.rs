@@ -862,4 +862,10 @@ fn shards_merged_in_any_order_are_the_whole_study_bit_for_bit() {
         matches!(err(vec![a.clone(), extra_coin, c.clone()]), MergeError::Coin(m) if m.contains("belongs only"))
     );
     assert_eq!(a.format, SHARD_FORMAT);
+    // A first run past the last run index is refused, not wrapped around.
+    let past = run_shard(&config, &model, usize::MAX, || {}).unwrap_err();
+    assert!(
+        past.to_string().contains("past the last run index"),
+        "{past}"
+    );
 }
