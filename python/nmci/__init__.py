@@ -36,7 +36,7 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from . import _nmci
+from . import _errors, _nmci
 from ._errors import (
     InputError,
     InternalError,
@@ -80,17 +80,7 @@ __all__ = [
     "load_shard",
     "default_config",
     "fig2",
-    "NmciError",
-    "RequestError",
-    "InputError",
-    "SampleError",
-    "SolveError",
-    "TimeLimitError",
-    "StudyError",
-    "SimulationError",
-    "MergeError",
-    "OutputError",
-    "InternalError",
+    *_errors.__all__,
 ]
 
 

@@ -29,7 +29,7 @@ pub use draw::network_svg;
 pub use live::{LiveStudy, StudyView};
 pub use model::Model;
 #[cfg(not(target_arch = "wasm32"))]
-pub use report::{write_study, ReportError};
+pub use report::write_study;
 pub use scenario::{ScalarMeasurement, Scenario};
 pub use shard::{merge_shards, MergeError, Study, StudyShard, SHARD_FORMAT};
 pub use study::{

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-pub use crate::error::ReportError;
+use crate::error::ReportError;
 
 use super::{estimator_name, estimators, network_svg, Study};
 
