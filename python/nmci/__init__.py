@@ -562,12 +562,10 @@ def merge(shards: Iterable[Union[Shard, PathLike]]) -> Study:
             continue
         path = os.fspath(s)
         if os.path.isdir(path):
-            files = sorted(
-                f for f in os.listdir(path) if f.startswith("shard-") and f.endswith(".json")
-            )
+            files = _nmci.shard_files(path)
             if not files:
                 raise MergeError(f"{path} holds no shard-*.json file")
-            items.extend(load_shard(os.path.join(path, f)) for f in files)
+            items.extend(load_shard(f) for f in files)
         else:
             items.append(load_shard(path))
     return Study(_nmci.merge(items))

@@ -452,6 +452,12 @@ impl Shard {
         })
     }
 
+    /// Its file name, `shard-FIRST-END.json` (what `nmci track --first-run` writes).
+    #[getter]
+    fn file_name(&self) -> String {
+        self.inner.file_name()
+    }
+
     /// Index of the first run.
     #[getter]
     fn first_run(&self) -> usize {
@@ -474,6 +480,19 @@ impl Shard {
     fn __getnewargs__(&self) -> (String,) {
         (self.to_json(),)
     }
+}
+
+/// The shard files of a folder (`shard-*.json`), sorted by name.
+#[pyfunction]
+fn shard_files(py: Python<'_>, dir: std::path::PathBuf) -> PyResult<Vec<String>> {
+    let files = nmci::sim::shard_files(&dir).map_err(|e| {
+        error(
+            py,
+            "MergeError",
+            format!("cannot read {}: {e}", dir.display()),
+        )
+    })?;
+    Ok(files.iter().map(|p| p.display().to_string()).collect())
 }
 
 /// Runs a whole study on every core.
@@ -571,6 +590,7 @@ fn _nmci(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run_study, m)?)?;
     m.add_function(wrap_pyfunction!(run_shard, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
+    m.add_function(wrap_pyfunction!(shard_files, m)?)?;
     m.add_function(wrap_pyfunction!(fig2, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_test, m)?)?;
     m.add_class::<Study>()?;

@@ -338,7 +338,7 @@ def test_shards_from_a_process_pool_merge_into_one_run_bit_for_bit(tmp_path):
         assert np.array_equal(getattr(merged, name), getattr(whole, name)), name
     # Through files, and the CLI's files are those of Python's study.
     for s in shards:
-        s.save(tmp_path / f"shard-{s.first_run:06}.json")
+        s.save(tmp_path / s.file_name)
     from_files = nmci.merge([tmp_path])
     assert from_files.summary == whole.summary
     assert pickle.loads(pickle.dumps(shards[0])).to_json() == shards[0].to_json()

@@ -316,8 +316,11 @@ mod cli {
         cfg.seed = seed.unwrap_or(cfg.seed);
         cfg.coin &= !no_coin;
         cfg.validate().map_err(|e| e.to_string())?;
-        let with_coin = cfg.coin && first_run.unwrap_or(0) == 0;
-        let coin_pieces = if with_coin { estimators().count() } else { 0 };
+        let coin_pieces = if carries_coin(&cfg, first_run.unwrap_or(0)) {
+            estimators().count()
+        } else {
+            0
+        };
         let bar = ProgressBar::new((cfg.runs * RULES.len() + coin_pieces) as u64).with_style(
             ProgressStyle::with_template(
                 "{bar:40} {pos}/{len} runs × rules (+ exact COIN per estimator), {elapsed} (eta {eta})",
@@ -332,7 +335,7 @@ mod cli {
             bar.finish_and_clear();
             std::fs::create_dir_all(&out)
                 .map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-            let path = out.join(shard_file_name(first_run, cfg.runs));
+            let path = out.join(shard.file_name());
             let text = serde_json::to_string(&shard).map_err(|e| e.to_string())?;
             std::fs::write(&path, text)
                 .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
@@ -357,11 +360,6 @@ mod cli {
         ))
     }
 
-    /// The file name of the shard of runs `first..first + runs`.
-    fn shard_file_name(first: usize, runs: usize) -> String {
-        format!("shard-{first:06}-{:06}.json", first + runs)
-    }
-
     /// `nmci merge`: reads shards (files, or every `shard-*.json` in folders), merges them
     /// into one study and writes what `nmci track` writes.
     fn merge(inputs: Vec<PathBuf>, out: PathBuf) -> Result<String, String> {
@@ -369,19 +367,11 @@ mod cli {
         let mut files = Vec::new();
         for input in inputs {
             if input.is_dir() {
-                let mut found: Vec<PathBuf> = std::fs::read_dir(&input)
-                    .map_err(|e| format!("cannot read {}: {e}", input.display()))?
-                    .filter_map(|entry| entry.ok().map(|e| e.path()))
-                    .filter(|p| {
-                        p.file_name()
-                            .and_then(|n| n.to_str())
-                            .is_some_and(|n| n.starts_with("shard-") && n.ends_with(".json"))
-                    })
-                    .collect();
+                let found = shard_files(&input)
+                    .map_err(|e| format!("cannot read {}: {e}", input.display()))?;
                 if found.is_empty() {
                     return Err(format!("{} holds no shard-*.json file", input.display()));
                 }
-                found.sort();
                 files.extend(found);
             } else {
                 files.push(input);

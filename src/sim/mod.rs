@@ -31,7 +31,9 @@ pub use model::Model;
 #[cfg(not(target_arch = "wasm32"))]
 pub use report::write_study;
 pub use scenario::{ScalarMeasurement, Scenario};
-pub use shard::{merge_shards, MergeError, Study, StudyShard, SHARD_FORMAT};
+#[cfg(not(target_arch = "wasm32"))]
+pub use shard::shard_files;
+pub use shard::{carries_coin, merge_shards, MergeError, Study, StudyShard, SHARD_FORMAT};
 pub use study::{
     merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, Rule, RunSpec, RunState,
     RunTrace, Storage, RULES,
@@ -400,11 +402,10 @@ pub fn run_shard(
             config.runs
         )));
     }
-    let with_coin = config.coin && first_run == 0;
     let (traces, coin) = rayon::join(
         || simulate_run_range_parallel(config, model, first_run, &on_piece),
         || {
-            with_coin
+            carries_coin(config, first_run)
                 .then(|| coin_parallel(config, model, &on_piece))
                 .transpose()
         },

@@ -14,8 +14,9 @@
 //! study, so the merged summary, series and report *are* that study's (tested bit for bit,
 //! through the library, the CLI's `track --first-run` / `merge`, and a Python process pool).
 //!
-//! A shard stores every run's per-step trace (about 200 kB of JSON per run of the default
-//! study): enough to merge exactly, and to analyse runs one by one.
+//! A shard stores every run's per-step trace: enough to merge exactly, and to analyse runs
+//! one by one. On disk it is `shard-FIRST-END.json` ([`StudyShard::file_name`]; zero-padded, so
+//! names sort by run), and a folder of them is read by [`shard_files`].
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -41,6 +42,38 @@ pub struct StudyShard {
     /// absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coin: Option<Vec<Vec<f64>>>,
+}
+
+/// Whether the shard of `config.runs` runs from `first_run` carries the exact COIN: it does
+/// when it holds run 0 of a study that asks for it (the COIN does not depend on the runs).
+pub fn carries_coin(config: &StudyConfig, first_run: usize) -> bool {
+    config.coin && first_run == 0 && config.runs > 0
+}
+
+impl StudyShard {
+    /// Its file name: `shard-FIRST-END.json`, zero-padded to six digits.
+    pub fn file_name(&self) -> String {
+        format!(
+            "shard-{:06}-{:06}.json",
+            self.first_run,
+            self.first_run.saturating_add(self.config.runs)
+        )
+    }
+}
+
+/// The shard files of a folder (`shard-*.json`), sorted by name. Native only.
+#[cfg(not(target_arch = "wasm32"))]
+pub fn shard_files(dir: &std::path::Path) -> std::io::Result<Vec<std::path::PathBuf>> {
+    let mut files: Vec<std::path::PathBuf> = std::fs::read_dir(dir)?
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("shard-") && n.ends_with(".json"))
+        })
+        .collect();
+    files.sort();
+    Ok(files)
 }
 
 /// A whole study: its configuration (`runs` = all runs), every run's trace in run order and
@@ -164,8 +197,7 @@ pub fn merge_shards(shards: Vec<StudyShard>) -> Result<Study, MergeError> {
                 found: s.traces.len(),
             });
         }
-        let holds_run_0 = s.first_run == 0 && s.config.runs > 0;
-        match (&s.coin, base.coin && holds_run_0) {
+        match (&s.coin, carries_coin(&s.config, s.first_run)) {
             (None, true) => {
                 return Err(MergeError::Coin(format!(
                     "shard {index} holds run 0 of a study with coin = true but carries no COIN"
