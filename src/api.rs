@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{InputError, RequestError, SolveError};
-use crate::fusion::bracket::{trace_upper_bound, UpperBounds, UpperRule};
+use crate::fusion::bracket::{trace_upper_bound, UpperBounds};
 use crate::fusion::certify::{
     certification_blocks, certified_fusion, certify_gain, CertifiedResult, CertifySettings,
     MAX_LEVEL,
@@ -23,36 +23,12 @@ use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::nway::{
     covariance_intersection_nway, non_monolithic_ci_nway, Estimate, NwayResult, PairPattern,
 };
+use crate::fusion::rules::{methods_phrase, Criteria, Guarantee, Method, RequestOption};
 use crate::fusion::sample::{SamplerKind, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion, SdpSettings};
 use crate::fusion::{Criterion, Fused, FusionProblem};
 use crate::linalg::{matrix_from_rows, matrix_to_rows};
 use crate::structure::CrossPattern;
-
-/// Which fusion rule a request asks for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// Covariance intersection, one weight.
-    Ci,
-    /// Non-monolithic CI, one weight per independent block.
-    Nmci,
-    /// Sampled-SDP approximation of the optimal bound.
-    Sdp,
-    /// The robust SDP by cutting planes: worst-case cross-covariances as constraints.
-    #[serde(rename = "sdp_cuts")]
-    SdpCuts,
-    /// Inverse covariance intersection: conservative for common-information correlation only.
-    Ici,
-    /// Ellipsoidal intersection: not guaranteed conservative.
-    Ei,
-    /// Naive fusion (as if independent): not conservative when the estimates are correlated.
-    Naive,
-    /// The tightest bound proven conservative by a sum-of-squares certificate of a chosen level
-    /// (`certified_fusion`): its trace never above nmCI's or CI's beyond rounding, tighter on
-    /// many non-separable patterns.
-    Certified,
-}
 
 /// The certified rule joins the `sdp` / `sdp_cuts` bracket's upper bound when every
 /// independent block has at most this many states (the level-1 program grows as
@@ -243,11 +219,10 @@ pub struct FuseResponse {
     /// proven to that relative accuracy (and attained to it by method `certified`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gap_closed: Option<bool>,
-    /// `ici`, `ei`, `naive`: what the bound is guaranteed for — `"common information only"`
-    /// (ICI) or `"not guaranteed"` (EI, naive). CI, nmCI and the certified SDP bracket hold
-    /// for every admissible `P_ab`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub conservative_for: Option<String>,
+    /// What the bound is guaranteed for (`fusion::rules`): `conservative` (CI, nmCI, the
+    /// certified rule: every admissible `P_ab`), `relaxation` (`sdp`, `sdp_cuts`: the drawn or
+    /// found `P_ab` only; see the bracket), `common_information` (ICI) or `none` (EI, naive).
+    pub guarantee: Guarantee,
 }
 
 fn matrix(name: &str, rows: &[Vec<f64>]) -> Result<DMatrix<f64>, InputError> {
@@ -305,98 +280,114 @@ impl FuseRequest {
         }
     }
 
+    /// The method-specific fields this request sets.
+    fn options(&self) -> [(RequestOption, bool); 6] {
+        RequestOption::ALL.map(|o| {
+            let set = match o {
+                RequestOption::Samples => self.samples.is_some(),
+                RequestOption::MaxTrials => self.max_trials.is_some(),
+                RequestOption::Sampler => self.sampler.is_some(),
+                RequestOption::Seed => self.seed.is_some(),
+                RequestOption::TimeLimit => self.time_limit.is_some(),
+                RequestOption::Level => self.level.is_some(),
+            };
+            (o, set)
+        })
+    }
+
+    /// Checks the fields against each other and against the method's row of
+    /// [`crate::fusion::rules::RULES`] (which options and criteria it takes).
     fn check_fields(&self) -> Result<(), RequestError> {
-        let invalid = |m: &str| Err(RequestError::Invalid(m.into()));
+        let rule = self.method.info();
         if self.estimates.is_some() {
-            if !self.pa.is_empty()
-                || !self.pb.is_empty()
-                || self.xa.is_some()
-                || self.xb.is_some()
-                || self.pab_unknown.is_some()
+            if let Some(field) = [
+                ("pa", !self.pa.is_empty()),
+                ("pb", !self.pb.is_empty()),
+                ("xa", self.xa.is_some()),
+                ("xb", self.xb.is_some()),
+                ("pab_unknown", self.pab_unknown.is_some()),
+            ]
+            .into_iter()
+            .find_map(|(f, set)| set.then_some(f))
             {
-                return invalid("give either two estimates (`pa`, `pb`, `xa`, `xb`, `pab_unknown`) or `estimates` for N-way fusion, not both");
+                return Err(RequestError::invalid(field, "give either two estimates (`pa`, `pb`, `xa`, `xb`, `pab_unknown`) or `estimates` for N-way fusion, not both"));
             }
-            if !matches!(self.method, Method::Ci | Method::Nmci) {
-                return invalid("N-way fusion (`estimates`) supports methods \"ci\" and \"nmci\"");
+            if !rule.nway {
+                return Err(RequestError::invalid(
+                    "method",
+                    format!(
+                        "N-way fusion (`estimates`) supports {}",
+                        methods_phrase(|r| r.nway)
+                    ),
+                ));
             }
         } else {
             if self.patterns.is_some() {
-                return invalid("`patterns` applies to N-way fusion only (with `estimates`); two estimates take `pab_unknown`");
+                return Err(RequestError::invalid("patterns", "`patterns` applies to N-way fusion only (with `estimates`); two estimates take `pab_unknown`"));
             }
             // Both missing: say what a request needs; one empty: the problem builder names it.
             if self.pa.is_empty() && self.pb.is_empty() {
-                return invalid("`pa` and `pb` are required (or `estimates` for N-way fusion)");
+                return Err(RequestError::invalid(
+                    "pa",
+                    "`pa` and `pb` are required (or `estimates` for N-way fusion)",
+                ));
             }
         }
-        if self.method != Method::Sdp {
-            for (name, set) in [
-                ("samples", self.samples.is_some()),
-                ("max_trials", self.max_trials.is_some()),
-                ("sampler", self.sampler.is_some()),
-            ] {
-                if set {
-                    return Err(RequestError::Invalid(format!(
-                        "`{name}` applies to method \"sdp\" only"
-                    )));
-                }
-            }
-        }
-        if !matches!(
-            self.method,
-            Method::Sdp | Method::SdpCuts | Method::Certified
-        ) {
-            for (name, set) in [
-                ("time_limit", self.time_limit.is_some()),
-                ("level", self.level.is_some()),
-            ] {
-                if set {
-                    return Err(RequestError::Invalid(format!(
-                        "`{name}` applies to methods \"sdp\", \"sdp_cuts\" and \"certified\" only"
-                    )));
-                }
+        for (option, set) in self.options() {
+            if set && !rule.options.contains(&option) {
+                let field = option.field();
+                return Err(RequestError::invalid(
+                    field,
+                    format!(
+                        "`{field}` applies to {} only",
+                        methods_phrase(|r| r.options.contains(&option))
+                    ),
+                ));
             }
         }
         if let Some(t) = self.time_limit {
             if !(t > 0.0 && t.is_finite()) {
-                return Err(RequestError::Invalid(format!(
-                    "`time_limit` must be a positive number of seconds (got {t})"
-                )));
+                return Err(RequestError::invalid(
+                    "time_limit",
+                    format!("`time_limit` must be a positive number of seconds (got {t})"),
+                ));
             }
         }
         if let Some(l) = self.level {
             if !(1..=MAX_LEVEL).contains(&l) {
-                return Err(RequestError::Invalid(format!(
-                    "`level` must be in 1..={MAX_LEVEL} (got {l})"
-                )));
+                return Err(RequestError::invalid(
+                    "level",
+                    format!("`level` must be in 1..={MAX_LEVEL} (got {l})"),
+                ));
             }
         }
-        if !matches!(self.method, Method::Sdp | Method::SdpCuts) && self.seed.is_some() {
-            return Err(RequestError::Invalid(
-                "`seed` applies to methods \"sdp\" and \"sdp_cuts\" only".into(),
-            ));
-        }
-        if matches!(self.method, Method::Ei | Method::Naive) && self.criterion.is_some() {
-            return Err(RequestError::Invalid(
-                "methods \"ei\" and \"naive\" have no weight to optimise; `criterion` does not apply"
-                    .into(),
-            ));
-        }
-        if matches!(
-            self.method,
-            Method::Sdp | Method::SdpCuts | Method::Certified
-        ) && self.criterion == Some(Criterion::Logdet)
-        {
-            return Err(RequestError::Invalid(
-                "methods \"sdp\", \"sdp_cuts\" and \"certified\" minimise the trace; criterion \"logdet\" is not available for them"
-                    .into(),
-            ));
+        if let Some(c) = self.criterion {
+            if !rule.criteria.allows(c) {
+                let message = if rule.criteria == Criteria::NoWeight {
+                    format!(
+                        "{} have no weight to optimise; `criterion` does not apply",
+                        methods_phrase(|r| r.criteria == Criteria::NoWeight)
+                    )
+                } else {
+                    format!(
+                        "{} minimise the trace; criterion \"{}\" is not available for them",
+                        methods_phrase(|r| r.criteria == Criteria::TraceOnly),
+                        c.name()
+                    )
+                };
+                return Err(RequestError::invalid("criterion", message));
+            }
         }
         if self.samples == Some(0) {
-            return Err(RequestError::Invalid("`samples` must be at least 1".into()));
+            return Err(RequestError::invalid(
+                "samples",
+                "`samples` must be at least 1",
+            ));
         }
         if self.max_trials == Some(0) {
-            return Err(RequestError::Invalid(
-                "`max_trials` must be at least 1".into(),
+            return Err(RequestError::invalid(
+                "max_trials",
+                "`max_trials` must be at least 1",
             ));
         }
         Ok(())
@@ -442,7 +433,7 @@ fn bare_response(
         violation: None,
         converged: None,
         gap_closed: None,
-        conservative_for: None,
+        guarantee: method.guarantee(),
     }
 }
 
@@ -628,11 +619,7 @@ fn fill_bracket(lower: f64, uppers: &UpperBounds, r: &mut FuseResponse) {
     if let Some(b) = uppers.bracket(lower) {
         r.lower_bound = Some(b.lower);
         r.upper_bound = Some(b.upper);
-        r.upper_bound_rule = Some(match b.upper_rule {
-            UpperRule::Ci => Method::Ci,
-            UpperRule::Nmci => Method::Nmci,
-            UpperRule::Certified => Method::Certified,
-        });
+        r.upper_bound_rule = Some(b.upper_rule);
         r.gap = Some(b.gap());
         r.gap_relative = Some(b.gap_relative());
     }
@@ -692,7 +679,6 @@ pub(crate) fn ici_response(
     let ici = inverse_covariance_intersection(problem, criterion)?;
     let mut r = response(Method::Ici, criterion, &ici.fused);
     r.omega = Some(vec![ici.omega]);
-    r.conservative_for = Some("common information only".into());
     Ok((r, ici.fused))
 }
 
@@ -700,17 +686,13 @@ pub(crate) fn ici_response(
 /// default: EI has no weight to optimise).
 pub(crate) fn ei_response(problem: &FusionProblem) -> Result<(FuseResponse, Fused), InputError> {
     let fused = ellipsoidal_intersection(problem)?;
-    let mut r = response(Method::Ei, Criterion::default(), &fused);
-    r.conservative_for = Some("not guaranteed".into());
-    Ok((r, fused))
+    Ok((response(Method::Ei, Criterion::default(), &fused), fused))
 }
 
 /// The naive-fusion response and the fused result it was made from.
 pub(crate) fn naive_response(problem: &FusionProblem) -> (FuseResponse, Fused) {
     let fused = naive_fusion(problem);
-    let mut r = response(Method::Naive, Criterion::default(), &fused);
-    r.conservative_for = Some("not guaranteed".into());
-    (r, fused)
+    (response(Method::Naive, Criterion::default(), &fused), fused)
 }
 
 /// The sampled-SDP response; `uppers` are the certified upper bounds when the caller has

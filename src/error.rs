@@ -194,9 +194,14 @@ pub enum RequestError {
     /// The request is not valid JSON, has an unknown field, or a value of the wrong type.
     #[error("invalid request: {0}")]
     Malformed(String),
-    /// A field value out of range (e.g. `samples: 0`).
-    #[error("invalid request: {0}")]
-    Invalid(String),
+    /// A field value out of range (e.g. `samples: 0`), or a field that does not apply.
+    #[error("invalid request: {message}")]
+    Invalid {
+        /// The request field at fault (`"samples"`).
+        field: String,
+        /// What is wrong with it.
+        message: String,
+    },
     /// A matrix, vector or pattern that cannot be fused.
     #[error(transparent)]
     Input(#[from] InputError),
@@ -206,6 +211,73 @@ pub enum RequestError {
     /// Sampling admissible cross-covariances failed.
     #[error(transparent)]
     Sample(#[from] SampleError),
+}
+
+impl RequestError {
+    /// A field value out of range, or a field that does not apply.
+    pub fn invalid(field: impl Into<String>, message: impl Into<String>) -> Self {
+        RequestError::Invalid {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The request field at fault, when there is one: the field of [`RequestError::Invalid`],
+    /// the field of an [`InputError`] (`pa`, `pb`, `xa`, `xb`, `pab_unknown`,
+    /// `estimates[i].p`, `estimates`), or the unknown or missing field named by the JSON
+    /// parser. The page places its messages by it; the wasm layer hands it over as the thrown
+    /// `Error`'s `field`, the Python package as the exception's `field`.
+    pub fn field(&self) -> Option<String> {
+        match self {
+            RequestError::Invalid { field, .. } => Some(field.clone()),
+            RequestError::Input(e) => e.request_field(),
+            RequestError::Malformed(message) => ["unknown field `", "missing field `"]
+                .iter()
+                .find_map(|prefix| message.strip_prefix(prefix))
+                .and_then(|rest| rest.split('`').next())
+                .map(str::to_owned),
+            RequestError::Solve(SolveError::Input(e)) => e.request_field(),
+            RequestError::Solve(_) | RequestError::Sample(_) => None,
+        }
+    }
+}
+
+impl InputError {
+    /// The name of the input at fault (`"P_a"`, `"estimates[1].p"`), when there is one.
+    pub fn name(&self) -> Option<&str> {
+        match self {
+            InputError::Empty { name }
+            | InputError::NotSquare { name, .. }
+            | InputError::NotFinite { name, .. }
+            | InputError::NotSymmetric { name, .. }
+            | InputError::NotPositiveDefinite { name, .. }
+            | InputError::NotBlockDiagonal { name, .. }
+            | InputError::SizeMismatch { name, .. } => Some(name),
+            InputError::InvalidBlocks { .. } | InputError::Estimates(_) => None,
+        }
+    }
+
+    /// The JSON request field of the input at fault ([`request_field`]); a set of estimates
+    /// that cannot be fused is `estimates`.
+    pub fn request_field(&self) -> Option<String> {
+        if let InputError::Estimates(_) = self {
+            return Some("estimates".into());
+        }
+        self.name().map(request_field)
+    }
+}
+
+/// The JSON request field of an input named in an error: `P_a` is `pa`, `x_b` is `xb`; other
+/// names are already the field's (`pab_unknown`, `estimates[1].p`).
+pub fn request_field(name: &str) -> String {
+    match name {
+        "P_a" => "pa",
+        "P_b" => "pb",
+        "x_a" => "xa",
+        "x_b" => "xb",
+        other => other,
+    }
+    .into()
 }
 
 /// A report's files (a study's, fig. 2's) could not be written.

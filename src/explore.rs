@@ -15,6 +15,7 @@ use crate::fusion::bracket::CLOSED_RTOL;
 use crate::fusion::certify::CertifySettings;
 use crate::fusion::check::{fused_coin, worst_margin};
 use crate::fusion::known::known_correlation_fusion;
+use crate::fusion::rules::{Method, RULES};
 use crate::fusion::sample::{sample_cross_covariances, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::Criterion;
@@ -68,7 +69,7 @@ pub struct Gap {
     /// The rounded-up trace of the best conservative rule (a proven upper bound).
     pub upper: f64,
     /// Which rule gives `upper` (`ci`, `nmci` or `certified`).
-    pub upper_rule: crate::api::Method,
+    pub upper_rule: Method,
     /// `upper − lower`, rounded up.
     pub absolute: f64,
     /// `(upper − lower) / upper`.
@@ -78,25 +79,6 @@ pub struct Gap {
     pub closed: bool,
     /// The certified rule's level on each block (when computed).
     pub levels: Option<Vec<u32>>,
-}
-
-/// Worst `λ_min(P̄ − K P' Kᵀ)` of each rule over the region's cross-covariances.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Margins {
-    /// CI.
-    pub ci: f64,
-    /// nmCI.
-    pub nmci: f64,
-    /// Sampled SDP (absent when it failed). Negative = not conservative for some drawn `P'`.
-    pub sdp: Option<f64>,
-    /// The certified rule (absent when not computed).
-    pub certified: Option<f64>,
-    /// ICI (conservative for common-information correlation only).
-    pub ici: f64,
-    /// EI (not guaranteed conservative).
-    pub ei: f64,
-    /// Naive fusion (not conservative for correlated estimates).
-    pub naive: f64,
 }
 
 /// The conservativeness index of one rule over the region's cross-covariances:
@@ -110,23 +92,21 @@ pub struct CoinStats {
     pub median: f64,
 }
 
-/// [`CoinStats`] of each rule over the region.
+/// One rule's part of an [`Exploration`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Coins {
-    /// CI.
-    pub ci: CoinStats,
-    /// nmCI.
-    pub nmci: CoinStats,
-    /// Sampled SDP (absent when it failed).
-    pub sdp: Option<CoinStats>,
-    /// The certified rule (absent when not computed).
-    pub certified: Option<CoinStats>,
-    /// ICI.
-    pub ici: CoinStats,
-    /// EI.
-    pub ei: CoinStats,
-    /// Naive fusion.
-    pub naive: CoinStats,
+pub struct RuleReport {
+    /// The rule (its label, colour and guarantee: [`Method::info`]).
+    pub method: Method,
+    /// Its response, as `fuse` gives it (absent when it could not be computed).
+    pub response: Option<FuseResponse>,
+    /// Why it could not be computed (a block above the certified rule's limit, the sampler's
+    /// budget, the solver's status).
+    pub error: Option<String>,
+    /// The worst `λ_min(P̄ − K P' Kᵀ)` over the region's cross-covariances (negative: not
+    /// conservative for some drawn `P'`); absent without a region or a response.
+    pub margin: Option<f64>,
+    /// Its COIN over the region's cross-covariances.
+    pub coin: Option<CoinStats>,
 }
 
 /// Everything the explorer shows for one state.
@@ -134,25 +114,11 @@ pub struct Coins {
 pub struct Exploration {
     /// State dimension.
     pub n: usize,
-    /// CI.
-    pub ci: FuseResponse,
-    /// nmCI.
-    pub nmci: FuseResponse,
-    /// ICI (same criterion as CI; `conservative_for` says for what).
-    pub ici: FuseResponse,
-    /// Ellipsoidal intersection (not guaranteed conservative).
-    pub ei: FuseResponse,
-    /// Naive fusion (not guaranteed conservative).
-    pub naive: FuseResponse,
-    /// The sampled-SDP bound, when it could be computed.
-    pub sdp: Option<FuseResponse>,
-    /// Why it could not (sampler budget, solver status).
-    pub sdp_error: Option<String>,
-    /// The certified rule (proven conservative; blocks of at most
-    /// [`BRACKET_CERTIFY_MAX_BLOCK`] states).
-    pub certified: Option<FuseResponse>,
-    /// Why it was not computed (a larger block, or the solver).
-    pub certified_error: Option<String>,
+    /// Every rule the explorer computes ([`crate::RuleInfo::explorer`]), in
+    /// [`crate::RULES`] order. CI, nmCI and ICI use the request's criterion; the SDP and the
+    /// certified rule (blocks of at most [`BRACKET_CERTIFY_MAX_BLOCK`] states) minimise the
+    /// trace.
+    pub rules: Vec<RuleReport>,
     /// SDP lower bound vs the best certified upper bound (CI, nmCI or the certified rule).
     pub gap: Option<Gap>,
     /// Region samples drawn.
@@ -161,15 +127,26 @@ pub struct Exploration {
     pub region_acceptance_rate: Option<f64>,
     /// Why the region could not be drawn.
     pub region_error: Option<String>,
-    /// Conservativeness of each rule over the region's cross-covariances.
-    pub margins: Option<Margins>,
-    /// Each rule's conservativeness index over the region's cross-covariances.
-    pub coin: Option<Coins>,
     /// The region: `region_count` optimal known-correlation covariances `P*`, each `n × n`
     /// row-major, concatenated (the wasm layer hands it over as a `Float64Array`).
     #[serde(skip)]
     pub region: Vec<f64>,
 }
+
+impl Exploration {
+    /// The report of `method` (absent when the explorer does not compute it).
+    pub fn rule(&self, method: Method) -> Option<&RuleReport> {
+        self.rules.iter().find(|r| r.method == method)
+    }
+
+    /// The response of `method`, when it was computed.
+    pub fn response(&self, method: Method) -> Option<&FuseResponse> {
+        self.rule(method).and_then(|r| r.response.as_ref())
+    }
+}
+
+/// A rule's response and fused result, or why it could not be computed.
+type Outcome = Result<(FuseResponse, Fused), String>;
 
 /// Mixes the SDP seed into an independent stream for the region samples.
 fn region_seed(seed: u64) -> u64 {
@@ -182,7 +159,7 @@ fn region_seed(seed: u64) -> u64 {
 /// let req: nmci::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],
 ///     "pb": [[1,0],[0,4]], "pab_unknown": [[true,false],[false,true]], "samples": 50}"#).unwrap();
 /// let a = nmci::explore(&req).unwrap();
-/// assert_eq!(a.nmci.trace, 2.0);
+/// assert_eq!(a.response(nmci::Method::Nmci).unwrap().trace, 2.0);
 /// assert!(a.gap.unwrap().absolute.abs() < 1e-6);
 /// assert_eq!(a.region.len(), 300 * 4);
 /// ```
@@ -198,12 +175,16 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
     let criterion = request.criterion.unwrap_or_default();
     let samples = request.samples.unwrap_or(200);
     if samples == 0 {
-        return Err(RequestError::Invalid("`samples` must be at least 1".into()));
+        return Err(RequestError::invalid(
+            "samples",
+            "`samples` must be at least 1",
+        ));
     }
     let max_trials = request.max_trials.unwrap_or(200_000);
     if max_trials == 0 {
-        return Err(RequestError::Invalid(
-            "`max_trials` must be at least 1".into(),
+        return Err(RequestError::invalid(
+            "max_trials",
+            "`max_trials` must be at least 1",
         ));
     }
     let seed = request.seed.unwrap_or(0);
@@ -213,11 +194,6 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         ..SamplerSettings::rejection(max_trials)
     };
 
-    let (ci, ci_fused) = ci_response(&problem, criterion)?;
-    let (nmci, nm_fused) = nmci_response(&problem, criterion)?;
-    let (ici, ici_fused) = ici_response(&problem, criterion)?;
-    let (ei, ei_fused) = ei_response(&problem)?;
-    let (naive, naive_fused) = naive_response(&problem);
     let settings = SdpSettings {
         samples,
         seed,
@@ -225,26 +201,41 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         ..SdpSettings::default()
     };
     let certify = CertifySettings::default();
-    let (certified, certified_fused, certified_error) = match bracket_certificate(&problem, &certify) {
-        Ok(Some(cert)) => (Some(certificate_response(&cert)), Some(cert.fused), None),
-        Ok(None) => (
-            None,
-            None,
-            Some(format!(
-                "the explorer certifies independent blocks of at most {BRACKET_CERTIFY_MAX_BLOCK} states (the level-1 program grows as (2n² + 1)²); method \"certified\" of the CLI takes up to 6"
-            )),
-        ),
-        Err(e) => (None, None, Some(e.to_string())),
+    let certificate = bracket_certificate(&problem, &certify);
+    let certified_P = match &certificate {
+        Ok(Some(cert)) => Some(&cert.fused.P),
+        _ => None,
     };
     // The proven upper ends: CI and nmCI (trace criterion) and the certified rule.
-    let uppers = upper_bounds(&problem, certified_fused.as_ref().map(|f| &f.P))?;
-    // The page never shows the SDP's own-gain certificate: not computed here.
-    let (sdp, sdp_fused, sdp_error) =
-        match sdp_response(&problem, &settings, &certify, Some(uppers), false) {
-            Ok((r, f)) => (Some(r), Some(f), None),
-            Err(e) => (None, None, Some(e.to_string())),
+    let uppers = upper_bounds(&problem, certified_P)?;
+
+    let mut computed: Vec<(Method, Outcome)> = Vec::new();
+    for rule in RULES.iter().filter(|r| r.explorer) {
+        let outcome = match rule.method {
+            Method::Ci => Ok(ci_response(&problem, criterion)?),
+            Method::Nmci => Ok(nmci_response(&problem, criterion)?),
+            Method::Ici => Ok(ici_response(&problem, criterion)?),
+            Method::Ei => Ok(ei_response(&problem)?),
+            Method::Naive => Ok(naive_response(&problem)),
+            Method::Certified => match &certificate {
+                Ok(Some(cert)) => Ok((certificate_response(cert), cert.fused.clone())),
+                Ok(None) => Err(format!(
+                    "the explorer certifies independent blocks of at most {BRACKET_CERTIFY_MAX_BLOCK} states (the level-1 program grows as (2n² + 1)²); method \"certified\" of the CLI takes up to 6"
+                )),
+                Err(e) => Err(e.to_string()),
+            },
+            // The page never shows the SDP's own-gain certificate: not computed here.
+            Method::Sdp => sdp_response(&problem, &settings, &certify, Some(uppers), false)
+                .map_err(|e| e.to_string()),
+            Method::SdpCuts => Err("the explorer does not run the cutting-plane SDP".into()),
         };
-    let gap = sdp.as_ref().and_then(|s| {
+        computed.push((rule.method, outcome));
+    }
+    let sdp = computed.iter().find_map(|(m, o)| match (m, o) {
+        (Method::Sdp, Ok((r, _))) => Some(r),
+        _ => None,
+    });
+    let gap = sdp.and_then(|s| {
         Some(Gap {
             lower: s.lower_bound?,
             upper: s.upper_bound?,
@@ -252,14 +243,17 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
             absolute: s.gap?,
             relative: s.gap_relative?,
             closed: s.gap_relative? <= CLOSED_RTOL,
-            levels: certified.as_ref().and_then(|c| c.levels.clone()),
+            levels: match &certificate {
+                Ok(Some(cert)) => Some(cert.levels.clone()),
+                _ => None,
+            },
         })
     });
 
     let region_samples = request.region_samples.unwrap_or(300);
     let mut region = Vec::new();
-    let (mut region_count, mut region_acceptance_rate, mut region_error, mut margins, mut coin) =
-        (0, None, None, None, None);
+    let (mut region_count, mut region_acceptance_rate, mut region_error) = (0, None, None);
+    let mut drawn_cross = None;
     if region_samples > 0 {
         match sample_cross_covariances(&problem, region_samples, region_seed(seed), sampler) {
             Ok(drawn) => {
@@ -268,49 +262,43 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
                     let best = known_correlation_fusion(&problem, P_ab);
                     region.extend(rows_flat(&best.P));
                 }
-                let worst = |f: &Fused| worst_margin(&problem, f, &drawn.cross);
-                margins = Some(Margins {
-                    ci: worst(&ci_fused),
-                    nmci: worst(&nm_fused),
-                    sdp: sdp_fused.as_ref().map(worst),
-                    certified: certified_fused.as_ref().map(worst),
-                    ici: worst(&ici_fused),
-                    ei: worst(&ei_fused),
-                    naive: worst(&naive_fused),
-                });
-                let stats = |f: &Fused| coin_stats(&problem, f, &drawn.cross);
-                coin = Some(Coins {
-                    ci: stats(&ci_fused)?,
-                    nmci: stats(&nm_fused)?,
-                    sdp: sdp_fused.as_ref().map(stats).transpose()?,
-                    certified: certified_fused.as_ref().map(stats).transpose()?,
-                    ici: stats(&ici_fused)?,
-                    ei: stats(&ei_fused)?,
-                    naive: stats(&naive_fused)?,
-                });
                 region_count = drawn.len();
                 region_acceptance_rate = Some(drawn.acceptance_rate());
+                drawn_cross = Some(drawn.cross);
             }
             Err(e) => region_error = Some(e.to_string()),
         }
     }
+    let rules = computed
+        .into_iter()
+        .map(|(method, outcome)| {
+            let (response, fused, error) = match outcome {
+                Ok((r, f)) => (Some(r), Some(f), None),
+                Err(e) => (None, None, Some(e)),
+            };
+            let (margin, coin) = match (&fused, &drawn_cross) {
+                (Some(f), Some(cross)) => (
+                    Some(worst_margin(&problem, f, cross)),
+                    Some(coin_stats(&problem, f, cross)?),
+                ),
+                _ => (None, None),
+            };
+            Ok(RuleReport {
+                method,
+                response,
+                error,
+                margin,
+                coin,
+            })
+        })
+        .collect::<Result<Vec<_>, RequestError>>()?;
     Ok(Exploration {
         n,
-        ci,
-        nmci,
-        ici,
-        ei,
-        naive,
-        sdp,
-        sdp_error,
-        certified,
-        certified_error,
+        rules,
         gap,
         region_count,
         region_acceptance_rate,
         region_error,
-        margins,
-        coin,
         region,
     })
 }

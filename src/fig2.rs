@@ -48,9 +48,13 @@ impl Default for Fig2Config {
 impl Fig2Config {
     /// Checks the settings.
     pub fn validate(&self) -> Result<(), RequestError> {
-        if self.runs == 0 || self.sizes.is_empty() || self.sizes.contains(&0) {
-            return Err(RequestError::Invalid(
-                "fig2 needs at least one run and sample-set sizes of at least 1".into(),
+        if self.runs == 0 {
+            return Err(RequestError::invalid("runs", "fig2 needs at least one run"));
+        }
+        if self.sizes.is_empty() || self.sizes.contains(&0) {
+            return Err(RequestError::invalid(
+                "sizes",
+                "fig2 needs sample-set sizes of at least 1",
             ));
         }
         Ok(())

@@ -49,17 +49,16 @@ mod structure;
 pub mod wasm;
 
 pub use api::{
-    fuse, fuse_json, FuseRequest, FuseResponse, Method, NwayEstimate, NwayPair,
-    BRACKET_CERTIFY_MAX_BLOCK,
+    fuse, fuse_json, FuseRequest, FuseResponse, NwayEstimate, NwayPair, BRACKET_CERTIFY_MAX_BLOCK,
 };
-pub use error::{InputError, ReportError, RequestError, SampleError, SolveError};
-pub use explore::{explore, Exploration, ExploreRequest, Gap, Margins};
+pub use error::{request_field, InputError, ReportError, RequestError, SampleError, SolveError};
+pub use explore::{explore, CoinStats, Exploration, ExploreRequest, Gap, RuleReport};
 #[cfg(not(target_arch = "wasm32"))]
 pub use fig2::write_fig2;
 pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
 pub use fusion::bracket::{
     ci_upper_bound, lower_bound as lagrangian_lower_bound, nmci_upper_bound, trace_upper_bound,
-    Bracket, UpperBounds, UpperRule, CLOSED_RTOL,
+    Bracket, UpperBounds, CLOSED_RTOL,
 };
 pub use fusion::certify::{
     certified_fusion, certify_gain, CertifiedResult, CertifySettings, MAX_LEVEL,
@@ -79,6 +78,7 @@ pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::nway::{
     covariance_intersection_nway, non_monolithic_ci_nway, Estimate, NwayResult, PairPattern,
 };
+pub use fusion::rules::{rules, Criteria, Guarantee, Method, RequestOption, RuleInfo, RULES};
 pub use fusion::sample::{
     sample_cross_covariances, sample_cross_covariances_with, CrossSamples, SamplerKind,
     SamplerSettings,

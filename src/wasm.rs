@@ -6,15 +6,27 @@ use serde::Serialize;
 use wasm_bindgen::prelude::*;
 
 use crate::api::FuseRequest;
+use crate::error::RequestError;
 use crate::sim::{LiveStudy, StudyConfig};
 use crate::{ExploreRequest, Fig2Config, Fig2Record};
 
 /// A request object, parsed exactly as the CLI parses JSON: through a `serde_json::Value`,
 /// because serde-wasm-bindgen alone skips unknown fields instead of rejecting them.
-fn parse<T: DeserializeOwned>(request: JsValue) -> Result<T, JsError> {
+fn parse<T: DeserializeOwned>(request: JsValue) -> Result<T, RequestError> {
     let value: serde_json::Value = serde_wasm_bindgen::from_value(request)
-        .map_err(|e| JsError::new(&format!("invalid request: {e}")))?;
-    serde_json::from_value(value).map_err(|e| JsError::new(&format!("invalid request: {e}")))
+        .map_err(|e| RequestError::Malformed(e.to_string()))?;
+    serde_json::from_value(value).map_err(|e| RequestError::Malformed(e.to_string()))
+}
+
+/// A request's error as a thrown JS `Error` whose `field` names the request field at fault
+/// ([`RequestError::field`]; absent when no single field is).
+fn thrown(error: RequestError) -> JsValue {
+    let object = js_sys::Error::new(&error.to_string());
+    if let Some(field) = error.field() {
+        // Setting a property on a fresh Error object cannot fail.
+        let _ = js_sys::Reflect::set(&object, &"field".into(), &field.into());
+    }
+    object.into()
 }
 
 /// A response as a plain JS object (absent optional fields are left out, not `null`).
@@ -24,21 +36,38 @@ fn to_js<T: Serialize>(value: &T) -> Result<JsValue, JsError> {
 }
 
 /// Runs a fusion request (the same object as `nmci fuse` reads) and returns the response
-/// object; throws an `Error` carrying the message of any invalid input.
+/// object; throws an `Error` carrying the message of any invalid input and, in `field`, the
+/// request field at fault.
 #[wasm_bindgen]
-pub fn fuse(request: JsValue) -> Result<JsValue, JsError> {
-    let request: FuseRequest = parse(request)?;
-    to_js(&crate::api::fuse(&request)?)
+pub fn fuse(request: JsValue) -> Result<JsValue, JsValue> {
+    let request: FuseRequest = parse(request).map_err(thrown)?;
+    let response = crate::api::fuse(&request).map_err(thrown)?;
+    Ok(to_js(&response)?)
+}
+
+/// Every fusion rule ([`crate::RULES`]): name, label, legend, guarantee, colour, criteria,
+/// options, whether it fuses N estimates and whether the explorer computes it.
+#[wasm_bindgen]
+pub fn rules() -> Result<JsValue, JsError> {
+    to_js(&crate::RULES)
+}
+
+/// The tracking study's estimators in report order ([`crate::sim::estimators`]): name, label,
+/// colour and whether the charts draw it.
+#[wasm_bindgen]
+pub fn study_estimators() -> Result<JsValue, JsError> {
+    to_js(&crate::sim::estimators().collect::<Vec<_>>())
 }
 
 /// Analyses one explorer state (see [`crate::ExploreRequest`]): CI, nmCI, the sampled-SDP
 /// bound, the gap, the region of possible true fused covariances and each rule's worst
 /// conservativeness margin. The region crosses as a `Float64Array` in `region`
 /// (`region_count` row-major `n × n` matrices).
+/// Throws as [`fuse`] does.
 #[wasm_bindgen]
-pub fn explore(request: JsValue) -> Result<JsValue, JsError> {
-    let request: ExploreRequest = parse(request)?;
-    let analysis = crate::explore(&request)?;
+pub fn explore(request: JsValue) -> Result<JsValue, JsValue> {
+    let request: ExploreRequest = parse(request).map_err(thrown)?;
+    let analysis = crate::explore(&request).map_err(thrown)?;
     let object = to_js(&analysis)?;
     let region = js_sys::Float64Array::from(analysis.region.as_slice());
     js_sys::Reflect::set(&object, &"region".into(), &region)

@@ -19,15 +19,23 @@ fn request(method: &str) -> JsValue {
 }
 
 fn call(req: JsValue) -> Result<FuseResponse, String> {
+    call_with_field(req).map_err(|(message, _)| message)
+}
+
+/// The response, or the thrown `Error`'s message and `field`.
+fn call_with_field(req: JsValue) -> Result<FuseResponse, (String, Option<String>)> {
     match nmci::wasm::fuse(req) {
         Ok(v) => Ok(serde_wasm_bindgen::from_value(v).unwrap()),
-        Err(e) => {
-            let v = JsValue::from(e);
+        Err(v) => {
             assert!(v.is_instance_of::<js_sys::Error>(), "throws a JS Error");
-            Err(Reflect::get(&v, &"message".into())
+            let message = Reflect::get(&v, &"message".into())
                 .unwrap()
                 .as_string()
-                .unwrap())
+                .unwrap();
+            Err((
+                message,
+                Reflect::get(&v, &"field".into()).unwrap().as_string(),
+            ))
         }
     }
 }
@@ -103,6 +111,46 @@ fn invalid_requests_throw_with_their_message() {
     assert!(msg.contains("P_b has size 2, expected 1"), "{msg}");
 }
 
+/// The thrown `Error` names the request field at fault (`RequestError::field`), which the page
+/// places its messages by.
+#[wasm_bindgen_test]
+fn thrown_errors_carry_the_field() {
+    for (json, field) in [
+        (
+            r#"{"pa": [[1, 2], [2, 1]], "pb": [[1, 0], [0, 4]], "method": "ci"}"#,
+            Some("pa"),
+        ),
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "colour": 3}"#,
+            Some("colour"),
+        ),
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "samples": 3}"#,
+            Some("samples"),
+        ),
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "xb": [1, 2], "method": "ci"}"#,
+            Some("xb"),
+        ),
+        (r#"{"pa": [[1]], "pb": [[1]], "method": "magic"}"#, None),
+    ] {
+        let (_, got) = call_with_field(JSON::parse(json).unwrap()).unwrap_err();
+        assert_eq!(got.as_deref(), field, "{json}");
+    }
+}
+
+/// The page reads the rules from the registry: `rules()` is `nmci::RULES`, serialised.
+#[wasm_bindgen_test]
+fn rules_are_the_registry() {
+    let rules: serde_json::Value =
+        serde_wasm_bindgen::from_value(nmci::wasm::rules().unwrap()).unwrap();
+    assert_eq!(rules, serde_json::to_value(nmci::RULES).unwrap());
+    let estimators: serde_json::Value =
+        serde_wasm_bindgen::from_value(nmci::wasm::study_estimators().unwrap()).unwrap();
+    assert_eq!(estimators[0]["name"], "central");
+    assert_eq!(estimators[1]["colour"], nmci::Method::Ci.info().colour);
+}
+
 #[wasm_bindgen_test]
 fn explore_hands_the_region_over_as_a_typed_array() {
     let req = JSON::parse(
@@ -115,11 +163,10 @@ fn explore_hands_the_region_over_as_a_typed_array() {
     assert!(region.is_instance_of::<js_sys::Float64Array>());
     let region = js_sys::Float64Array::from(region).to_vec();
     assert_eq!(region.len(), 50 * 4);
-    let nmci = Reflect::get(&out, &"nmci".into()).unwrap();
-    assert_eq!(
-        Reflect::get(&nmci, &"trace".into()).unwrap().as_f64(),
-        Some(2.0)
-    );
+    let rules: Vec<nmci::RuleReport> =
+        serde_wasm_bindgen::from_value(Reflect::get(&out, &"rules".into()).unwrap()).unwrap();
+    let nmci = rules.iter().find(|r| r.method == Method::Nmci).unwrap();
+    assert_eq!(nmci.response.as_ref().unwrap().trace, 2.0);
     let gap = Reflect::get(&out, &"gap".into()).unwrap();
     let abs = Reflect::get(&gap, &"absolute".into())
         .unwrap()

@@ -1,22 +1,29 @@
 // The explorer's UI: inputs, the Web Worker round trip, drawing and the numbers panel.
 import { LAYERS, preset, patternPreset, resize, encodeHash, decodeHash } from "./state.js";
 import { el, marginal, axes, fromAxes, ellipsePath, frame } from "./plot.js";
+import { EXPLORER_RULES, RULE } from "./rules.js";
 
 const $ = (id) => document.getElementById(id);
+// Labels and colours: the region and the two estimates here, every rule from the registry.
 const STYLE = {
   region: { label: "possible true fused P (known P_ab)", color: "#888" },
   pa: { label: "P_a", color: "#1f77b4" },
   pb: { label: "P_b", color: "#e07b00" },
-  ci: { label: "CI", color: "#7b3fa0" },
-  nmci: { label: "nmCI", color: "#d62728" },
-  sdp: { label: "optimal (sampled SDP)", color: "#2a9d3f" },
-  certified: { label: "certified (proven conservative)", color: "#000000" },
-  ici: { label: "ICI (common information only)", color: "#17becf" },
-  ei: { label: "EI (not guaranteed conservative)", color: "#8c564b" },
-  naive: { label: "naive (not guaranteed conservative)", color: "#999999" },
+  ...Object.fromEntries(EXPLORER_RULES.map((r) => [r.name, { label: r.legend, color: r.colour }])),
 };
-// Rules whose bound is not guaranteed for every admissible P_ab: drawn dotted.
-const UNGUARANTEED = ["ici", "ei", "naive"];
+// How a rule's ellipse is stroked follows its guarantee: the conservative rules solid, each
+// thinner than the one before so coinciding bounds stay visible (CI under nmCI under the
+// certified rule); relaxations dashed; the unguaranteed rules dotted.
+const STROKE = (() => {
+  const stroke = { pa: { width: 2, dash: "none" }, pb: { width: 2, dash: "none" } };
+  let k = 0;
+  for (const r of EXPLORER_RULES) {
+    stroke[r.name] = r.guarantee === "conservative" ? { width: Math.max(1.2, 2.6 - 0.6 * k++), dash: "none" }
+      : r.guarantee === "relaxation" ? { width: 2, dash: "7 4" }
+      : { width: 1.8, dash: "2 3" };
+  }
+  return stroke;
+})();
 
 let state = preset("paper");
 let text = null; // the grids' raw text, so an invalid entry stays visible
@@ -89,7 +96,7 @@ function send(s) {
 }
 
 function onWorkerMessage(event) {
-  const { id, ok, result, error } = event.data;
+  const { id, ok, result, error, field } = event.data;
   if (!inFlight || id !== inFlight.id) return;
   if (staleTimer) {
     clearTimeout(staleTimer);
@@ -106,7 +113,7 @@ function onWorkerMessage(event) {
     if (timings.length > 200) timings.shift();
     window.nmciStats.runs++;
   } else {
-    showInputError(error);
+    showInputError(error, field);
   }
   $("timing").textContent = timings.length
     ? `recompute (all rules + region, worker round trip): median ${window.nmciStats.median().toFixed(1)} ms over ${timings.length}`
@@ -134,14 +141,16 @@ function showGeneral(msg) {
 function showLinkError(msg) {
   $("err-link").textContent = msg;
 }
-function showInputError(msg) {
+// Where a request field's errors are shown (the field comes with the error: `Error.field`).
+const ERROR_SLOT = {
+  pa: "err-pa", xa: "err-pa", pb: "err-pb", xb: "err-pb", pab_unknown: "err-pattern",
+  criterion: "err-settings", samples: "err-settings", seed: "err-settings", max_trials: "err-settings",
+  region_samples: "err-settings", sampler: "err-settings",
+};
+function showInputError(msg, field) {
   clearErrors();
   markBadCells();
-  const target = msg.startsWith("P_a") || msg.startsWith("x_a") ? "err-pa"
-    : msg.startsWith("P_b") || msg.startsWith("x_b") ? "err-pb"
-    : msg.startsWith("pab_unknown") ? "err-pattern"
-    : msg.includes("samples") || msg.includes("max_trials") ? "err-settings" : "err-general";
-  $(target).textContent = msg + (last ? " — showing the last valid result." : "");
+  $(ERROR_SLOT[field] ?? "err-general").textContent = msg + (last ? " — showing the last valid result." : "");
 }
 
 // ---------- inputs ----------
@@ -318,13 +327,7 @@ function render() {
   const mats = {
     pa: state.n === s.n ? state.pa : s.pa,
     pb: state.n === s.n ? state.pb : s.pb,
-    ci: last.ci.p,
-    nmci: last.nmci.p,
-    sdp: last.sdp ? last.sdp.p : null,
-    certified: last.certified ? last.certified.p : null,
-    ici: last.ici.p,
-    ei: last.ei.p,
-    naive: last.naive.p,
+    ...Object.fromEntries(last.rules.map((r) => [r.method, r.response ? r.response.p : null])),
   };
   const n = last.n;
   const region = [];
@@ -342,13 +345,11 @@ function render() {
     const rg = el("g", { opacity: 0.32, id: "layer-region" }, g);
     for (const m of region) el("path", { d: ellipsePath(m, toPx, 40), fill: STYLE.region.color, stroke: "none" }, rg);
   }
-  const widths = { pa: 2, pb: 2, ci: 2.2, nmci: 2.6, sdp: 2, certified: 1.4, ici: 1.8, ei: 1.8, naive: 1.8 };
-  const dashes = { sdp: "7 4", ci: "none", certified: "12 3 2 3", ici: "2 3", ei: "2 3", naive: "2 3" };
-  for (const k of ["pa", "pb", "ci", "nmci", "certified", "sdp", ...UNGUARANTEED]) {
+  for (const k of LAYERS.filter((l) => l !== "region")) {
     if (!state.layers[k] || !mats[k]) continue;
     el("path", {
       id: `layer-${k}`, d: ellipsePath(marginal(mats[k], i, j), toPx), fill: "none",
-      stroke: STYLE[k].color, "stroke-width": widths[k], "stroke-dasharray": dashes[k] ?? "none",
+      stroke: STYLE[k].color, "stroke-width": STROKE[k].width, "stroke-dasharray": STROKE[k].dash,
     }, g);
   }
   for (const k of ["pa", "pb"]) {
@@ -443,76 +444,72 @@ function renderNumbers() {
     return [`${f3(c.max)} (${f3(c.median)})`, c.max > 1 + 1e-8 ? "neg" : c.max > 1 ? "tol" : ""];
   };
   const omega = (r) => (r.omega ? r.omega.map(f3).join(", ") : "—");
-  const rule = (key, label, r) => [key, label, r.trace, r.det, omega(r), a.margins ? a.margins[key] : null, a.coin ? a.coin[key] : null];
-  const rows = [
-    ["pa", "P_a", tr(s.pa), det2(s.pa), "", null, null],
-    ["pb", "P_b", tr(s.pb), det2(s.pb), "", null, null],
-    rule("ci", "CI", a.ci),
-    rule("nmci", "nmCI", a.nmci),
-    "certified",
-    "sdp",
-    rule("ici", "ICI <small>(common information only)</small>", a.ici),
-    rule("ei", "EI <small>(not guaranteed conservative)</small>", a.ei),
-    rule("naive", "naive <small>(not guaranteed conservative)</small>", a.naive),
-  ];
   const body = document.querySelector("#table tbody");
   body.replaceChildren();
-  for (let row of rows) {
+  // One row per estimate and per rule of the analysis; cells filled as text, never as HTML.
+  const row = (key, color, label, note) => {
     const tr_ = document.createElement("tr");
-    if (row === "certified" && !a.certified) {
-      tr_.id = "row-certified";
-      tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.certified.color}"></span> certified</td><td class="na" colspan="5"></td>`;
-      tr_.querySelector(".na").textContent = `not computed: ${a.certified_error}`;
-      body.appendChild(tr_);
-      continue;
-    }
-    if (row === "certified") row = rule("certified", "certified <small>(proven conservative)</small>", a.certified);
-    if (row === "sdp") {
-      tr_.id = "row-sdp";
-      if (a.sdp) {
-        const [mt, cls] = margin(a.margins ? a.margins.sdp : null, a.sdp.trace);
-        const [ct, ccls] = coin(a.coin ? a.coin.sdp : null);
-        tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.sdp.color}"></span> optimal (SDP)</td><td class="trace">${f3(a.sdp.trace)}</td><td class="det">${f3(a.sdp.det)}</td><td class="omega">—</td><td class="margin ${cls}">${mt}</td><td class="coin ${ccls}">${ct}</td>`;
-      } else {
-        tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE.sdp.color}"></span> optimal (SDP)</td><td class="na" colspan="5"></td>`;
-        tr_.querySelector(".na").textContent = `not available: ${a.sdp_error}`;
-      }
-      body.appendChild(tr_);
-      continue;
-    }
-    const [key, label, t, d, w, m, c] = row;
     tr_.id = `row-${key}`;
-    if (UNGUARANTEED.includes(key)) tr_.className = "unguaranteed";
-    tr_.innerHTML = `<td><span class="swatch" style="border-color:${STYLE[key].color}"></span> ${label}</td><td class="trace">${f3(t)}</td><td class="det">${f3(d)}</td><td class="omega">${w}</td>`;
-    const [mt, cls] = margin(m, t);
-    const td = document.createElement("td");
-    td.className = `margin ${cls}`;
-    td.textContent = mt;
-    const [ct, ccls] = coin(c);
-    const tdc = document.createElement("td");
-    tdc.className = `coin ${ccls}`;
-    tdc.textContent = ct;
-    tr_.append(td, tdc);
+    const name = document.createElement("td");
+    const swatch = document.createElement("span");
+    swatch.className = "swatch";
+    swatch.style.borderColor = color;
+    name.append(swatch, ` ${label}`);
+    if (note) {
+      const small = document.createElement("small");
+      small.textContent = ` (${note})`;
+      name.append(small);
+    }
+    tr_.append(name);
     body.appendChild(tr_);
+    return tr_;
+  };
+  const cells = (tr_, values) => {
+    for (const [cls, text] of values) {
+      const td = document.createElement("td");
+      td.className = cls;
+      td.textContent = text;
+      tr_.append(td);
+    }
+  };
+  for (const key of ["pa", "pb"]) {
+    cells(row(key, STYLE[key].color, STYLE[key].label), [["trace", f3(tr(s[key]))], ["det", f3(det2(s[key]))], ["omega", ""], ["margin", "—"], ["coin", "—"]]);
+  }
+  for (const report of a.rules) {
+    const rule = RULE[report.method];
+    const tr_ = row(rule.name, rule.colour, rule.label, rule.phrase);
+    if (rule.unguaranteed) tr_.className = "unguaranteed";
+    const r = report.response;
+    if (!r) {
+      cells(tr_, [["na", `not available: ${report.error}`]]);
+      tr_.lastChild.colSpan = 5;
+      continue;
+    }
+    const [mt, cls] = margin(report.margin, r.trace);
+    const [ct, ccls] = coin(report.coin);
+    cells(tr_, [["trace", f3(r.trace)], ["det", f3(r.det)], ["omega", omega(r)], [`margin ${cls}`, mt], [`coin ${ccls}`, ct]]);
   }
 
-  const blocks = a.nmci.blocks.map((b, k) => `{${b.map((x) => "x" + (x + 1)).join(", ")}}: ω = ${f3(a.nmci.omega[k])}`).join(" · ");
+  const response = (m) => a.rules.find((r) => r.method === m)?.response;
+  const [nmci, ci, sdp, certified] = ["nmci", "ci", "sdp", "certified"].map(response);
+  const blocks = nmci.blocks.map((b, k) => `{${b.map((x) => "x" + (x + 1)).join(", ")}}: ω = ${f3(nmci.omega[k])}`).join(" · ");
   const d = $("details");
   const parts = [];
-  parts.push(`<div id="blocks"><span class="k">nmCI blocks (${a.nmci.blocks.length}):</span> ${blocks}</div>`);
-  if (a.sdp) {
-    parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${a.sdp.status}</b>, ${a.sdp.iterations} iterations, ${a.sdp.lmis} LMIs in the final working set of ${a.sdp.samples} samples, ${state.sampler === "hit_and_run" ? "hit-and-run sampler (no rejections)" : `sampler acceptance ${(a.sdp.acceptance_rate * 100).toPrecision(3)} %`}</div>`);
+  parts.push(`<div id="blocks"><span class="k">nmCI blocks (${nmci.blocks.length}):</span> ${blocks}</div>`);
+  if (sdp) {
+    parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${sdp.status}</b>, ${sdp.iterations} iterations, ${sdp.lmis} LMIs in the final working set of ${sdp.samples} samples, ${state.sampler === "hit_and_run" ? "hit-and-run sampler (no rejections)" : `sampler acceptance ${(sdp.acceptance_rate * 100).toPrecision(3)} %`}</div>`);
   }
   if (a.gap) {
-    const upperName = { nmci: "nmCI", ci: "CI", certified: "the certified rule" }[a.gap.upper_rule];
+    const upperName = `the ${RULE[a.gap.upper_rule].label} bound`;
     const level = a.gap.levels ? ` (certificate level${a.gap.levels.length > 1 ? "s" : ""} ${a.gap.levels.join(", ")})` : "";
     const verdict = a.gap.closed
       ? `<span id="gap-verdict" class="ok">proven optimal to 10⁻⁶ (relative): ${upperName}${a.gap.upper_rule === "certified" ? level : ""} is within 10⁻⁶ of the robust optimum</span>`
       : `<span id="gap-verdict" class="open">open: the robust optimum lies between the ends${level}</span>`;
     parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(both ends proven, every rounding accounted for: a Lagrangian bound from the SDP's duals below, ${upperName} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative —</span> ${verdict}</div>`);
   }
-  if (a.certified) {
-    parts.push(`<div id="certified-status"><span class="k">certified rule:</span> tr P̄ ${a.certified.trace.toFixed(6)}${s.criterion !== "trace" ? " (minimises the trace; CI and nmCI above minimise log det)" : a.certified.trace < Math.min(a.ci.trace, a.nmci.trace) - 1e-9 ? ` — ${((1 - a.certified.trace / Math.min(a.ci.trace, a.nmci.trace)) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here"}, proven to dominate K P' Kᵀ for every admissible P' (level ${(a.certified.levels || []).join(", ")}, status ${a.certified.status}, ${a.certified.iterations} iterations, repair ${a.certified.repair.toExponential(1)})</div>`);
+  if (certified) {
+    const best = Math.min(ci.trace, nmci.trace);
+    parts.push(`<div id="certified-status"><span class="k">certified rule:</span> tr P̄ ${certified.trace.toFixed(6)}${s.criterion !== "trace" ? " (minimises the trace; CI and nmCI above minimise log det)" : certified.trace < best - 1e-9 ? ` — ${((1 - certified.trace / best) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here"}, proven to dominate K P' Kᵀ for every admissible P' (level ${(certified.levels || []).join(", ")}, status ${certified.status}, ${certified.iterations} iterations, repair ${certified.repair.toExponential(1)})</div>`);
   }
   if (a.region_error) {
     parts.push(`<div class="err" id="region-status">region: ${a.region_error}</div>`);

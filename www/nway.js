@@ -3,10 +3,13 @@
 // on the main thread (a fusion takes well under a millisecond). Invalid input is shown inline.
 import init, { fuse } from "./pkg/nmci.js";
 import { el, ellipsePath, frame } from "./plot.js";
+import { RULES } from "./rules.js";
 
 const $ = (s) => document.querySelector(s);
 const COLORS = ["#1f77b4", "#e07b00", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22"];
-const RULES = { ci: { label: "N-way CI", color: "#7b3fa0" }, nmci: { label: "N-way nmCI", color: "#d62728" } };
+// The rules that fuse k ≥ 2 estimates (`nway` in the registry), each drawn thinner than the
+// one before so coinciding bounds stay visible.
+const NWAY = RULES.filter((r) => r.nway).map((r, k) => ({ ...r, width: Math.max(1.4, 3 - 0.8 * k) }));
 const MAX = 8;
 const FIELDS = ["x1", "x2", "p11", "p12", "p22"];
 // Three estimates, each good along one direction: nmCI takes x₁ from the first and x₂ from
@@ -92,7 +95,7 @@ async function update() {
   let estimates, results;
   try {
     estimates = readEstimates();
-    results = { ci: fuse(request("ci", estimates)), nmci: fuse(request("nmci", estimates)) };
+    results = Object.fromEntries(NWAY.map((r) => [r.name, fuse(request(r.name, estimates))]));
   } catch (err) {
     $("#err-nway").textContent = err && err.message ? err.message : String(err);
     document.body.dataset.nway = "error";
@@ -100,11 +103,23 @@ async function update() {
   }
   const body = $("#nway-table tbody");
   body.replaceChildren();
-  for (const [key, r] of Object.entries(results)) {
+  for (const rule of NWAY) {
+    const r = results[rule.name];
     const tr = document.createElement("tr");
-    tr.id = `nway-row-${key}`;
+    tr.id = `nway-row-${rule.name}`;
     const weights = r.weights.map((w, b) => `{${r.blocks[b].map((s) => "x" + (s + 1)).join(", ")}}: [${w.map(f3).join(", ")}]`).join(" · ");
-    tr.innerHTML = `<td><span class="swatch" style="border-color:${RULES[key].color}"></span> ${RULES[key].label}</td><td class="trace">${f3(r.trace)}</td><td class="det">${f3(r.det)}</td><td class="x">(${r.x.map(f3).join(", ")})</td><td class="weights">${weights}</td>`;
+    const name = document.createElement("td");
+    const swatch = document.createElement("span");
+    swatch.className = "swatch";
+    swatch.style.borderColor = rule.colour;
+    name.append(swatch, ` N-way ${rule.label}`);
+    tr.append(name);
+    for (const [cls, text] of [["trace", f3(r.trace)], ["det", f3(r.det)], ["x", `(${r.x.map(f3).join(", ")})`], ["weights", weights]]) {
+      const td = document.createElement("td");
+      td.className = cls;
+      td.textContent = text;
+      tr.append(td);
+    }
     body.append(tr);
   }
   draw(estimates, results);
@@ -121,8 +136,9 @@ function draw(estimates, results) {
   estimates.forEach((e, k) => {
     el("path", { d: ellipsePath(e.p, at(e.x)), fill: "none", stroke: COLORS[k], "stroke-width": 1.5, class: "nway-estimate" }, svg);
   });
-  for (const [key, r] of Object.entries(results)) {
-    el("path", { id: `nway-layer-${key}`, d: ellipsePath(r.p, at(r.x)), fill: "none", stroke: RULES[key].color, "stroke-width": key === "nmci" ? 3 : 2.2, "stroke-dasharray": key === "ci" ? "6 3" : "none" }, svg);
+  for (const rule of NWAY) {
+    const r = results[rule.name];
+    el("path", { id: `nway-layer-${rule.name}`, d: ellipsePath(r.p, at(r.x)), fill: "none", stroke: rule.colour, "stroke-width": rule.width }, svg);
   }
 }
 

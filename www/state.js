@@ -1,8 +1,12 @@
 // The explorer's state: presets, resizing, and the URL hash that makes a view shareable.
 
-export const LAYERS = ["region", "pa", "pb", "ci", "nmci", "certified", "sdp", "ici", "ei", "naive"];
-// Drawn by default: the conservative rules; ICI, EI and naive fusion are a click away.
-const DEFAULT_OFF = ["ici", "ei", "naive"];
+import { EXPLORER_RULES } from "./rules.js";
+
+// The region, the two estimates, then every rule the explorer computes (from the registry).
+export const LAYERS = ["region", "pa", "pb", ...EXPLORER_RULES.map((r) => r.name)];
+// Drawn by default: all but the rules guaranteed for chosen correlations only or not at all
+// (`unguaranteed` in the registry); they are a click away.
+const DEFAULT_OFF = EXPLORER_RULES.filter((r) => r.unguaranteed).map((r) => r.name);
 
 const diag = (v) => v.map((x, i) => v.map((_, j) => (i === j ? x : 0)));
 const blockDiag = (blocks) => {

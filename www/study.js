@@ -3,15 +3,14 @@
 // picked (paper fit, the figure's reading, custom links) and drawn by the wasm module.
 import { lineChart } from "./chart.js";
 import { readWholeNumbers, workerTab } from "./worker-tab.js";
-import init, { study_network, study_networks } from "./pkg/nmci.js";
+import init, { study_estimators, study_network, study_networks } from "./pkg/nmci.js";
+import { RULE } from "./rules.js"; // loads the wasm module first
 
 const $ = (s) => document.querySelector(s);
-const NAMES = ["central", "ci", "nmci", "naive", "ici"];
-const LABELS = { central: "centralized KF", ci: "CI", nmci: "nmCI", naive: "naive (not conservative)", ici: "ICI (common information only)" };
-const COLORS = { central: "#1d1f21", ci: "#1f77b4", nmci: "#d62728", naive: "#999999", ici: "#2ca02c" };
-// Table order: ICI beside CI and nmCI; the charts leave naive fusion off (off the scale).
-const TABLE = ["central", "ci", "nmci", "ici", "naive"];
-const CHARTED = ["central", "ci", "nmci", "ici"];
+// The estimators in the series' order, with their labels and colours, and whether the charts
+// draw them (naive fusion is off their scale): from the wasm module (`sim::Estimator`).
+const ESTIMATORS = study_estimators().map((e, index) => ({ ...e, index }));
+const CHARTED = ESTIMATORS.filter((e) => e.charted);
 
 // Tabs.
 function showTab(name) {
@@ -98,10 +97,10 @@ function render(view) {
   const n = view.series_len;
   const row = (arr, s) => arr.subarray(s * n, (s + 1) * n);
   // Work: the runs' steps, then (with COIN) one step per estimator (5) of the exact COIN.
-  const coinWork = view.coin_enabled ? NAMES.length * view.steps : 0;
+  const coinWork = view.coin_enabled ? ESTIMATORS.length * view.steps : 0;
   const total = view.runs * view.steps + coinWork;
   const runsDone = view.runs_done >= view.runs;
-  const done = view.finished ? total : runsDone ? view.runs * view.steps + NAMES.length * view.coin_len : view.runs_done * view.steps + view.step;
+  const done = view.finished ? total : runsDone ? view.runs * view.steps + ESTIMATORS.length * view.coin_len : view.runs_done * view.steps + view.step;
   $("#study-bar").style.width = `${(100 * done) / total}%`;
   const runSeconds = view.run_ms.length ? ` · ${(view.run_ms.reduce((a, b) => a + b, 0) / view.run_ms.length / 1000).toFixed(2)} s per run` : "";
   const elapsed = `${(view.elapsed_ms / 1000).toFixed(1)} s`;
@@ -112,13 +111,13 @@ function render(view) {
       : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps} · ${elapsed}${runSeconds}`;
   const body = $("#study-table tbody");
   body.replaceChildren();
-  for (const name of TABLE) {
+  for (const { name, label } of ESTIMATORS) {
     const e = view.report[name];
     const tr = document.createElement("tr");
     tr.dataset.estimator = name;
     const coin = (v) => (v === undefined || v === null ? (view.coin_enabled && !view.finished ? "…" : "—") : fmt(v));
     if (e.coin_max > 1 + 1e-9) tr.classList.add("warn");
-    const cells = [LABELS[name], fmt(e.rmse_mean), fmt(e.two_sigma_mean), fmt(e.nees_mean), `${(100 * e.nees_frac_above_upper).toFixed(0)}%`, coin(e.coin_mean), coin(e.coin_max)];
+    const cells = [label, fmt(e.rmse_mean), fmt(e.two_sigma_mean), fmt(e.nees_mean), `${(100 * e.nees_frac_above_upper).toFixed(0)}%`, coin(e.coin_mean), coin(e.coin_max)];
     for (const c of cells) {
       const td = document.createElement("td");
       td.textContent = c;
@@ -136,26 +135,26 @@ function render(view) {
   lineChart($("#study-nees"), {
     dt: view.dt, steps: view.steps, band: [lo, hi], yLabel: "NEES",
     yRange: [0, Math.max(2 * hi, 10)],
-    series: CHARTED.map((name) => ({ label: LABELS[name], color: COLORS[name], values: row(view.nees, NAMES.indexOf(name)) })),
+    series: CHARTED.map((e) => ({ label: e.label, color: e.colour, values: row(view.nees, e.index) })),
   });
   lineChart($("#study-rmse"), {
     dt: view.dt, steps: view.steps, yLabel: "m",
-    series: CHARTED.flatMap((name) => [
-      { label: `${LABELS[name]} RMSE`, color: COLORS[name], values: row(view.rmse, NAMES.indexOf(name)) },
-      { label: "2σ", color: COLORS[name], dash: true, values: row(view.two_sigma, NAMES.indexOf(name)) },
+    series: CHARTED.flatMap((e) => [
+      { label: `${e.label} RMSE`, color: e.colour, values: row(view.rmse, e.index) },
+      { label: "2σ", color: e.colour, dash: true, values: row(view.two_sigma, e.index) },
     ]),
   });
-  const omega = [{ label: "CI", color: COLORS.ci, values: row(view.omega, 0) }];
+  const omega = [{ label: RULE.ci.label, color: RULE.ci.colour, values: row(view.omega, 0) }];
   for (let b = 0; b < view.blocks; b++) {
     const shade = Math.round((200 * b) / Math.max(view.blocks - 1, 1));
     omega.push({ label: `G${Math.floor(b / 2) + 1}${b % 2 ? "y" : "x"}`, color: `rgb(214, ${shade}, ${Math.round(shade / 2)})`, dash: b % 2 === 1, values: row(view.omega, b + 1) });
   }
-  omega.push({ label: "ICI", color: COLORS.ici, values: row(view.omega, view.blocks + 1) });
+  omega.push({ label: RULE.ici.label, color: RULE.ici.colour, values: row(view.omega, view.blocks + 1) });
   lineChart($("#study-omega-plot"), { dt: view.dt, steps: view.steps, yRange: [-0.05, 1.05], yLabel: "ω", series: omega });
   const c = view.coin_len;
   lineChart($("#study-coin-plot"), {
     dt: view.dt, steps: view.steps, yLabel: "COIN", yRange: [0.5, 1.1], band: [0.5, 1],
-    series: c ? CHARTED.map((name) => ({ label: LABELS[name], color: COLORS[name], values: view.coin.subarray(NAMES.indexOf(name) * c, (NAMES.indexOf(name) + 1) * c) })) : [],
+    series: c ? CHARTED.map((e) => ({ label: e.label, color: e.colour, values: view.coin.subarray(e.index * c, (e.index + 1) * c) })) : [],
   });
 }
 

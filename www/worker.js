@@ -13,6 +13,7 @@ self.onmessage = async (event) => {
     const ms = performance.now() - t0;
     self.postMessage({ id, ok: true, result, ms }, [result.region.buffer]);
   } catch (err) {
-    self.postMessage({ id, ok: false, error: String(err && err.message ? err.message : err) });
+    // `field`: the request field at fault (set by the wasm layer; the page places the message by it).
+    self.postMessage({ id, ok: false, error: String(err && err.message ? err.message : err), field: err?.field });
   }
 };

@@ -80,6 +80,7 @@ __all__ = [
     "load_shard",
     "default_config",
     "fig2",
+    "rules",
     *_errors.__all__,
 ]
 
@@ -129,7 +130,7 @@ class Fused:
     violation: Optional[float]
     converged: Optional[bool]
     gap_closed: Optional[bool]
-    conservative_for: Optional[str]
+    guarantee: str
 
     _ALIASES = {"P": "p", "Ka": "ka", "Kb": "kb"}
 
@@ -189,13 +190,18 @@ def fuse(request: Mapping[str, Any]) -> Dict[str, Any]:
     return json.loads(_nmci.fuse_json(text))
 
 
+def _field(name: str) -> str:
+    """The JSON request field of an input named ``name`` in messages (``P_a`` → ``pa``)."""
+    return _nmci.request_field(name)
+
+
 def _matrix(name: str, a: ArrayLike) -> np.ndarray:
     try:
         m = np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as e:
-        raise InputError(f"{name} is not a numeric array: {e}") from None
+        raise InputError(f"{name} is not a numeric array: {e}", _field(name)) from None
     if m.ndim != 2:
-        raise InputError(f"{name} must be a 2-D array (got {m.ndim}-D)")
+        raise InputError(f"{name} must be a 2-D array (got {m.ndim}-D)", _field(name))
     return np.ascontiguousarray(m)
 
 
@@ -205,9 +211,9 @@ def _vector(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
     try:
         v = np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as e:
-        raise InputError(f"{name} is not a numeric array: {e}") from None
+        raise InputError(f"{name} is not a numeric array: {e}", _field(name)) from None
     if v.ndim != 1:
-        raise InputError(f"{name} must be a 1-D array (got {v.ndim}-D)")
+        raise InputError(f"{name} must be a 1-D array (got {v.ndim}-D)", _field(name))
     return np.ascontiguousarray(v)
 
 
@@ -217,10 +223,11 @@ def _pattern(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
     m = np.asarray(a)
     if m.dtype != np.bool_:
         raise InputError(
-            f"{name} must be an array of booleans (True = may be non-zero, False = known zero), got dtype {m.dtype}"
+            f"{name} must be an array of booleans (True = may be non-zero, False = known zero), got dtype {m.dtype}",
+            _field(name),
         )
     if m.ndim != 2:
-        raise InputError(f"{name} must be a 2-D array (got {m.ndim}-D)")
+        raise InputError(f"{name} must be a 2-D array (got {m.ndim}-D)", _field(name))
     return np.ascontiguousarray(m)
 
 
@@ -359,7 +366,7 @@ def ici(
     criterion: str = "trace",
 ) -> Fused:
     """Inverse covariance intersection: conservative for common-information correlation only
-    (``conservative_for``)."""
+    (``guarantee``: ``"common_information"``)."""
     return _two("ici", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
 
 
@@ -397,11 +404,11 @@ def _nway(method: str, estimates: Estimates, patterns: Optional[Patterns], crite
     for k, e in enumerate(estimates):
         if isinstance(e, tuple):
             if len(e) != 2:
-                raise InputError(f"estimate {k} must be P or a pair (x, P)")
+                raise InputError(f"estimate {k} must be P or a pair (x, P)", f"estimates[{k}]")
             x, P = e
         else:
             x, P = None, e
-        items.append((_vector(f"x_{k}", x), _matrix(f"P_{k}", P)))
+        items.append((_vector(f"estimates[{k}].x", x), _matrix(f"estimates[{k}].p", P)))
     pairs = None
     if patterns is not None:
         entries = patterns.items() if isinstance(patterns, Mapping) else patterns
@@ -493,6 +500,15 @@ class Study:
     def __repr__(self) -> str:
         c = self.config
         return f"Study(runs={c['runs']}, steps={c['steps']}, seed={c['seed']}, estimators={self.estimators})"
+
+
+def rules() -> List[Dict[str, Any]]:
+    """Every fusion rule, from the registry the CLI and the page read (``nmci::RULES``): its
+    ``name`` (the ``method`` of the JSON contract), ``label``, ``legend``, ``colour``,
+    ``guarantee`` (``conservative``, ``relaxation``, ``common_information`` or ``none``),
+    ``criteria``, ``options`` (the method-specific request fields it takes), ``nway`` and
+    ``explorer``."""
+    return json.loads(_nmci.rules_json())
 
 
 def default_config() -> Dict[str, Any]:

@@ -3,8 +3,20 @@ RuntimeError (a computation that could not deliver), carrying the Rust message (
 CLI prints)."""
 
 
+from typing import Optional
+
+
 class NmciError(Exception):
-    """Base class of every error nmci raises."""
+    """Base class of every error nmci raises.
+
+    ``field`` names the request field at fault (``"pa"``, ``"samples"``, ``"estimates[1].p"``:
+    the JSON contract's names, as the page's ``Error.field``), or is ``None`` when no single
+    field is.
+    """
+
+    def __init__(self, message: str, field: Optional[str] = None) -> None:
+        super().__init__(message)
+        self.field = field
 
 
 class RequestError(NmciError, ValueError):

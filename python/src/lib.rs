@@ -24,11 +24,17 @@ use nmci::{FuseRequest, FuseResponse, InputError, RequestError, SampleError, Sol
 
 /// The exception of `nmci._errors` named `kind`, carrying `message`.
 fn error(py: Python<'_>, kind: &str, message: String) -> PyErr {
+    error_at(py, kind, message, None)
+}
+
+/// The exception of `nmci._errors` named `kind`, carrying `message` and the request `field` at
+/// fault (its `field` attribute; `None` when no single field is).
+fn error_at(py: Python<'_>, kind: &str, message: String, field: Option<String>) -> PyErr {
     let class = match py.import("nmci._errors").and_then(|m| m.getattr(kind)) {
         Ok(class) => class,
         Err(e) => return e,
     };
-    match class.call1((message,)) {
+    match class.call1((message, field)) {
         Ok(value) => PyErr::from_value(value),
         Err(e) => e,
     }
@@ -37,7 +43,7 @@ fn error(py: Python<'_>, kind: &str, message: String) -> PyErr {
 /// The exception class of a request's error.
 fn request_error_kind(e: &RequestError) -> &'static str {
     match e {
-        RequestError::Malformed(_) | RequestError::Invalid(_) => "RequestError",
+        RequestError::Malformed(_) | RequestError::Invalid { .. } => "RequestError",
         RequestError::Input(_) => "InputError",
         RequestError::Sample(SampleError::InvalidSettings(_)) => "RequestError",
         RequestError::Sample(_) => "SampleError",
@@ -53,7 +59,7 @@ fn request_error_kind(e: &RequestError) -> &'static str {
 }
 
 fn request_error(py: Python<'_>, e: RequestError) -> PyErr {
-    error(py, request_error_kind(&e), e.to_string())
+    error_at(py, request_error_kind(&e), e.to_string(), e.field())
 }
 
 fn sim_error(py: Python<'_>, e: SimError) -> PyErr {
@@ -270,9 +276,9 @@ fn conservativeness_index(
     square("P", &P)
         .and_then(|_| nmci::validate_covariance("P", &P))
         .and_then(|_| square("E", &E))
-        .map_err(|e| error(py, "InputError", e.to_string()))?;
+        .map_err(|e| error_at(py, "InputError", e.to_string(), e.request_field()))?;
     detached(py, move || nmci::conservativeness_index(&P, &E))?
-        .map_err(|e| error(py, "InputError", e.to_string()))
+        .map_err(|e| error_at(py, "InputError", e.to_string(), e.request_field()))
 }
 
 /// Admissible cross-covariances `P_ab'` (a `count × n × n` array) and the trials used.
@@ -335,6 +341,18 @@ fn sample_cross_covariances<'py>(
 fn config_from_toml(py: Python<'_>, text: &str) -> PyResult<String> {
     let config = StudyConfig::from_toml(text).map_err(|e| sim_error(py, e))?;
     serde_json::to_string(&config).map_err(|e| error(py, "InternalError", e.to_string()))
+}
+
+/// The registry of rules ([`nmci::RULES`]) as JSON text.
+#[pyfunction]
+fn rules_json() -> String {
+    serde_json::to_string(&nmci::RULES).expect("the registry serialises")
+}
+
+/// The JSON request field of an input named in an error (`P_a` → `pa`; [`nmci::request_field`]).
+#[pyfunction]
+fn request_field(name: &str) -> String {
+    nmci::request_field(name)
 }
 
 /// The default study configuration as JSON text.
@@ -587,6 +605,8 @@ fn _nmci(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sample_cross_covariances, m)?)?;
     m.add_function(wrap_pyfunction!(config_from_toml, m)?)?;
     m.add_function(wrap_pyfunction!(default_config, m)?)?;
+    m.add_function(wrap_pyfunction!(rules_json, m)?)?;
+    m.add_function(wrap_pyfunction!(request_field, m)?)?;
     m.add_function(wrap_pyfunction!(run_study, m)?)?;
     m.add_function(wrap_pyfunction!(run_shard, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;

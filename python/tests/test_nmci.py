@@ -415,3 +415,42 @@ def test_the_readme_python_example_runs_and_says_true_things():
     assert f"{namespace['ci'].trace:.4f}" == "3.0882"
     assert namespace["cuts"].gap_closed is True
     assert namespace["study"].nees.shape == (5, 400)
+
+
+FIELD_CALLS = [
+    (lambda: nmci.ci(-np.eye(2), np.eye(2)), "pa"),
+    (lambda: nmci.ci(np.eye(2), np.eye(3)), "pb"),
+    (lambda: nmci.ci(np.ones(3), np.eye(3)), "pa"),
+    (lambda: nmci.nmci(np.eye(2), np.eye(2), xa=np.zeros(3)), "xa"),
+    (lambda: nmci.nmci(np.eye(2), np.eye(2), pab_unknown=np.eye(2)), "pab_unknown"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), samples=0), "samples"),
+    (lambda: nmci.certified(np.eye(2), np.eye(2), level=99), "level"),
+    (lambda: nmci.fuse({"pa": [[1]], "pb": [[1]], "method": "ci", "seed": 1}), "seed"),
+    (lambda: nmci.fuse({"pa": [[1]], "pb": [[1]], "method": "ci", "colour": 1}), "colour"),
+    (lambda: nmci.ci_nway([np.eye(2), -np.eye(2)]), "estimates[1].p"),
+    (lambda: nmci.conservativeness_index(np.eye(2), np.eye(3)), "E"),
+    (lambda: nmci.fig2(runs=0), "runs"),
+    (lambda: nmci.optimal(np.eye(6), np.eye(6), max_trials=10), None),
+]
+
+
+@pytest.mark.parametrize("call,field", FIELD_CALLS, ids=[str(c[1]) for c in FIELD_CALLS])
+def test_errors_name_the_request_field_at_fault(call, field):
+    with pytest.raises(nmci.NmciError) as raised:
+        call()
+    assert raised.value.field == field
+
+
+def test_the_registry_of_rules_and_a_function_per_rule():
+    rules = nmci.rules()
+    names = [r["name"] for r in rules]
+    assert names == ["ci", "nmci", "certified", "sdp", "sdp_cuts", "ici", "ei", "naive"]
+    a, b = np.diag([3.0, 1.0]), np.diag([1.0, 4.0])
+    function = {"sdp": nmci.optimal}
+    for r in rules:
+        fused = function.get(r["name"], getattr(nmci, r["name"], None))(a, b)
+        assert fused.method == r["name"]
+        # Every response states its rule's guarantee, as the registry does.
+        assert fused.guarantee == r["guarantee"]
+    assert {r["name"] for r in rules if r["nway"]} == {"ci", "nmci"}
+    assert all(hasattr(nmci, f"{r['name']}_nway") for r in rules if r["nway"])

@@ -56,6 +56,7 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
 use super::ci::{covariance_intersection, CiResult};
 use super::nmci::{non_monolithic_ci, NmciResult};
+use super::rules::Method;
 use super::verify::{down, is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::Criterion;
 use super::FusionProblem;
@@ -65,17 +66,6 @@ use crate::error::InputError;
 /// proven to that relative accuracy (`gap ≤ 10⁻⁶ · upper`).
 pub const CLOSED_RTOL: f64 = 1e-6;
 
-/// Which rule gives the bracket's upper end.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum UpperRule {
-    /// Covariance intersection.
-    Ci,
-    /// Non-monolithic CI.
-    Nmci,
-    /// The certified rule.
-    Certified,
-}
-
 /// `[lower, upper] ∋ V*`, both ends proven (module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bracket {
@@ -84,7 +74,7 @@ pub struct Bracket {
     /// A proven upper bound: the smallest rigorous trace of the conservative rules computed.
     pub upper: f64,
     /// The rule that gives `upper`.
-    pub upper_rule: UpperRule,
+    pub upper_rule: Method,
 }
 
 impl Bracket {
@@ -141,9 +131,9 @@ impl UpperBounds {
     /// The smallest bound and its rule. Ties go to nmCI, then CI (the closed-form rules); the
     /// certified rule is named only when it is smaller by more than `10⁻¹²` relative (where
     /// it takes CI's bound per block, the two differ by rounding only).
-    pub fn best(&self) -> Option<(f64, UpperRule)> {
-        let mut best: Option<(f64, UpperRule)> = None;
-        for (v, rule) in [(self.nmci, UpperRule::Nmci), (self.ci, UpperRule::Ci)] {
+    pub fn best(&self) -> Option<(f64, Method)> {
+        let mut best: Option<(f64, Method)> = None;
+        for (v, rule) in [(self.nmci, Method::Nmci), (self.ci, Method::Ci)] {
             if let Some(v) = v {
                 if best.is_none_or(|(b, _)| v < b) {
                     best = Some((v, rule));
@@ -152,7 +142,7 @@ impl UpperBounds {
         }
         if let Some(c) = self.certified {
             if best.is_none_or(|(b, _)| c < b * (1.0 - 1e-12)) {
-                best = Some((c, UpperRule::Certified));
+                best = Some((c, Method::Certified));
             }
         }
         best

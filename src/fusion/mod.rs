@@ -10,6 +10,7 @@ pub(crate) mod ici;
 pub(crate) mod known;
 pub(crate) mod nmci;
 pub(crate) mod nway;
+pub(crate) mod rules;
 pub(crate) mod sample;
 pub(crate) mod sdp;
 pub(crate) mod verify;
@@ -30,6 +31,16 @@ pub enum Criterion {
     Trace,
     /// `log det P` (volume of the covariance ellipsoid).
     Logdet,
+}
+
+impl Criterion {
+    /// Its name in the JSON contract (`"trace"`, `"logdet"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Criterion::Trace => "trace",
+            Criterion::Logdet => "logdet",
+        }
+    }
 }
 
 /// Two estimates `(x_a, P_a)`, `(x_b, P_b)` and the pattern of their unknown cross-covariance,

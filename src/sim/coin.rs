@@ -48,7 +48,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::model::Model;
 use super::study::{exchange, fuse, Estimate, Partition};
-use super::{Rule, SimError, Storage};
+use super::{Estimator, Rule, SimError, Storage};
 use crate::error::InputError;
 use crate::fusion::check::conservativeness_index;
 
@@ -73,9 +73,9 @@ pub struct ErrorPropagation {
 
 #[allow(non_snake_case)]
 impl ErrorPropagation {
-    /// Starts at the common prior: `rule = None` follows the centralized filter, `Some(rule)`
-    /// every agent of that rule.
-    pub fn new(model: &Model, rule: Option<Rule>) -> Self {
+    /// Starts at the common prior: the centralized filter, or every agent of a rule.
+    pub fn new(model: &Model, estimator: Estimator) -> Self {
+        let rule = estimator.rule();
         let part = Partition::new(model, Storage::Blocks);
         let filters: Vec<Estimate> = match rule {
             None => vec![part.prior(model)],
@@ -418,16 +418,16 @@ fn gain_b(
     }))
 }
 
-/// The COIN of the headline agent (`agent`, 0-based) per step for `rule`, or of the
-/// centralized filter for `None`, over `steps` steps.
+/// The COIN of `estimator` per step over `steps` steps: of the headline agent (`agent`,
+/// 0-based) for a rule, of the one filter for the centralized one.
 pub fn coin_series(
     model: &Model,
     steps: usize,
     agent: usize,
-    rule: Option<Rule>,
+    estimator: Estimator,
 ) -> Result<Vec<f64>, SimError> {
-    let mut propagation = ErrorPropagation::new(model, rule);
-    let filter = if rule.is_some() { agent } else { 0 };
+    let mut propagation = ErrorPropagation::new(model, estimator);
+    let filter = if estimator.rule().is_some() { agent } else { 0 };
     let mut series = Vec::with_capacity(steps);
     for _ in 0..steps {
         propagation.step(model)?;

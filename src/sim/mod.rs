@@ -35,8 +35,8 @@ pub use scenario::{ScalarMeasurement, Scenario};
 pub use shard::shard_files;
 pub use shard::{carries_coin, merge_shards, MergeError, Study, StudyShard, SHARD_FORMAT};
 pub use study::{
-    merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, Rule, RunSpec, RunState,
-    RunTrace, Storage, RULES,
+    merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, Estimator, Rule, RunSpec,
+    RunState, RunTrace, Storage, RULES,
 };
 #[cfg(not(target_arch = "wasm32"))]
 pub use sweep::sweep;
@@ -352,15 +352,10 @@ fn simulate_run_range_parallel(
         .collect())
 }
 
-/// The estimators of the study in report order: `None` is the centralized filter, then
-/// [`RULES`].
-pub fn estimators() -> impl Iterator<Item = Option<Rule>> {
-    std::iter::once(None).chain(RULES.iter().copied().map(Some))
-}
-
-/// The name of an estimator of [`estimators`] (`central`, `ci`, …).
-pub fn estimator_name(estimator: Option<Rule>) -> &'static str {
-    estimator.map_or("central", Rule::name)
+/// The estimators of the study in report order: the centralized filter, then [`RULES`]
+/// (series `0..` of a [`RunTrace`]).
+pub fn estimators() -> impl Iterator<Item = Estimator> {
+    std::iter::once(Estimator::Central).chain(RULES.iter().copied().map(Estimator::Decentralized))
 }
 
 /// Every estimator's exact COIN per step for the headline agent ([`coin_series`]), in
@@ -372,7 +367,7 @@ pub fn coin_parallel(
     on_piece: impl Fn() + Sync,
 ) -> Result<Vec<Vec<f64>>, SimError> {
     use rayon::prelude::*;
-    let pieces: Vec<Option<Rule>> = estimators().collect();
+    let pieces: Vec<Estimator> = estimators().collect();
     pieces
         .par_iter()
         .map(|&e| {
@@ -544,7 +539,7 @@ pub fn summarize(traces: &[RunTrace], dof: usize) -> StudySummary {
     let two_sigma = mean_series(&|t| &t.two_sigma);
     let bounds = nees_bounds(traces.len().max(1), dof);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let names: Vec<&str> = estimators().map(estimator_name).collect();
+    let names: Vec<&str> = estimators().map(Estimator::name).collect();
     // Per series and group: the sums over every run's steps, over the steps run.
     let steps_run: usize = traces.iter().map(len).sum();
     let by_group = |s: usize, which: usize| -> Vec<f64> {

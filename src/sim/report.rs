@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::ReportError;
 
-use super::{estimator_name, estimators, network_svg, Study};
+use super::{estimators, network_svg, Estimator, Rule, Study};
 
 /// Writes a study's files into `out` (created if missing): `summary.json` (the
 /// [`StudyReport`](super::StudyReport)), `nees.csv`, `rmse.csv`, `two_sigma.csv`, `coin.csv`
@@ -41,7 +41,8 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
         "network.svg",
         network_svg(&cfg.scenario, cfg.agent, cfg.watched),
     )?;
-    let names: Vec<&str> = estimators().map(estimator_name).collect();
+    let all: Vec<Estimator> = estimators().collect();
+    let names: Vec<&str> = all.iter().map(|e| e.name()).collect();
     for (file, series) in [
         ("nees.csv", &summary.nees_series),
         ("rmse.csv", &summary.rmse_series),
@@ -85,21 +86,22 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
 
     // Figures (SVG): NEES with the 95 % χ² band, RMSE and 2σ, ω of the watched fusion.
     use plotters::style::RGBColor;
-    let colours = [
-        RGBColor(0, 0, 0),
-        RGBColor(31, 119, 180),
-        RGBColor(214, 39, 40),
-        RGBColor(150, 150, 150),
-        RGBColor(44, 160, 44),
-    ];
-    // The estimators drawn on the NEES, RMSE and COIN charts: all but naive fusion.
-    let shown = [0, 1, 2, 4];
+    let colours: Vec<RGBColor> = all.iter().map(|e| rgb(e.colour())).collect();
+    let labels: Vec<String> = all.iter().map(|e| e.label()).collect();
+    // The estimators drawn on the NEES, RMSE and COIN charts ([`Estimator::charted`]): naive
+    // fusion's NEES grows by orders of magnitude (see nees.csv), so it is left off the chart
+    // and the consistent estimators stay readable against the band.
+    let shown: Vec<usize> = (0..all.len()).filter(|&s| all[s].charted()).collect();
     let dt = cfg.scenario.dt;
-    // Naive fusion's NEES grows by orders of magnitude (see nees.csv): left off the chart
-    // so the consistent estimators stay readable against the band.
     let nees: Vec<_> = shown
         .iter()
-        .map(|&s| (names[s], colours[s], summary.nees_series[s].as_slice()))
+        .map(|&s| {
+            (
+                labels[s].as_str(),
+                colours[s],
+                summary.nees_series[s].as_slice(),
+            )
+        })
         .collect();
     line_chart(
         &out.join("nees.svg"),
@@ -115,18 +117,19 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
         Some(summary.nees_bounds),
         false,
     )?;
-    let labels: Vec<String> = (0..names.len())
-        .flat_map(|s| [format!("{} RMSE", names[s]), format!("{} 2σ", names[s])])
+    let rmse_labels: Vec<String> = labels
+        .iter()
+        .flat_map(|l| [format!("{l} RMSE"), format!("{l} 2σ")])
         .collect();
     let mut rmse = Vec::new();
-    for s in shown {
+    for &s in &shown {
         rmse.push((
-            labels[2 * s].as_str(),
+            rmse_labels[2 * s].as_str(),
             colours[s],
             summary.rmse_series[s].as_slice(),
         ));
         rmse.push((
-            labels[2 * s + 1].as_str(),
+            rmse_labels[2 * s + 1].as_str(),
             RGBColor(
                 colours[s].0 / 2 + 120,
                 colours[s].1 / 2 + 120,
@@ -152,7 +155,8 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
     let block_labels: Vec<String> = (0..blocks)
         .map(|b| format!("nmCI G{}{}", b / 2 + 1, if b % 2 == 0 { "x" } else { "y" }))
         .collect();
-    let mut omega = vec![("CI", RGBColor(31, 119, 180), omega_ci.as_slice())];
+    let (ci, ici) = (Rule::Ci.method(), Rule::Ici.method());
+    let mut omega = vec![(ci.label(), rgb(ci.info().colour), omega_ci.as_slice())];
     for b in 0..blocks {
         let shade = (40 * b) as u8;
         omega.push((
@@ -161,7 +165,11 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
             omega_blocks[b].as_slice(),
         ));
     }
-    omega.push(("ICI", colours[4], summary.omega_ici_series.as_slice()));
+    omega.push((
+        ici.label(),
+        rgb(ici.info().colour),
+        summary.omega_ici_series.as_slice(),
+    ));
     line_chart(
         &out.join("omega.svg"),
         &format!(
@@ -177,7 +185,13 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
     if !summary.coin_series.is_empty() {
         let coin: Vec<_> = shown
             .iter()
-            .map(|&s| (names[s], colours[s], summary.coin_series[s].as_slice()))
+            .map(|&s| {
+                (
+                    labels[s].as_str(),
+                    colours[s],
+                    summary.coin_series[s].as_slice(),
+                )
+            })
             .collect();
         line_chart(
             &out.join("coin.svg"),
@@ -300,4 +314,15 @@ pub(crate) fn line_chart(
             .map_err(|e| err(&e))?);
     }
     root.present().map_err(|e| err(&e))
+}
+
+/// A `#rrggbb` colour of the registry ([`crate::RuleInfo::colour`]) for plotters (black for
+/// anything else; the registry's colours are checked by a test).
+pub(crate) fn rgb(hex: &str) -> plotters::style::RGBColor {
+    let byte = |i: usize| {
+        hex.get(i..i + 2)
+            .and_then(|h| u8::from_str_radix(h, 16).ok())
+            .unwrap_or(0)
+    };
+    plotters::style::RGBColor(byte(1), byte(3), byte(5))
 }

@@ -20,6 +20,7 @@ use crate::fusion::ci::{ci_in_place, covariance_intersection, nmci_in_place};
 use crate::fusion::ici::{ici_in_place, inverse_covariance_intersection};
 use crate::fusion::known::{naive_fusion, naive_in_place};
 use crate::fusion::nmci::non_monolithic_ci;
+use crate::fusion::rules::{Guarantee, Method};
 use crate::fusion::{Criterion, FusionProblem, Gaussian};
 use crate::linalg::symmetrize_in_place;
 
@@ -43,14 +44,75 @@ pub enum Rule {
 pub const RULES: [Rule; 4] = [Rule::Ci, Rule::Nmci, Rule::Naive, Rule::Ici];
 
 impl Rule {
-    /// The name used in reports (`ci`, `nmci`, `naive`, `ici`).
-    pub fn name(self) -> &'static str {
+    /// The rule in the registry of rules ([`crate::RULES`]: name, label, colour, guarantee).
+    pub fn method(self) -> Method {
         match self {
-            Rule::Ci => "ci",
-            Rule::Nmci => "nmci",
-            Rule::Naive => "naive",
-            Rule::Ici => "ici",
+            Rule::Ci => Method::Ci,
+            Rule::Nmci => Method::Nmci,
+            Rule::Naive => Method::Naive,
+            Rule::Ici => Method::Ici,
         }
+    }
+
+    /// The name used in reports (`ci`, `nmci`, `naive`, `ici`: [`Method::name`]).
+    pub fn name(self) -> &'static str {
+        self.method().name()
+    }
+}
+
+/// An estimator of the study: the centralized Kalman filter (every measurement) or a
+/// decentralized fusion rule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Estimator {
+    /// The centralized Kalman filter.
+    Central,
+    /// The agents' filters fusing with a rule.
+    Decentralized(Rule),
+}
+
+impl Estimator {
+    /// The rule, for the decentralized estimators.
+    pub fn rule(self) -> Option<Rule> {
+        match self {
+            Estimator::Central => None,
+            Estimator::Decentralized(rule) => Some(rule),
+        }
+    }
+
+    /// The name used in reports and CSV columns (`central`, then the rules' names).
+    pub fn name(self) -> &'static str {
+        self.rule().map_or("central", Rule::name)
+    }
+
+    /// The label in charts and tables (`centralized KF`, then the rules' legends).
+    pub fn label(self) -> String {
+        self.rule()
+            .map_or("centralized KF".into(), |r| r.method().info().legend())
+    }
+
+    /// The colour in charts (the rules' colours from the registry).
+    pub fn colour(self) -> &'static str {
+        self.rule().map_or("#1d1f21", |r| r.method().info().colour)
+    }
+
+    /// Whether the study's charts draw it: all but the rules guaranteed nothing (naive
+    /// fusion's NEES and COIN grow by orders of magnitude; the CSV files have them).
+    pub fn charted(self) -> bool {
+        self.rule()
+            .is_none_or(|r| r.method().guarantee() != Guarantee::None)
+    }
+}
+
+impl Serialize for Estimator {
+    /// `{name, label, colour, charted}` (what the page's study tab draws with).
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut s = serializer.serialize_struct("Estimator", 4)?;
+        s.serialize_field("name", self.name())?;
+        s.serialize_field("label", &self.label())?;
+        s.serialize_field("colour", self.colour())?;
+        s.serialize_field("charted", &self.charted())?;
+        s.end()
     }
 }
 

@@ -48,8 +48,8 @@ test("opens on the paper's example: nmCI trace 2.000, ω = [0, 1], CI looser", a
   assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved)/);
   assert.ok(Math.abs((await num("#row-sdp .trace")) - 2) < 1e-3);
   // The certified bracket: dual objective below, the best conservative rule (nmCI) above.
-  assert.match(await text("#gap"), /lies in \[(1\.99999\d|2\.000000), 2\.000000\] \(both ends proven, every rounding accounted for: a Lagrangian bound from the SDP's duals below, nmCI above\)/);
-  assert.match(await text("#gap-verdict"), /^proven optimal to 10⁻⁶ \(relative\): nmCI is within 10⁻⁶ of the robust optimum$/);
+  assert.match(await text("#gap"), /lies in \[(1\.99999\d|2\.000000), 2\.000000\] \(both ends proven, every rounding accounted for: a Lagrangian bound from the SDP's duals below, the nmCI bound above\)/);
+  assert.match(await text("#gap-verdict"), /^proven optimal to 10⁻⁶ \(relative\): the nmCI bound is within 10⁻⁶ of the robust optimum$/);
   // The region of possible true fused covariances is drawn, with the five bounds.
   assert.ok((await page.locator("#layer-region path").count()) >= 100);
   for (const k of ["pa", "pb", "ci", "nmci", "sdp"]) assert.equal(await page.locator(`#layer-${k}`).count(), 1, k);
@@ -142,10 +142,10 @@ test("toggling a pattern cell changes the detected blocks", async () => {
   assert.equal(await text("#row-nmci .trace"), await text("#row-ci .trace"));
   assert.ok((await num("#row-sdp .trace")) < (await num("#row-nmci .trace")));
   assert.ok((await num("#row-certified .trace")) < (await num("#row-nmci .trace")) - 0.01);
-  assert.match(await text("#row-certified"), /proven conservative/);
+  assert.match(await text("#row-certified"), /certified \(conservative\)/);
   assert.match(await text("#certified-status"), /% below the best of CI and nmCI, proven to dominate/);
-  assert.match(await text("#gap"), /duals below, the certified rule above/);
-  assert.match(await text("#gap-verdict"), /^(proven optimal to 10⁻⁶ \(relative\): the certified rule \(certificate level 5\) is within|open: the robust optimum lies between the ends \(certificate level 5\))/);
+  assert.match(await text("#gap"), /duals below, the certified bound above/);
+  assert.match(await text("#gap-verdict"), /^(proven optimal to 10⁻⁶ \(relative\): the certified bound \(certificate level 5\) is within|open: the robust optimum lies between the ends \(certificate level 5\))/);
   assert.equal(await page.locator("#row-certified .coin.neg").count(), 0);
   assert.equal(await page.locator("#layer-certified").count(), 1);
   await page.screenshot({ path: join(out, "explorer-not-separable.png"), fullPage: true });
@@ -160,7 +160,7 @@ test("a fully unknown 4-D P_ab defeats the rejection sampler; hit-and-run gives 
   await page.selectOption("#sampler", "hit_and_run");
   await settle();
   assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved).*hit-and-run sampler/);
-  assert.match(await text("#gap"), /duals below, (nmCI|CI|the certified rule) above/);
+  assert.match(await text("#gap"), /duals below, the (nmCI|CI|certified) bound above/);
   assert.match(await text("#gap-verdict"), /^open: /);
   assert.match(await text("#region-status"), /300 admissible P\s*ab drawn \(hit-and-run\)/);
   // The sampler is part of the shareable state.
@@ -282,8 +282,9 @@ test("the picture exports as SVG and the numbers as JSON", async () => {
   assert.doesNotMatch(svg, /class="handle"/, "drag handles are not exported");
   const [jsonDownload] = await Promise.all([page.waitForEvent("download"), page.click("#export-json")]);
   const numbers = JSON.parse(await readFile(await jsonDownload.path(), "utf8"));
-  assert.equal(numbers.nmci.trace, 2);
-  assert.deepEqual(numbers.nmci.omega, [0, 1]);
+  const nmci = numbers.rules.find((r) => r.method === "nmci").response;
+  assert.equal(nmci.trace, 2);
+  assert.deepEqual(nmci.omega, [0, 1]);
   assert.equal(numbers.state.n, 2);
   assert.equal(numbers.region, undefined, "the bulky region is left out of the numbers");
 });
@@ -323,8 +324,8 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
   await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 120_000 });
   assert.match(await text("#study-progress"), /^done: 2 runs × 80 steps/);
   const rows = await page.evaluate(() => Object.fromEntries([...document.querySelectorAll("#study-table tbody tr")].map((tr) => [tr.dataset.estimator, [...tr.children].map((td) => td.textContent)])));
-  assert.deepEqual(Object.keys(rows), ["central", "ci", "nmci", "ici", "naive"]);
-  assert.match(rows.naive[0], /not conservative/);
+  assert.deepEqual(Object.keys(rows), ["central", "ci", "nmci", "naive", "ici"]);
+  assert.match(rows.naive[0], /not guaranteed conservative/);
   assert.match(rows.ici[0], /common information only/);
   // Exact COIN (mean, max): the centralized KF is exact, CI and nmCI conservative, naive
   // fusion overconfident (its row flagged).

@@ -253,6 +253,6 @@ fn through_the_json_contract() {
     assert!(sampled["gain_certified_trace"].as_f64().unwrap() >= c - 1e-7);
     assert_eq!(
         run(r#""method": "certified", "criterion": "logdet""#).unwrap_err().to_string(),
-        "invalid request: methods \"sdp\", \"sdp_cuts\" and \"certified\" minimise the trace; criterion \"logdet\" is not available for them"
+        "invalid request: methods \"certified\", \"sdp\" and \"sdp_cuts\" minimise the trace; criterion \"logdet\" is not available for them"
     );
 }

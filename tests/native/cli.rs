@@ -231,14 +231,14 @@ fn ici_ei_and_naive_through_the_cli_with_their_guarantees_stated() {
     let (code, out, err) = nmci(&["fuse"], &req("ici"));
     assert_eq!(code, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    assert_eq!(v["conservative_for"], "common information only");
+    assert_eq!(v["guarantee"], "common_information");
     let omega = v["omega"][0].as_f64().unwrap();
     assert!(omega > 0.0 && omega < 1.0, "{omega}");
     for method in ["ei", "naive"] {
         let (code, out, err) = nmci(&["fuse"], &req(method));
         assert_eq!(code, 0, "{err}");
         let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-        assert_eq!(v["conservative_for"], "not guaranteed");
+        assert_eq!(v["guarantee"], "none");
         assert!(v.get("omega").is_none());
     }
     // EI keeps the smaller variance per axis: diag(1, 1) here.

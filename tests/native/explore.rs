@@ -45,9 +45,22 @@ fn paper_example_analysis() {
     ))
     .unwrap();
     assert_eq!(a.n, 2);
-    assert_eq!(a.nmci.trace, 2.0);
-    assert!(a.ci.trace > 3.0);
-    let sdp = a.sdp.as_ref().unwrap();
+    // Every rule the registry marks for the explorer, in registry order.
+    let methods: Vec<Method> = a.rules.iter().map(|r| r.method).collect();
+    let expected: Vec<Method> = RULES
+        .iter()
+        .filter(|r| r.explorer)
+        .map(|r| r.method)
+        .collect();
+    assert_eq!(methods, expected);
+    assert!(a
+        .rules
+        .iter()
+        .all(|r| r.response.is_some() && r.error.is_none()));
+    let trace = |m| a.response(m).unwrap().trace;
+    assert_eq!(trace(Method::Nmci), 2.0);
+    assert!(trace(Method::Ci) > 3.0);
+    let sdp = a.response(Method::Sdp).unwrap();
     assert!((sdp.trace - 2.0).abs() < 1e-6);
     let gap = a.gap.as_ref().unwrap();
     // The robust optimum is 2 (nmCI optimal on this separable pattern): proven on both sides.
@@ -55,8 +68,9 @@ fn paper_example_analysis() {
     assert!(gap.absolute < 1e-6 && gap.closed, "{gap:?}");
     assert_eq!(a.region_count, 300);
     assert_eq!(a.region.len(), 300 * 4);
-    let m = a.margins.as_ref().unwrap();
-    assert!(m.ci > 0.0 && m.nmci >= -1e-12 && m.sdp.unwrap() > -1e-7);
+    let margin = |m| a.rule(m).unwrap().margin.unwrap();
+    assert!(margin(Method::Ci) > 0.0);
+    assert!(margin(Method::Nmci) >= -1e-12 && margin(Method::Sdp) > -1e-7);
     // Every possible true fused covariance lies inside the nmCI bound diag(1, 1).
     for k in 0..a.region_count {
         let P = DMatrix::from_row_slice(2, 2, &a.region[4 * k..4 * k + 4]);
@@ -71,13 +85,24 @@ fn sampler_failure_leaves_ci_and_nmci_and_says_why() {
         r#"{{"pa": {eye}, "pb": {eye}, "max_trials": 50, "samples": 20, "region_samples": 20}}"#
     )))
     .unwrap();
-    assert!(a.sdp.is_none() && a.gap.is_none() && a.margins.is_none());
+    let sdp = a.rule(Method::Sdp).unwrap();
+    assert!(sdp.response.is_none() && a.gap.is_none());
     assert!(a
-        .sdp_error
+        .rules
+        .iter()
+        .all(|r| r.margin.is_none() && r.coin.is_none()));
+    assert!(sdp
+        .error
+        .as_ref()
         .unwrap()
         .contains("rejection sampler accepted only"));
-    assert!(a.region_error.unwrap().contains("raise max_trials"));
-    assert!(a.ci.trace > 0.0 && a.nmci.trace > 0.0);
+    assert!(a
+        .region_error
+        .as_ref()
+        .unwrap()
+        .contains("raise max_trials"));
+    assert!(a.response(Method::Ci).unwrap().trace > 0.0);
+    assert!(a.response(Method::Nmci).unwrap().trace > 0.0);
 }
 
 #[test]
@@ -136,22 +161,20 @@ fn every_rule_with_its_coin_over_the_region() {
             "samples": 50}"#,
     ))
     .unwrap();
-    assert_eq!(
-        a.ici.conservative_for.as_deref(),
-        Some("common information only")
-    );
-    assert_eq!(a.ei.conservative_for.as_deref(), Some("not guaranteed"));
-    assert_eq!(a.naive.conservative_for.as_deref(), Some("not guaranteed"));
-    assert!((a.naive.trace - (0.75 + 0.8)).abs() < 1e-12);
-    let (m, c) = (a.margins.as_ref().unwrap(), a.coin.as_ref().unwrap());
-    let pairs = [
-        ("ci", m.ci, c.ci),
-        ("nmci", m.nmci, c.nmci),
-        ("ici", m.ici, c.ici),
-        ("ei", m.ei, c.ei),
-        ("naive", m.naive, c.naive),
-    ];
-    for (name, margin, coin) in pairs {
+    for (m, g) in [
+        (Method::Ici, Guarantee::CommonInformation),
+        (Method::Ei, Guarantee::None),
+        (Method::Naive, Guarantee::None),
+        (Method::Ci, Guarantee::Conservative),
+        (Method::Sdp, Guarantee::Relaxation),
+    ] {
+        assert_eq!(a.response(m).unwrap().guarantee, g, "{m}");
+    }
+    assert!((a.response(Method::Naive).unwrap().trace - (0.75 + 0.8)).abs() < 1e-12);
+    let coin = |m| a.rule(m).unwrap().coin.unwrap();
+    let margin = |m| a.rule(m).unwrap().margin.unwrap();
+    for r in &a.rules {
+        let (name, margin, coin) = (r.method, r.margin.unwrap(), r.coin.unwrap());
         assert!(coin.median <= coin.max, "{name}");
         if margin.abs() > 1e-9 {
             assert_eq!(
@@ -161,16 +184,19 @@ fn every_rule_with_its_coin_over_the_region() {
             );
         }
     }
-    assert!(c.ci.max < 1.0 && c.nmci.max <= 1.0 + 1e-9);
-    assert!(c.naive.max > 1.0 && m.naive < 0.0);
+    assert!(coin(Method::Ci).max < 1.0 && coin(Method::Nmci).max <= 1.0 + 1e-9);
+    assert!(coin(Method::Naive).max > 1.0 && margin(Method::Naive) < 0.0);
     // The SDP's bound touches the region: COIN at most 1 up to solver tolerance.
-    assert!(c.sdp.unwrap().max <= 1.0 + 1e-6);
+    assert!(coin(Method::Sdp).max <= 1.0 + 1e-6);
     // No region, no COIN.
     let none = explore(&request(
         r#"{"pa": [[2,0],[0,2]], "pb": [[1,0],[0,1]], "region_samples": 0}"#,
     ))
     .unwrap();
-    assert!(none.coin.is_none() && none.margins.is_none());
+    assert!(none
+        .rules
+        .iter()
+        .all(|r| r.coin.is_none() && r.margin.is_none()));
 }
 
 #[test]
@@ -182,11 +208,12 @@ fn the_certified_rule_in_the_explorer() {
             "pab_unknown": [[true, true], [false, true]], "sampler": "hit_and_run"}"#,
     ))
     .unwrap();
-    let cert = a.certified.as_ref().expect("certified");
-    assert!(cert.trace < a.nmci.trace - 1e-3);
-    assert!(a.margins.as_ref().unwrap().certified.unwrap() >= -1e-12 * cert.trace);
-    assert!(a.coin.as_ref().unwrap().certified.unwrap().max <= 1.0 + 1e-12);
-    let gap = a.gap.unwrap();
+    let certified = a.rule(Method::Certified).unwrap();
+    let cert = certified.response.as_ref().expect("certified");
+    assert!(cert.trace < a.response(Method::Nmci).unwrap().trace - 1e-3);
+    assert!(certified.margin.unwrap() >= -1e-12 * cert.trace);
+    assert!(certified.coin.unwrap().max <= 1.0 + 1e-12);
+    let gap = a.gap.clone().unwrap();
     assert_eq!(gap.upper_rule, Method::Certified);
     // The upper end is the certified trace rounded up: never below it, by at most rounding.
     assert!(gap.upper >= cert.trace && gap.upper <= cert.trace * (1.0 + 1e-14));
@@ -197,7 +224,12 @@ fn the_certified_rule_in_the_explorer() {
         r#"{{"pa": {eye}, "pb": {eye}, "samples": 20, "region_samples": 0, "sampler": "hit_and_run"}}"#
     )))
     .unwrap();
-    assert!(a.certified.is_none());
-    assert!(a.certified_error.unwrap().contains("at most 4 states"));
+    let certified = a.rule(Method::Certified).unwrap();
+    assert!(certified.response.is_none());
+    assert!(certified
+        .error
+        .as_ref()
+        .unwrap()
+        .contains("at most 4 states"));
     assert_ne!(a.gap.unwrap().upper_rule, Method::Certified);
 }

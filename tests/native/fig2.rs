@@ -57,21 +57,34 @@ fn small_fig2_run_reproduces_the_papers_evidence() {
 
 #[test]
 fn invalid_fig2_settings_are_rejected() {
-    for config in [
-        Fig2Config {
-            runs: 0,
-            ..Fig2Config::default()
-        },
-        Fig2Config {
-            sizes: vec![],
-            ..Fig2Config::default()
-        },
-        Fig2Config {
-            sizes: vec![5, 0],
-            ..Fig2Config::default()
-        },
+    for (config, field, message) in [
+        (
+            Fig2Config {
+                runs: 0,
+                ..Fig2Config::default()
+            },
+            "runs",
+            "fig2 needs at least one run",
+        ),
+        (
+            Fig2Config {
+                sizes: vec![],
+                ..Fig2Config::default()
+            },
+            "sizes",
+            "fig2 needs sample-set sizes of at least 1",
+        ),
+        (
+            Fig2Config {
+                sizes: vec![5, 0],
+                ..Fig2Config::default()
+            },
+            "sizes",
+            "fig2 needs sample-set sizes of at least 1",
+        ),
     ] {
         let e = fig2_run(&config, 0).unwrap_err();
-        assert!(e.to_string().contains("fig2 needs at least one run"), "{e}");
+        assert!(e.to_string().contains(message), "{e}");
+        assert_eq!(e.field().as_deref(), Some(field), "{e}");
     }
 }

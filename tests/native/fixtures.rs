@@ -32,17 +32,12 @@ fn native_responses_of_every_method_match_the_fixture() {
         "re-bless: NMCI_BLESS=1 cargo test"
     );
     // Every method and both two-estimate criteria are in the fixture.
-    for method in [
-        "ci",
-        "nmci",
-        "ici",
-        "ei",
-        "naive",
-        "sdp",
-        "sdp_cuts",
-        "certified",
-    ] {
-        assert!(requests.iter().any(|r| r["method"] == method), "{method}");
+    for rule in nmci::RULES {
+        assert!(
+            requests.iter().any(|r| r["method"] == rule.name),
+            "{}",
+            rule.name
+        );
     }
     for (f, s) in fresh.iter().zip(&stored) {
         assert_eq!(f["request"], s["request"]);

@@ -20,6 +20,7 @@ mod fixtures;
 mod nmci_rule;
 mod nway;
 mod properties;
+mod registry;
 mod rules;
 mod sample;
 mod sdp;

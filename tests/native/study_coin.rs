@@ -53,7 +53,7 @@ fn exact_error_covariance_matches_monte_carlo() {
     let model = Model::new(&scenario).unwrap();
     let steps = 4;
     let runs = 4000;
-    let estimators: Vec<Option<Rule>> = estimators().collect();
+    let estimators: Vec<Estimator> = estimators().collect();
     let exact: Vec<DMatrix<f64>> = estimators
         .iter()
         .map(|&e| {
@@ -74,7 +74,7 @@ fn exact_error_covariance_matches_monte_carlo() {
         }
     }
     for (s, (E, S)) in exact.iter().zip(&sample).enumerate() {
-        let name = estimator_name(estimators[s]);
+        let name = estimators[s].name();
         for i in 0..n {
             for j in 0..n {
                 let sd = ((E[(i, i)] * E[(j, j)] + E[(i, j)].powi(2)) / runs as f64).sqrt();
@@ -88,7 +88,7 @@ fn exact_error_covariance_matches_monte_carlo() {
         }
     }
     // Not a vacuous match: naive fusion's error covariance is far from its own P.
-    let mut naive = ErrorPropagation::new(&model, Some(Rule::Naive));
+    let mut naive = ErrorPropagation::new(&model, Estimator::Decentralized(Rule::Naive));
     for _ in 0..steps {
         naive.step(&model).unwrap();
     }
@@ -112,7 +112,7 @@ fn exact_error_covariance_whitens_the_simulated_errors_of_a_chained_network() {
     };
     let model = Model::new(&scenario).unwrap();
     let (n, agents, steps, runs) = (model.dim(), scenario.agents(), 5, 4000);
-    let estimators: Vec<Option<Rule>> = estimators().collect();
+    let estimators: Vec<Estimator> = estimators().collect();
     // Per estimator and agent: the Cholesky factor of the exact E.
     let factors: Vec<Vec<nalgebra::Cholesky<f64, nalgebra::Dyn>>> = estimators
         .iter()
@@ -121,7 +121,7 @@ fn exact_error_covariance_whitens_the_simulated_errors_of_a_chained_network() {
             for _ in 0..steps {
                 p.step(&model).unwrap();
             }
-            let filters = if e.is_some() { agents } else { 1 };
+            let filters = if e.rule().is_some() { agents } else { 1 };
             (0..filters)
                 .map(|a| assemble(&model, &p.error_covariance(a)).cholesky().unwrap())
                 .collect()
@@ -144,7 +144,7 @@ fn exact_error_covariance_whitens_the_simulated_errors_of_a_chained_network() {
             assert!(
                 (mean - n as f64).abs() <= bound,
                 "{} agent {a}: mean whitened squared error {mean} vs {n} ± {bound}",
-                estimator_name(estimators[s])
+                estimators[s].name()
             );
         }
     }
@@ -159,13 +159,16 @@ fn exact_error_covariance_whitens_the_simulated_errors_of_a_chained_network() {
 #[test]
 fn coin_of_the_paper_study() {
     let model = Model::new(&Scenario::default()).unwrap();
-    let series = |e: Option<Rule>| coin_series(&model, 40, 6, e).unwrap();
-    let central = series(None);
+    let series = |e: Estimator| coin_series(&model, 40, 6, e).unwrap();
+    let central = series(Estimator::Central);
     assert!(
         central.iter().all(|c| (c - 1.0).abs() < 1e-9),
         "{central:?}"
     );
-    let (ci, nmci) = (series(Some(Rule::Ci)), series(Some(Rule::Nmci)));
+    let (ci, nmci) = (
+        series(Estimator::Decentralized(Rule::Ci)),
+        series(Estimator::Decentralized(Rule::Nmci)),
+    );
     for (name, s) in [("ci", &ci), ("nmci", &nmci)] {
         assert!(s.iter().all(|c| *c <= 1.0 + 1e-9), "{name}: {s:?}");
         assert!(
@@ -176,10 +179,10 @@ fn coin_of_the_paper_study() {
     let mean = |s: &[f64]| s.iter().sum::<f64>() / s.len() as f64;
     assert!((mean(&nmci) - 0.856).abs() < 1e-3, "nmCI {}", mean(&nmci));
     assert!((mean(&ci) - 0.972).abs() < 1e-3, "CI {}", mean(&ci));
-    let naive = series(Some(Rule::Naive));
+    let naive = series(Estimator::Decentralized(Rule::Naive));
     assert!(naive.iter().all(|c| *c > 1.0 + 1e-6), "{naive:?}");
     // ICI: computed, finite and positive (its conservativeness here is a finding, not a theorem).
-    let ici = series(Some(Rule::Ici));
+    let ici = series(Estimator::Decentralized(Rule::Ici));
     assert!(ici.iter().all(|c| c.is_finite() && *c > 0.0));
 }
 
@@ -230,7 +233,7 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
     assert_eq!(nb.iter().map(Vec::len).collect::<Vec<_>>(), [3, 2, 3, 2]);
     let inv = |m: &DMatrix<f64>| m.clone().try_inverse().unwrap();
     for rule in [Rule::Ci, Rule::Nmci, Rule::Naive] {
-        let mut exact = ErrorPropagation::new(&model, Some(rule));
+        let mut exact = ErrorPropagation::new(&model, Estimator::Decentralized(rule));
         // Brute force: every agent's dense covariance and the joint error covariance.
         let mut P: Vec<DMatrix<f64>> = vec![model.P0.clone(); agents];
         let big = agents * n;

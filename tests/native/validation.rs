@@ -103,97 +103,59 @@ fn run(json: &str) -> Result<String, String> {
 fn request_errors() {
     let ok = r#""pa": [[1, 0], [0, 1]], "pb": [[2, 0], [0, 2]]"#;
     assert!(run(&format!(r#"{{{ok}, "method": "ci"}}"#)).is_ok());
-    let cases = [
-        (
-            r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "extra": 1}"#,
-            "unknown field `extra`",
-        ),
-        (r#"{"pa": [[1]], "pb": [[1]]}"#, "missing field `method`"),
-        (
-            r#"{"pa": [[1]], "pb": [[1]], "method": "best"}"#,
-            "unknown variant `best`",
-        ),
-        (
-            r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "criterion": "max"}"#,
-            "unknown variant `max`",
-        ),
-        (
-            r#"{"pa": [[1, 0], [0]], "pb": [[1]], "method": "ci"}"#,
-            "P_a is not square (2×1)",
-        ),
-        (r#"{"pa": [], "pb": [[1]], "method": "ci"}"#, "P_a is empty"),
-        (
-            r#"{"pa": [["a"]], "pb": [[1]], "method": "ci"}"#,
-            "invalid request",
-        ),
-        ("not json", "invalid request"),
-        (
-            &format!(r#"{{{ok}, "method": "ci", "samples": 10}}"#),
-            "`samples` applies to method \"sdp\" only",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "nmci", "seed": 1}}"#),
-            "`seed` applies to methods \"sdp\" and \"sdp_cuts\" only",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "sdp", "samples": 0}}"#),
-            "`samples` must be at least 1",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "sdp", "max_trials": 0}}"#),
-            "`max_trials` must be at least 1",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "sdp", "criterion": "logdet"}}"#),
-            "not available",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "ci", "xa": [1, 2, 3]}}"#),
-            "x_a has size 3",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "ci", "pab_unknown": [[true]]}}"#),
-            "pab_unknown has size 1",
-        ),
-        (
-            r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "method": "sdp", "samples": 50, "max_trials": 100}"#,
-            "rejection sampler accepted only",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "ci", "time_limit": 5}}"#),
-            "`time_limit` applies to methods \"sdp\", \"sdp_cuts\" and \"certified\" only",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "nmci", "level": 2}}"#),
-            "`level` applies to methods",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "sdp", "time_limit": -1}}"#),
-            "`time_limit` must be a positive number of seconds (got -1)",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "certified", "time_limit": 0}}"#),
-            "`time_limit` must be a positive number of seconds (got 0)",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "certified", "level": 7}}"#),
-            "`level` must be in 1..=6 (got 7)",
-        ),
-        (
-            &format!(r#"{{{ok}, "method": "certified", "level": 0}}"#),
-            "`level` must be in 1..=6 (got 0)",
-        ),
-        (
-            r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,2]], "pab_unknown": [[true,true,true,true],[true,true,true,true],[true,true,true,true],[true,true,true,false]], "method": "certified", "level": 4}"#,
-            "the level-4 certificate of a 4-state block needs a PSD cone of 300 rows, above the limit of 90 (max_cone)",
-        ),
-        (
-            r#"{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]], "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]], "method": "certified", "level": 3, "time_limit": 0.001}"#,
-            "the certified bound's SDP stopped at its time limit of 0.001 s",
-        ),
+    let cases: [(&str, &str, Option<&str>); 24] = [
+        (r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "extra": 1}"#,
+            "unknown field `extra`", Some("extra")),
+        (r#"{"pa": [[1]], "pb": [[1]]}"#, "missing field `method`", Some("method")),
+        (r#"{"pa": [[1]], "pb": [[1]], "method": "best"}"#,
+            "unknown variant `best`", None),
+        (r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "criterion": "max"}"#,
+            "unknown variant `max`", None),
+        (r#"{"pa": [[1, 0], [0]], "pb": [[1]], "method": "ci"}"#,
+            "P_a is not square (2×1)", Some("pa")),
+        (r#"{"pa": [], "pb": [[1]], "method": "ci"}"#, "P_a is empty", Some("pa")),
+        (r#"{"pa": [["a"]], "pb": [[1]], "method": "ci"}"#,
+            "invalid request", None),
+        ("not json", "invalid request", None),
+        (&format!(r#"{{{ok}, "method": "ci", "samples": 10}}"#),
+            "`samples` applies to method \"sdp\" only", Some("samples")),
+        (&format!(r#"{{{ok}, "method": "nmci", "seed": 1}}"#),
+            "`seed` applies to methods \"sdp\" and \"sdp_cuts\" only", Some("seed")),
+        (&format!(r#"{{{ok}, "method": "sdp", "samples": 0}}"#),
+            "`samples` must be at least 1", Some("samples")),
+        (&format!(r#"{{{ok}, "method": "sdp", "max_trials": 0}}"#),
+            "`max_trials` must be at least 1", Some("max_trials")),
+        (&format!(r#"{{{ok}, "method": "sdp", "criterion": "logdet"}}"#),
+            "not available", Some("criterion")),
+        (&format!(r#"{{{ok}, "method": "ci", "xa": [1, 2, 3]}}"#),
+            "x_a has size 3", Some("xa")),
+        (&format!(r#"{{{ok}, "method": "ci", "pab_unknown": [[true]]}}"#),
+            "pab_unknown has size 1", Some("pab_unknown")),
+        (r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "method": "sdp", "samples": 50, "max_trials": 100}"#,
+            "rejection sampler accepted only", None),
+        (&format!(r#"{{{ok}, "method": "ci", "time_limit": 5}}"#),
+            "`time_limit` applies to methods \"certified\", \"sdp\" and \"sdp_cuts\" only", Some("time_limit")),
+        (&format!(r#"{{{ok}, "method": "nmci", "level": 2}}"#),
+            "`level` applies to methods", Some("level")),
+        (&format!(r#"{{{ok}, "method": "sdp", "time_limit": -1}}"#),
+            "`time_limit` must be a positive number of seconds (got -1)", Some("time_limit")),
+        (&format!(r#"{{{ok}, "method": "certified", "time_limit": 0}}"#),
+            "`time_limit` must be a positive number of seconds (got 0)", Some("time_limit")),
+        (&format!(r#"{{{ok}, "method": "certified", "level": 7}}"#),
+            "`level` must be in 1..=6 (got 7)", Some("level")),
+        (&format!(r#"{{{ok}, "method": "certified", "level": 0}}"#),
+            "`level` must be in 1..=6 (got 0)", Some("level")),
+        (r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,2]], "pab_unknown": [[true,true,true,true],[true,true,true,true],[true,true,true,true],[true,true,true,false]], "method": "certified", "level": 4}"#,
+            "the level-4 certificate of a 4-state block needs a PSD cone of 300 rows, above the limit of 90 (max_cone)", None),
+        (r#"{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]], "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]], "method": "certified", "level": 3, "time_limit": 0.001}"#,
+            "the certified bound's SDP stopped at its time limit of 0.001 s", None),
     ];
-    for (json, expected) in cases {
-        let err = run(json).unwrap_err();
+    // Each error names the request field at fault where one is (the page places its
+    // messages by it; `None` where no single field is).
+    for (json, expected, field) in cases {
+        let error = fuse_json(json).unwrap_err();
+        assert_eq!(error.field().as_deref(), field, "{json}: {error}");
+        let err = error.to_string();
         assert!(
             err.contains(expected),
             "{json}\n  gave: {err}\n  expected to contain: {expected}"
