@@ -158,10 +158,11 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
     let (ci, ici) = (Rule::Ci.method(), Rule::Ici.method());
     let mut omega = vec![(ci.label(), rgb(ci.info().colour), omega_ci.as_slice())];
     for b in 0..blocks {
-        let shade = (40 * b) as u8;
+        // Red to orange over the blocks (as the page's chart): 0..=200, never wrapping.
+        let shade = (200 * b / blocks.saturating_sub(1).max(1)) as u8;
         omega.push((
             block_labels[b].as_str(),
-            RGBColor(200, shade, shade / 2),
+            RGBColor(214, shade, shade / 2),
             omega_blocks[b].as_slice(),
         ));
     }
