@@ -140,7 +140,7 @@ function render(view) {
   lineChart($("#study-rmse"), {
     dt: view.dt, steps: view.steps, yLabel: "m",
     series: CHARTED.flatMap((e) => [
-      { label: `${e.label} RMSE`, color: e.colour, values: row(view.rmse, e.index) },
+      { label: `${e.short_label} RMSE`, color: e.colour, values: row(view.rmse, e.index) },
       { label: "2σ", color: e.colour, dash: true, values: row(view.two_sigma, e.index) },
     ]),
   });

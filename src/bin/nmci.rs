@@ -204,88 +204,10 @@ mod cli {
         })
         .map_err(|e| e.to_string())?;
         bar.finish_and_clear();
-        let best = report
-            .ranked
-            .first()
-            .ok_or("no network of this family fits the paper's text")?;
-        std::fs::create_dir_all(&out)
-            .map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-        let write = |name: &str, text: String| {
-            std::fs::write(out.join(name), text)
-                .map_err(|e| format!("cannot write {}: {e}", out.join(name).display()))
-        };
-        let links = |c: &Candidate| {
-            c.links
-                .iter()
-                .map(|(a, b)| format!("{a}-{b}"))
-                .collect::<Vec<_>>()
-                .join(" ")
-        };
-        let pct = |r: Option<f64>| r.map_or(String::new(), |r| format!("{:.1}", -100.0 * r));
-        let mut csv = String::from(
-            "rank,links,fits_text,distance,omega_ci,omega_nmci,two_sigma_reduction_pct,rmse_reduction_pct\n",
-        );
-        let rows = report
-            .ranked
-            .iter()
-            .enumerate()
-            .map(|(k, c)| ((k + 1).to_string(), c))
-            .chain(
-                report
-                    .references
-                    .iter()
-                    .map(|c| ("reference".to_string(), c)),
-            );
-        let mut table = String::new();
-        for (i, (rank, c)) in rows.enumerate() {
-            let omega = c
-                .omega_nmci
-                .iter()
-                .map(|w| format!("{w:.3}"))
-                .collect::<Vec<_>>()
-                .join(" ");
-            csv += &format!(
-                "{rank},{},{},{:.4},{:.4},{omega},{},{}\n",
-                links(c),
-                c.text_mismatch.is_none(),
-                c.distance,
-                c.omega_ci,
-                pct(Some(c.two_sigma_reduction)),
-                pct(c.rmse_reduction)
-            );
-            if i < config.short_list.max(1) || rank == "reference" {
-                table += &format!(
-                    "{rank:>9}  d = {:.3}  links {:<28} CI ω {:.3}  nmCI ω {omega}  2σ {:>6} %  RMSE {:>6} %\n",
-                    c.distance,
-                    links(c),
-                    c.omega_ci,
-                    pct(Some(c.two_sigma_reduction)),
-                    pct(c.rmse_reduction)
-                );
-            }
+        if report.ranked.is_empty() {
+            return Err("no network of this family fits the paper's text".into());
         }
-        write("sweep.csv", csv)?;
-        write(
-            "sweep.json",
-            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?,
-        )?;
-        let best_config = config.network(&best.links);
-        write(
-            "best.toml",
-            toml::to_string(&StudyConfig {
-                coin: StudyConfig::default().coin,
-                ..best_config.clone()
-            })
-            .map_err(|e| e.to_string())?,
-        )?;
-        write(
-            "network.svg",
-            network_svg(
-                &best_config.scenario,
-                best_config.agent,
-                best_config.watched,
-            ),
-        )?;
+        let (_, table) = write_sweep(&config, &report, &out).map_err(|e| e.to_string())?;
         Ok(format!(
             "{} networks fit the text; {} with Monte Carlo RMSE ({} runs × {} steps); {:.1} s\n{table}wrote {}/sweep.csv, sweep.json, best.toml, network.svg",
             report.fitting,

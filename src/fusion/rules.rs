@@ -274,14 +274,8 @@ pub const RULES: [RuleInfo; 8] = [
         guarantee: Guarantee::Relaxation,
         colour: "#2a9d3f",
         criteria: Criteria::TraceOnly,
-        options: &[
-            RequestOption::Samples,
-            RequestOption::MaxTrials,
-            RequestOption::Sampler,
-            RequestOption::Seed,
-            RequestOption::TimeLimit,
-            RequestOption::Level,
-        ],
+        // Every option: its sampler's, its seed, the time limit and the bracket's level.
+        options: &RequestOption::ALL,
         nway: false,
         explorer: true,
     },

@@ -29,7 +29,7 @@ pub use draw::network_svg;
 pub use live::{LiveStudy, StudyView};
 pub use model::Model;
 #[cfg(not(target_arch = "wasm32"))]
-pub use report::write_study;
+pub use report::{write_study, write_sweep};
 pub use scenario::{ScalarMeasurement, Scenario};
 #[cfg(not(target_arch = "wasm32"))]
 pub use shard::shard_files;

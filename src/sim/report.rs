@@ -6,7 +6,10 @@ use std::path::{Path, PathBuf};
 
 use crate::error::ReportError;
 
-use super::{estimators, network_svg, Estimator, Rule, Study};
+use super::{
+    estimators, network_svg, Candidate, Estimator, Rule, Study, StudyConfig, SweepConfig,
+    SweepReport,
+};
 
 /// Writes a study's files into `out` (created if missing): `summary.json` (the
 /// [`StudyReport`](super::StudyReport)), `nees.csv`, `rmse.csv`, `two_sigma.csv`, `coin.csv`
@@ -117,9 +120,13 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
         Some(summary.nees_bounds),
         false,
     )?;
-    let rmse_labels: Vec<String> = labels
+    // Short labels here: two series per estimator.
+    let rmse_labels: Vec<String> = all
         .iter()
-        .flat_map(|l| [format!("{l} RMSE"), format!("{l} 2σ")])
+        .flat_map(|e| {
+            let l = e.short_label();
+            [format!("{l} RMSE"), format!("{l} 2σ")]
+        })
         .collect();
     let mut rmse = Vec::new();
     for &s in &shown {
@@ -214,6 +221,107 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
         written.borrow_mut().push(out.join(name));
     }
     Ok(written.into_inner())
+}
+
+/// Writes a network sweep's files into `out` (created if missing): `sweep.csv` (every network
+/// that fits the paper's text, ranked, then the references), `sweep.json` (the
+/// [`SweepReport`]) and, when a network fits, `best.toml` (the study configuration on the best
+/// one) and `network.svg` (its drawing) — what `nmci sweep` writes. Returns the files written
+/// and the ranking's first `config.short_list` rows and the references as text.
+pub fn write_sweep(
+    config: &SweepConfig,
+    report: &SweepReport,
+    out: &Path,
+) -> Result<(Vec<PathBuf>, String), ReportError> {
+    std::fs::create_dir_all(out).map_err(|e| ReportError::Create {
+        path: out.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let mut written = Vec::new();
+    let mut write = |name: &str, text: String| {
+        let path = out.join(name);
+        std::fs::write(&path, text).map_err(|e| ReportError::Write {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        written.push(path);
+        Ok::<(), ReportError>(())
+    };
+    let links = |c: &Candidate| {
+        c.links
+            .iter()
+            .map(|(a, b)| format!("{a}-{b}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let pct = |r: Option<f64>| r.map_or(String::new(), |r| format!("{:.1}", -100.0 * r));
+    let mut csv = String::from(
+        "rank,links,fits_text,distance,omega_ci,omega_nmci,two_sigma_reduction_pct,rmse_reduction_pct\n",
+    );
+    let rows = report
+        .ranked
+        .iter()
+        .enumerate()
+        .map(|(k, c)| ((k + 1).to_string(), c))
+        .chain(
+            report
+                .references
+                .iter()
+                .map(|c| ("reference".to_string(), c)),
+        );
+    let mut table = String::new();
+    for (i, (rank, c)) in rows.enumerate() {
+        let omega = c
+            .omega_nmci
+            .iter()
+            .map(|w| format!("{w:.3}"))
+            .collect::<Vec<_>>()
+            .join(" ");
+        csv += &format!(
+            "{rank},{},{},{:.4},{:.4},{omega},{},{}\n",
+            links(c),
+            c.text_mismatch.is_none(),
+            c.distance,
+            c.omega_ci,
+            pct(Some(c.two_sigma_reduction)),
+            pct(c.rmse_reduction)
+        );
+        if i < config.short_list.max(1) || rank == "reference" {
+            table += &format!(
+                "{rank:>9}  d = {:.3}  links {:<28} CI ω {:.3}  nmCI ω {omega}  2σ {:>6} %  RMSE {:>6} %\n",
+                c.distance,
+                links(c),
+                c.omega_ci,
+                pct(Some(c.two_sigma_reduction)),
+                pct(c.rmse_reduction)
+            );
+        }
+    }
+    write("sweep.csv", csv)?;
+    write(
+        "sweep.json",
+        serde_json::to_string_pretty(report).expect("a sweep report serialises"),
+    )?;
+    if let Some(best) = report.ranked.first() {
+        let best_config = config.network(&best.links);
+        write(
+            "best.toml",
+            toml::to_string(&StudyConfig {
+                coin: StudyConfig::default().coin,
+                ..best_config.clone()
+            })
+            .expect("a study configuration serialises to TOML"),
+        )?;
+        write(
+            "network.svg",
+            network_svg(
+                &best_config.scenario,
+                best_config.agent,
+                best_config.watched,
+            ),
+        )?;
+    }
+    Ok((written, table))
 }
 
 /// One SVG line chart: `series` of `(label, colour, values)` against time, optional

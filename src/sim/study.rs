@@ -87,7 +87,12 @@ impl Estimator {
     /// The label in charts and tables (`centralized KF`, then the rules' legends).
     pub fn label(self) -> String {
         self.rule()
-            .map_or("centralized KF".into(), |r| r.method().info().legend())
+            .map_or(self.short_label().into(), |r| r.method().info().legend())
+    }
+
+    /// The short label, without the guarantee's phrase (`centralized KF`, `ICI`).
+    pub fn short_label(self) -> &'static str {
+        self.rule().map_or("centralized KF", |r| r.method().label())
     }
 
     /// The colour in charts (the rules' colours from the registry).
@@ -104,12 +109,13 @@ impl Estimator {
 }
 
 impl Serialize for Estimator {
-    /// `{name, label, colour, charted}` (what the page's study tab draws with).
+    /// `{name, label, short_label, colour, charted}` (what the page's study tab draws with).
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         use serde::ser::SerializeStruct;
-        let mut s = serializer.serialize_struct("Estimator", 4)?;
+        let mut s = serializer.serialize_struct("Estimator", 5)?;
         s.serialize_field("name", self.name())?;
         s.serialize_field("label", &self.label())?;
+        s.serialize_field("short_label", self.short_label())?;
         s.serialize_field("colour", self.colour())?;
         s.serialize_field("charted", &self.charted())?;
         s.end()

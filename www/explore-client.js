@@ -1,0 +1,107 @@
+// The explorer's round trip to its Web Worker (www/worker.js, one wasm `explore` per state):
+// one request in flight, the latest state wins. A solve still running ABANDON_MS after a newer
+// edit arrived is stale: the worker is terminated (wasm cannot be interrupted from outside)
+// and a fresh one takes the newest state. Timings of every round trip are kept in
+// `window.nmciStats` (the end-to-end tests read them).
+const ABANDON_MS = 300;
+
+/** The request of the wasm `explore` for an explorer state. */
+function request(s) {
+  return {
+    pa: s.pa, pb: s.pb, pab_unknown: s.pattern, criterion: s.criterion,
+    samples: s.samples, seed: s.seed, region_samples: s.region, sampler: s.sampler,
+  };
+}
+
+/**
+ * `onResult(result, state)` gets each analysis with the state it is of; `onError(message,
+ * field)` a request's error and the request field at fault; `onBusy(bool)` whether a request is
+ * in flight; `onTimings(median, count)` after each round trip; `onWorkerError(message)` when the
+ * worker itself fails.
+ */
+export function createExploreClient({ url, onResult, onError, onBusy, onTimings, onWorkerError }) {
+  const timings = [];
+  const stats = {
+    timings,
+    median() {
+      if (timings.length === 0) return NaN;
+      const s = [...timings].sort((a, b) => a - b);
+      return s[Math.floor(s.length / 2)];
+    },
+    runs: 0,
+    abandoned: 0,
+  };
+  window.nmciStats = stats;
+  let worker = null;
+  let staleTimer = null;
+  let nextId = 1;
+  let inFlight = null; // { id, t0, state }
+  let queued = null;
+
+  function makeWorker() {
+    const w = new Worker(url, { type: "module" });
+    w.onmessage = onMessage;
+    w.onerror = (e) => onWorkerError(e.message);
+    return w;
+  }
+
+  function send(s) {
+    inFlight = { id: nextId++, t0: performance.now(), state: s };
+    onBusy(true);
+    worker.postMessage({ id: inFlight.id, request: request(s) });
+  }
+
+  function onMessage(event) {
+    const { id, ok, result, error, field } = event.data;
+    if (!inFlight || id !== inFlight.id) return;
+    if (staleTimer) {
+      clearTimeout(staleTimer);
+      staleTimer = null;
+    }
+    const done = inFlight;
+    inFlight = null;
+    if (ok) {
+      onResult(result, done.state);
+      timings.push(performance.now() - done.t0);
+      if (timings.length > 200) timings.shift();
+      stats.runs++;
+    } else {
+      onError(error, field);
+    }
+    onTimings(stats.median(), timings.length);
+    if (queued) {
+      const q = queued;
+      queued = null;
+      send(q);
+    } else {
+      onBusy(false);
+    }
+  }
+
+  worker = makeWorker();
+  return {
+    /** Analyses `snapshot` (a copy of the state) as soon as the worker is free. */
+    submit(snapshot) {
+      if (inFlight) {
+        queued = snapshot;
+        if (!staleTimer) {
+          const stale = inFlight.id;
+          const wait = Math.max(0, ABANDON_MS - (performance.now() - inFlight.t0));
+          staleTimer = setTimeout(() => {
+            staleTimer = null;
+            if (!inFlight || inFlight.id !== stale || !queued) return;
+            worker.terminate();
+            worker = makeWorker();
+            stats.abandoned++;
+            inFlight = null;
+            const q = queued;
+            queued = null;
+            send(q);
+          }, wait);
+        }
+        return;
+      }
+      send(snapshot);
+    },
+  };
+}
