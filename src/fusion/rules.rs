@@ -14,9 +14,11 @@
 //! positive semidefinite) and a rule's gains `K = [K_a K_b]`, the true fused error covariance
 //! is `K [[P_a, P'], [P'ᵀ, P_b]] Kᵀ`; a bound `P` is *conservative* when it dominates that
 //! matrix for every admissible `P'`.
-//! - [`Guarantee::Conservative`]: CI (Julier & Uhlmann 1997), nmCI (the paper's Theorem 1,
-//!   per independent block) and the certified rule (a sum-of-squares certificate, proof in
-//!   `fusion::certify`). For CI and nmCI this is a theorem about the exact `P`; the reported
+//! - [`Guarantee::Conservative`]: CI (Julier & Uhlmann 1997); nmCI (the paper's nmGMD with
+//!   Gaussians: CI on each independent block — `P_a`, `P_b` and the pattern of `P_ab` are
+//!   block-diagonal in those blocks, so with block-diagonal gains the fused error covariance is
+//!   block-diagonal too and each block's CI bound dominates its block for every admissible
+//!   `P'`); and the certified rule (a sum-of-squares certificate, proof in `fusion::certify`). For CI and nmCI this is a theorem about the exact `P`; the reported
 //!   `P` is its floating-point evaluation, and the bracket's proven upper traces
 //!   (`fusion::bracket`) round it up. The certified rule's `P` is proven as computed, every
 //!   rounding included.
