@@ -79,9 +79,8 @@ impl Guarantee {
         self == Guarantee::Conservative
     }
 
-    /// Whether the bound is guaranteed for no admissible cross-covariance but a chosen few
-    /// (ICI, EI, naive): the explorer draws these dotted and leaves them off by default, the
-    /// study's charts leave them out of their scale.
+    /// Whether the bound is guaranteed only for one kind of correlation (ICI) or not at all
+    /// (EI, naive): the explorer draws these dotted and leaves them off by default.
     pub fn unguaranteed(self) -> bool {
         matches!(self, Guarantee::CommonInformation | Guarantee::None)
     }
