@@ -220,8 +220,10 @@ pub struct FuseResponse {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gap_closed: Option<bool>,
     /// What the bound is guaranteed for (`fusion::rules`): `conservative` (CI, nmCI, the
-    /// certified rule: every admissible `P_ab`), `relaxation` (`sdp`, `sdp_cuts`: the drawn or
-    /// found `P_ab` only; see the bracket), `common_information` (ICI) or `none` (EI, naive).
+    /// certified rule: every admissible `P_ab`; for CI and nmCI the exact bound, the reported
+    /// `P` being within rounding of it), `relaxation` (`sdp`, `sdp_cuts`: imposed for the drawn
+    /// or found `P_ab` only, to the solver's tolerance; see the bracket),
+    /// `common_information` (ICI) or `none` (EI, naive).
     pub guarantee: Guarantee,
 }
 
@@ -370,9 +372,9 @@ impl FuseRequest {
                     )
                 } else {
                     format!(
-                        "{} minimise the trace; criterion \"{}\" is not available for them",
+                        "{} minimise the trace; criterion {} is not available for them",
                         methods_phrase(|r| r.criteria == Criteria::TraceOnly),
-                        c.name()
+                        serde_json::to_string(&c).expect("a criterion serialises")
                     )
                 };
                 return Err(RequestError::invalid("criterion", message));

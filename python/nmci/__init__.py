@@ -195,26 +195,23 @@ def _field(name: str) -> str:
     return _nmci.request_field(name)
 
 
-def _matrix(name: str, a: ArrayLike) -> np.ndarray:
+def _array(name: str, a: ArrayLike, ndim: int) -> np.ndarray:
+    """``a`` as a contiguous float64 array of ``ndim`` dimensions, or an ``InputError``."""
     try:
         m = np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as e:
         raise InputError(f"{name} is not a numeric array: {e}", _field(name)) from None
-    if m.ndim != 2:
-        raise InputError(f"{name} must be a 2-D array (got {m.ndim}-D)", _field(name))
+    if m.ndim != ndim:
+        raise InputError(f"{name} must be a {ndim}-D array (got {m.ndim}-D)", _field(name))
     return np.ascontiguousarray(m)
 
 
+def _matrix(name: str, a: ArrayLike) -> np.ndarray:
+    return _array(name, a, 2)
+
+
 def _vector(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
-    if a is None:
-        return None
-    try:
-        v = np.asarray(a, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"{name} is not a numeric array: {e}", _field(name)) from None
-    if v.ndim != 1:
-        raise InputError(f"{name} must be a 1-D array (got {v.ndim}-D)", _field(name))
-    return np.ascontiguousarray(v)
+    return None if a is None else _array(name, a, 1)
 
 
 def _pattern(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:

@@ -33,16 +33,6 @@ pub enum Criterion {
     Logdet,
 }
 
-impl Criterion {
-    /// Its name in the JSON contract (`"trace"`, `"logdet"`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Criterion::Trace => "trace",
-            Criterion::Logdet => "logdet",
-        }
-    }
-}
-
 /// Two estimates `(x_a, P_a)`, `(x_b, P_b)` and the pattern of their unknown cross-covariance,
 /// validated: square, same size, finite, symmetric to a relative `1e-9`, positive definite.
 ///

@@ -18,14 +18,17 @@
 //!   Gaussians: CI on each independent block — `P_a`, `P_b` and the pattern of `P_ab` are
 //!   block-diagonal in those blocks, so with block-diagonal gains the fused error covariance is
 //!   block-diagonal too and each block's CI bound dominates its block for every admissible
-//!   `P'`); and the certified rule (a sum-of-squares certificate, proof in `fusion::certify`). For CI and nmCI this is a theorem about the exact `P`; the reported
-//!   `P` is its floating-point evaluation, and the bracket's proven upper traces
+//!   `P'`); and the certified rule (a sum-of-squares certificate, proof in `fusion::certify`).
+//!   For CI and nmCI this is a theorem about the exact `P`; the reported `P` is its
+//!   floating-point evaluation (within rounding of it), and the bracket's proven upper traces
 //!   (`fusion::bracket`) round it up. The certified rule's `P` is proven as computed, every
 //!   rounding included.
 //! - [`Guarantee::Relaxation`]: the sampled SDP (the paper's eq. `sampled_sdp`) and the
 //!   cutting-plane SDP impose the robust constraint for finitely many `P'` (drawn samples, or
-//!   the worst cases found so far), so their optimum is a lower bound on the robust optimum and
-//!   their `P̄` need not dominate for other `P'`. Their responses carry the proven bracket.
+//!   the worst cases found so far), and only to the solver's tolerance, so their optimum is a
+//!   lower bound on the robust optimum (up to that tolerance; the bracket's lower end is the
+//!   rigorous one) and their `P̄` need not dominate for other `P'`. Their responses carry the
+//!   proven bracket.
 //! - [`Guarantee::CommonInformation`]: ICI (Noack et al. 2017) is conservative when the
 //!   correlation comes from common information, not for every admissible `P'`.
 //! - [`Guarantee::None`]: EI and naive fusion (which assumes `P' = 0`) guarantee nothing.
@@ -64,8 +67,9 @@ pub enum Method {
 pub enum Guarantee {
     /// Conservative for every admissible cross-covariance.
     Conservative,
-    /// A relaxation of the robust program: conservative for the cross-covariances it was
-    /// given only; the response's proven bracket says how far from the robust optimum it is.
+    /// A relaxation of the robust program: its bound is imposed, to the solver's tolerance, for
+    /// the cross-covariances it was given only; the response's proven bracket says how far
+    /// from the robust optimum it is.
     Relaxation,
     /// Conservative when the correlation comes from common information only.
     CommonInformation,
@@ -119,9 +123,8 @@ impl Criteria {
     }
 }
 
-/// A method-specific field of a [`crate::FuseRequest`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+/// A method-specific field of a [`crate::FuseRequest`] (serialised as its [`field`](Self::field)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RequestOption {
     /// `samples`.
     Samples,
@@ -158,6 +161,12 @@ impl RequestOption {
             RequestOption::TimeLimit => "time_limit",
             RequestOption::Level => "level",
         }
+    }
+}
+
+impl Serialize for RequestOption {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.field())
     }
 }
 

@@ -96,16 +96,19 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
     // and the consistent estimators stay readable against the band.
     let shown: Vec<usize> = (0..all.len()).filter(|&s| all[s].charted()).collect();
     let dt = cfg.scenario.dt;
-    let nees: Vec<_> = shown
-        .iter()
-        .map(|&s| {
-            (
-                labels[s].as_str(),
-                colours[s],
-                summary.nees_series[s].as_slice(),
-            )
-        })
-        .collect();
+    // The charted estimators' series of one kind, with their labels and colours.
+    fn charted<'a>(
+        shown: &[usize],
+        labels: &'a [String],
+        colours: &[RGBColor],
+        series: &'a [Vec<f64>],
+    ) -> Vec<(&'a str, RGBColor, &'a [f64])> {
+        shown
+            .iter()
+            .map(|&s| (labels[s].as_str(), colours[s], series[s].as_slice()))
+            .collect()
+    }
+    let nees = charted(&shown, &labels, &colours, &summary.nees_series);
     line_chart(
         &out.join("nees.svg"),
         &format!(
@@ -191,16 +194,7 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
         false,
     )?;
     if !summary.coin_series.is_empty() {
-        let coin: Vec<_> = shown
-            .iter()
-            .map(|&s| {
-                (
-                    labels[s].as_str(),
-                    colours[s],
-                    summary.coin_series[s].as_slice(),
-                )
-            })
-            .collect();
+        let coin = charted(&shown, &labels, &colours, &summary.coin_series);
         line_chart(
             &out.join("coin.svg"),
             &format!(
