@@ -45,6 +45,30 @@ pub fn fuse(request: JsValue) -> Result<JsValue, JsValue> {
     Ok(to_js(&response)?)
 }
 
+/// Installs the page's panic hook (each worker calls it once after `init`). wasm32 aborts on a
+/// panic: the call ends in a `WebAssembly.RuntimeError` ("unreachable") and the instance must
+/// not be used again. The hook runs first and stores the panic's message on the global object
+/// as `nmciPanic`, so the worker can report what happened before the page replaces it
+/// (`www/crash.js`).
+#[wasm_bindgen]
+pub fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        // Setting a property on the global object cannot fail.
+        let _ = js_sys::Reflect::set(
+            &js_sys::global(),
+            &"nmciPanic".into(),
+            &info.to_string().into(),
+        );
+    }));
+}
+
+/// Test-only: panics with `message`. The end-to-end test calls it through the explorer's
+/// worker to check that a panic is reported and the worker replaced; the page never does.
+#[wasm_bindgen]
+pub fn panic_for_test(message: &str) {
+    panic!("{message}");
+}
+
 /// Every fusion rule ([`crate::RULES`]): name, label, legend, guarantee, colour, criteria,
 /// options, whether it fuses N estimates and whether the explorer computes it.
 #[wasm_bindgen]

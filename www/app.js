@@ -39,7 +39,7 @@ const client = createExploreClient({
     render();
   },
   onError: (error, field) => showInputError(error, field),
-  onWorkerError: (message) => showGeneral(`the worker failed: ${message}`),
+  onWorkerError: (message) => showGeneral(`${message}; the numbers shown are of the last state computed`),
   onTimings: (median, count) => {
     $("timing").textContent = count ? `recompute (all rules + region, worker round trip): median ${median.toFixed(1)} ms over ${count}` : "";
   },

@@ -1,7 +1,9 @@
 // The explorer's round trip to its Web Worker (www/worker.js, one wasm `explore` per state):
 // one request in flight, the latest state wins. A solve still running ABANDON_MS after a newer
 // edit arrived is stale: the worker is terminated (wasm cannot be interrupted from outside)
-// and a fresh one takes the newest state. Timings of every round trip are kept in
+// and a fresh one takes the newest state. A worker that crashed (a panic in wasm,
+// www/worker-init.js) or failed is replaced the same way; the state it was given is not sent
+// again (it would crash again), the next edit goes to the fresh worker. Timings of every round trip are kept in
 // `window.nmciStats` (the end-to-end tests read them).
 const ABANDON_MS = 300;
 
@@ -30,8 +32,16 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
     },
     runs: 0,
     abandoned: 0,
+    crashes: 0,
   };
   window.nmciStats = stats;
+  /** Test-only (the end-to-end test): makes the idle worker panic with `message`. */
+  stats.panicForTest = (message) => {
+    if (inFlight) throw new Error("a request is in flight");
+    inFlight = { id: nextId++, t0: performance.now(), state: null };
+    onBusy(true);
+    worker.postMessage({ id: inFlight.id, panic: message });
+  };
   let worker = null;
   let staleTimer = null;
   let nextId = 1;
@@ -41,8 +51,28 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
   function makeWorker() {
     const w = new Worker(url, { type: "module" });
     w.onmessage = onMessage;
-    w.onerror = (e) => onWorkerError(e.message);
+    w.onerror = (e) => replace(`the worker failed: ${e.message || "unknown error"}`);
     return w;
+  }
+
+  /** Drops the current worker (crashed or failed) for a fresh one; reports `message`. */
+  function replace(message) {
+    if (staleTimer) {
+      clearTimeout(staleTimer);
+      staleTimer = null;
+    }
+    worker.terminate();
+    worker = makeWorker();
+    stats.crashes++;
+    inFlight = null;
+    onWorkerError(message);
+    if (queued) {
+      const q = queued;
+      queued = null;
+      send(q);
+    } else {
+      onBusy(false);
+    }
   }
 
   function send(s) {
@@ -52,8 +82,9 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
   }
 
   function onMessage(event) {
-    const { id, ok, result, error, field } = event.data;
+    const { id, ok, result, error, field, crashed } = event.data;
     if (!inFlight || id !== inFlight.id) return;
+    if (crashed) return replace(error);
     if (staleTimer) {
       clearTimeout(staleTimer);
       staleTimer = null;

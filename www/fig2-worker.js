@@ -1,9 +1,9 @@
 // The fig. 2 study off the main thread: run after run of the wasm `fig2_run` (the same code
 // as `nmci fig2`), the summary rows (`fig2_summary`) posted back at most every 100 ms and at
 // the end. A "stop" message is seen between runs.
-import init, { fig2_run, fig2_summary } from "./pkg/nmci.js";
+import { fig2_run, fig2_summary } from "./pkg/nmci.js";
+import { ready, crashMessage } from "./worker-init.js";
 
-const ready = init();
 let stopped = false;
 
 self.onmessage = async (event) => {
@@ -36,6 +36,8 @@ self.onmessage = async (event) => {
     if (posted < runs.length) post();
     self.postMessage({ type: stopped ? "stopped" : "done" });
   } catch (err) {
-    self.postMessage({ type: "error", error: String(err && err.message ? err.message : err) });
+    const crash = crashMessage(err);
+    self.postMessage({ type: crash ? "crashed" : "error", error: crash ?? String(err && err.message ? err.message : err) });
+    if (crash) self.close();
   }
 };

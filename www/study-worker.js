@@ -1,9 +1,9 @@
 // The tracking study off the main thread: the wasm `Study` advanced a chunk of steps at a
 // time; after each chunk the current view (headline numbers and run-averaged series as
 // Float64Arrays) goes back to the page. A "stop" message is seen between chunks.
-import init, { Study } from "./pkg/nmci.js";
+import { Study, panic_for_test } from "./pkg/nmci.js";
+import { ready, crashMessage } from "./worker-init.js";
 
-const ready = init();
 let stopped = false;
 const CHUNK = 20; // steps per message: about 0.1–0.2 s of work
 
@@ -13,14 +13,15 @@ self.onmessage = async (event) => {
     stopped = true;
     return;
   }
-  if (type !== "start") return;
+  if (type !== "start" && type !== "panic") return;
   stopped = false;
   let study;
   try {
     await ready;
+    if (type === "panic") panic_for_test(event.data.message); // the end-to-end test's forced panic
     study = new Study(config);
   } catch (err) {
-    self.postMessage({ type: "error", error: String(err && err.message ? err.message : err) });
+    fail(err);
     return;
   }
   const t0 = performance.now();
@@ -46,8 +47,16 @@ self.onmessage = async (event) => {
     }
     self.postMessage({ type: stopped ? "stopped" : "done" });
   } catch (err) {
-    self.postMessage({ type: "error", error: String(err && err.message ? err.message : err) });
-  } finally {
-    study.free();
+    if (fail(err)) return; // the instance is unusable: no `free`
   }
+  study.free();
 };
+
+/** Reports `err`; after a crash the worker closes (the page replaces it). Returns whether it
+ * was a crash. */
+function fail(err) {
+  const crash = crashMessage(err);
+  self.postMessage({ type: crash ? "crashed" : "error", error: crash ?? String(err && err.message ? err.message : err) });
+  if (crash) self.close();
+  return crash !== null;
+}

@@ -105,7 +105,7 @@ function render(view) {
   const runSeconds = view.run_ms.length ? ` · ${(view.run_ms.reduce((a, b) => a + b, 0) / view.run_ms.length / 1000).toFixed(2)} s per run` : "";
   const elapsed = `${(view.elapsed_ms / 1000).toFixed(1)} s`;
   $("#study-progress").textContent = view.finished
-    ? `done: ${view.runs} runs × ${view.steps} steps${view.coin_enabled ? " and the exact COIN" : ""} in ${elapsed}${runSeconds}`
+    ? `done: ${view.runs} run${view.runs === 1 ? "" : "s"} × ${view.steps} steps${view.coin_enabled ? " and the exact COIN" : ""} in ${elapsed}${runSeconds}`
     : runsDone
       ? `runs done${runSeconds}; exact COIN: step ${view.coin_len} of ${view.steps} · ${elapsed}`
       : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps} · ${elapsed}${runSeconds}`;

@@ -1,7 +1,8 @@
 // What the tabs that run a study in a Web Worker (Tracking study, Fig. 2) share: reading
 // whole-number fields with inline errors, and the worker's wiring — start and stop buttons,
 // progress messages, errors, and `document.body.dataset[name]` ("running", "done",
-// "stopped", "error") for tests.
+// "stopped", "error") for tests. A worker that crashed (a panic in wasm, www/worker-init.js)
+// or failed is dropped; the next start makes a fresh one.
 const $ = (s) => document.querySelector(s);
 
 /** `{key: value}` from the inputs `#${prefix}-${key}`, each a whole number in [min, max];
@@ -41,21 +42,18 @@ export function workerTab({ name, label, url, readConfig, onProgress }) {
     setRunning(false);
     document.body.dataset[name] = state;
   };
-  function start() {
-    error.textContent = "";
-    let config;
-    try {
-      config = readConfig();
-    } catch (err) {
-      error.textContent = err.message;
-      return;
-    }
+  function drop() {
+    worker?.terminate();
+    worker = null;
+  }
+  function ensureWorker() {
     if (!worker) {
       worker = new Worker(url, { type: "module" });
       worker.onmessage = (event) => {
         const msg = event.data;
-        if (msg.type === "error") {
+        if (msg.type === "error" || msg.type === "crashed") {
           error.textContent = msg.error;
+          if (msg.type === "crashed") drop();
           finish("error");
         } else if (msg.type === "done" || msg.type === "stopped") {
           finish(msg.type);
@@ -65,14 +63,34 @@ export function workerTab({ name, label, url, readConfig, onProgress }) {
       };
       worker.onerror = (event) => {
         error.textContent = `the ${label} worker failed: ${event.message || "unknown error"}`;
+        drop();
         finish("error");
       };
     }
+  }
+  function start() {
+    error.textContent = "";
+    let config;
+    try {
+      config = readConfig();
+    } catch (err) {
+      error.textContent = err.message;
+      return;
+    }
+    ensureWorker();
     document.body.dataset[name] = "running";
     setRunning(true);
     worker.postMessage({ type: "start", config });
   }
   $(`#${name}-start`).addEventListener("click", start);
   $(`#${name}-stop`).addEventListener("click", () => worker && worker.postMessage({ type: "stop" }));
+  /** Test-only (the end-to-end test): makes the worker panic with `message`. */
+  const panicForTest = (message) => {
+    ensureWorker();
+    document.body.dataset[name] = "running";
+    setRunning(true);
+    worker.postMessage({ type: "panic", message });
+  };
+  (window.nmciTabs ??= {})[name] = { panicForTest };
   return { start, running: () => running };
 }

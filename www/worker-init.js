@@ -1,0 +1,17 @@
+// The wasm module inside a Web Worker: loaded with its panic hook installed, and what a panic
+// becomes. wasm32 aborts on a panic: the call ends in a `WebAssembly.RuntimeError`
+// ("unreachable") and the instance must not be used again. The hook (wasm
+// `install_panic_hook`) has stored the panic's message as `self.nmciPanic` first; the worker
+// reports it and closes, and the page replaces the worker (explore-client.js, worker-tab.js).
+import init, { install_panic_hook } from "./pkg/nmci.js";
+
+/** Resolves once the module is loaded and its panic hook installed. */
+export const ready = init().then(() => install_panic_hook());
+
+/** The message to report when `err` is a panic (or any other trap) of the module; `null` for
+ * an ordinary thrown error, after which the module is still usable. */
+export function crashMessage(err) {
+  if (!(err instanceof WebAssembly.RuntimeError)) return null;
+  const what = (self.nmciPanic ?? err.message).replace(/\s+/g, " ").trim();
+  return `the computation crashed (${what}); its worker was replaced`;
+}
