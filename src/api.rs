@@ -24,7 +24,7 @@ use crate::fusion::nway::{
     covariance_intersection_nway, non_monolithic_ci_nway, Estimate, NwayResult, PairPattern,
 };
 use crate::fusion::rules::{methods_phrase, Criteria, Guarantee, Method, RequestOption};
-use crate::fusion::sample::{SamplerKind, SamplerSettings};
+use crate::fusion::sample::{AutoChoice, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion, SdpSettings};
 use crate::fusion::{Criterion, Fused, FusionProblem};
 use crate::linalg::{matrix_from_rows, matrix_to_rows};
@@ -94,7 +94,8 @@ pub struct FuseRequest {
     /// `sdp`: rejection-sampler trial budget (default 2 000 000).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_trials: Option<u64>,
-    /// `sdp`: `rejection` (the paper's, default) or `hit_and_run` (any dimension).
+    /// `sdp`: `rejection` (the paper's, default), `hit_and_run` (any dimension) or `auto`
+    /// (rejection where its acceptance is workable, hit-and-run otherwise).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampler: Option<SamplerKind>,
     /// `sdp`, `sdp_cuts`, `certified`: wall-clock limit in seconds (default none) of the main
@@ -162,6 +163,10 @@ pub struct FuseResponse {
     /// `sdp`: rejection-sampler acceptance rate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub acceptance_rate: Option<f64>,
+    /// `sdp` with `sampler: "auto"`: the sampler chosen (`kind`) and the pilot it was chosen by
+    /// (`pilot_trials`, `pilot_accepted`, `fell_back`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampler_choice: Option<AutoChoice>,
     /// `sdp`: LMIs in the final working set; `sdp_cuts`: constraints (starting samples and cuts).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lmis: Option<usize>,
@@ -421,6 +426,7 @@ fn bare_response(
         status: None,
         iterations: None,
         acceptance_rate: None,
+        sampler_choice: None,
         lmis: None,
         worst_sample_margin: None,
         lower_bound: None,
@@ -712,6 +718,7 @@ pub(crate) fn sdp_response(
     r.status = Some(opt.status.as_str().into());
     r.iterations = Some(opt.iterations);
     r.acceptance_rate = Some(opt.acceptance_rate);
+    r.sampler_choice = opt.sampler_choice;
     r.lmis = Some(opt.lmis);
     r.worst_sample_margin = Some(opt.worst_sample_margin);
     r.blocks = Some(opt.blocks.clone());

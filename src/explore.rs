@@ -16,7 +16,7 @@ use crate::fusion::certify::CertifySettings;
 use crate::fusion::check::{fused_coin, worst_margin};
 use crate::fusion::known::known_correlation_fusion;
 use crate::fusion::rules::{Method, RULES};
-use crate::fusion::sample::{sample_cross_covariances, SamplerKind, SamplerSettings};
+use crate::fusion::sample::{sample_cross_covariances, AutoChoice, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::Criterion;
 use crate::fusion::{Fused, FusionProblem};
@@ -53,8 +53,9 @@ pub struct ExploreRequest {
     /// Rejection-sampler budget per sample set (default 200 000: interactive use).
     #[serde(default)]
     pub max_trials: Option<u64>,
-    /// `rejection` (the paper's sampler, default) or `hit_and_run` (any dimension), for the
-    /// SDP's samples and the region's.
+    /// The sampler of the SDP's samples and the region's: `rejection` (the paper's, default),
+    /// `hit_and_run` (any dimension) or `auto` (rejection where its acceptance is workable,
+    /// hit-and-run otherwise; the page's default).
     #[serde(default)]
     pub sampler: Option<SamplerKind>,
 }
@@ -125,6 +126,8 @@ pub struct Exploration {
     pub region_count: usize,
     /// Their acceptance rate.
     pub region_acceptance_rate: Option<f64>,
+    /// With `sampler: "auto"`: the sampler that drew the region and why.
+    pub region_sampler_choice: Option<AutoChoice>,
     /// Why the region could not be drawn.
     pub region_error: Option<String>,
     /// The region: `region_count` optimal known-correlation covariances `P*`, each `n × n`
@@ -253,6 +256,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
     let region_samples = request.region_samples.unwrap_or(300);
     let mut region = Vec::new();
     let (mut region_count, mut region_acceptance_rate, mut region_error) = (0, None, None);
+    let mut region_sampler_choice = None;
     let mut drawn_cross = None;
     if region_samples > 0 {
         match sample_cross_covariances(&problem, region_samples, region_seed(seed), sampler) {
@@ -264,6 +268,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
                 }
                 region_count = drawn.len();
                 region_acceptance_rate = Some(drawn.acceptance_rate());
+                region_sampler_choice = drawn.auto;
                 drawn_cross = Some(drawn.cross);
             }
             Err(e) => region_error = Some(e.to_string()),
@@ -298,6 +303,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         gap,
         region_count,
         region_acceptance_rate,
+        region_sampler_choice,
         region_error,
         region,
     })

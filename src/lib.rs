@@ -80,8 +80,8 @@ pub use fusion::nway::{
 };
 pub use fusion::rules::{rules, Criteria, Guarantee, Method, RequestOption, RuleInfo, RULES};
 pub use fusion::sample::{
-    sample_cross_covariances, sample_cross_covariances_with, CrossSamples, SamplerKind,
-    SamplerSettings,
+    sample_cross_covariances, sample_cross_covariances_with, AutoChoice, CrossSamples, SamplerKind,
+    SamplerSettings, AUTO_MIN_ACCEPTED, AUTO_PILOT_TRIALS,
 };
 pub use fusion::sdp::{
     optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings, SdpStatus,

@@ -1,6 +1,6 @@
 // The explorer's UI: inputs, drawing and wiring; the worker round trip is www/explore-client.js,
 // the numbers panel www/numbers.js, the state and its URL www/state.js.
-import { LAYERS, preset, patternPreset, resize, encodeHash, decodeHash } from "./state.js";
+import { LAYERS, SAMPLERS, preset, patternPreset, resize, encodeHash, decodeHash } from "./state.js";
 import { el, marginal, axes, fromAxes, ellipsePath, frame } from "./plot.js";
 import { EXPLORER_RULES } from "./rules.js";
 import { createExploreClient } from "./explore-client.js";
@@ -359,6 +359,7 @@ function download(name, type, content) {
 
 function init() {
   $("dim").replaceChildren(...[2, 3, 4, 5, 6].map((k) => new Option(String(k), k)));
+  $("sampler").replaceChildren(...Object.entries(SAMPLERS).map(([value, label]) => new Option(label, value)));
   buildLegend();
   $("plot").addEventListener("pointermove", onDrag);
   for (const ev of ["pointerup", "pointercancel"]) $("plot").addEventListener(ev, () => (drag = null));

@@ -15,6 +15,20 @@ export const STYLE = {
 const f3 = (v) => (v === undefined || v === null ? "—" : Number(v).toFixed(3));
 const fe = (v) => (Math.abs(v) < 1e-3 && v !== 0 ? v.toExponential(2) : v.toFixed(4));
 
+const percent = (rate) => `${(rate * 100).toPrecision(3)} %`;
+
+/** Which sampler drew `count` samples and, for `auto`, why (its `choice`: `kind`,
+ * `pilot_trials`, `pilot_accepted`, `fell_back`). */
+function samplerText(requested, choice, acceptance, count) {
+  const kind = choice ? choice.kind : requested;
+  const drawn = kind === "hit_and_run" ? "hit-and-run sampler (no rejections)" : `rejection sampler, acceptance ${percent(acceptance)}`;
+  if (!choice) return drawn;
+  const pilot = `the rejection sampler's pilot accepted ${choice.pilot_accepted} of ${choice.pilot_trials} proposals`;
+  if (kind === "rejection") return `auto: ${drawn} (${pilot})`;
+  if (choice.fell_back) return `auto: ${drawn} — ${pilot}, but the rejection sampler then ran out of its budget`;
+  return `auto: ${drawn} — ${pilot} (${percent(choice.pilot_accepted / choice.pilot_trials)}), too few for ${count} samples within its budget`;
+}
+
 /** Fills the numbers table and the details under it from an analysis `a` of the explorer
  * state `s`. */
 export function renderNumbersPanel(a, s) {
@@ -105,7 +119,7 @@ export function renderNumbersPanel(a, s) {
   const parts = [];
   parts.push(`<div id="blocks"><span class="k">nmCI blocks (${nmci.blocks.length}):</span> ${blocks}</div>`);
   if (sdp) {
-    parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${sdp.status}</b>, ${sdp.iterations} iterations, ${sdp.lmis} LMIs in the final working set of ${sdp.samples} samples, ${s.sampler === "hit_and_run" ? "hit-and-run sampler (no rejections)" : `sampler acceptance ${(sdp.acceptance_rate * 100).toPrecision(3)} %`}</div>`);
+    parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${sdp.status}</b>, ${sdp.iterations} iterations, ${sdp.lmis} LMIs in the final working set of ${sdp.samples} samples, ${samplerText(s.sampler, sdp.sampler_choice, sdp.acceptance_rate, sdp.samples)}</div>`);
   }
   if (a.gap) {
     const upperName = `the ${RULE[a.gap.upper_rule].label} bound`;
@@ -122,7 +136,7 @@ export function renderNumbersPanel(a, s) {
   if (a.region_error) {
     parts.push(`<div class="err" id="region-status">region: ${a.region_error}</div>`);
   } else if (a.region_count) {
-    parts.push(`<div id="region-status"><span class="k">region and worst λ<sub>min</sub>:</span> ${a.region_count} admissible P<sub>ab</sub> drawn (${s.sampler === "hit_and_run" ? "hit-and-run" : `acceptance ${(a.region_acceptance_rate * 100).toPrecision(3)} %`}), independent of the SDP's samples</div>`);
+    parts.push(`<div id="region-status"><span class="k">region and worst λ<sub>min</sub>:</span> ${a.region_count} admissible P<sub>ab</sub> drawn (${samplerText(s.sampler, a.region_sampler_choice, a.region_acceptance_rate, a.region_count)}), independent of the SDP's samples</div>`);
   }
   d.innerHTML = parts.join("");
 }

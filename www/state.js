@@ -8,6 +8,14 @@ export const LAYERS = ["region", "pa", "pb", ...EXPLORER_RULES.map((r) => r.name
 // (`unguaranteed` in the registry); they are a click away.
 const DEFAULT_OFF = EXPLORER_RULES.filter((r) => r.unguaranteed).map((r) => r.name);
 
+// The samplers of admissible P_ab (`SamplerKind` in Rust) with the select's labels; the first is
+// the default.
+export const SAMPLERS = {
+  auto: "auto (rejection where it works)",
+  rejection: "rejection (paper)",
+  hit_and_run: "hit-and-run",
+};
+
 const diag = (v) => v.map((x, i) => v.map((_, j) => (i === j ? x : 0)));
 const blockDiag = (blocks) => {
   const n = blocks.reduce((s, b) => s + b.length, 0);
@@ -49,7 +57,7 @@ function components(n, linked) {
 }
 
 export function preset(name) {
-  const base = { samples: 200, seed: 0, region: 300, criterion: "trace", sampler: "rejection", view: [0, 1], layers: Object.fromEntries(LAYERS.map((l) => [l, !DEFAULT_OFF.includes(l)])), preset: name };
+  const base = { samples: 200, seed: 0, region: 300, criterion: "trace", sampler: Object.keys(SAMPLERS)[0], view: [0, 1], layers: Object.fromEntries(LAYERS.map((l) => [l, !DEFAULT_OFF.includes(l)])), preset: name };
   switch (name) {
     case "paper":
       return { ...base, n: 2, pa: diag([3, 1]), pb: diag([1, 4]), pattern: [[true, false], [false, true]] };
@@ -119,9 +127,9 @@ export function decodeHash(hash) {
   const state = {
     ...base, n, pa: c.pa, pb: c.pb,
     pattern: c.pattern.map((r) => [...r].map((ch) => ch === "1")),
-    samples: int("samples", 200, 1, 5000), seed: int("seed", 0, 0, Number.MAX_SAFE_INTEGER), region: int("region", 300, 0, 5000),
-    criterion: pick("criterion", c.criterion === "trace" || c.criterion === "logdet", c.criterion, "trace"), view,
-    sampler: pick("sampler", c.sampler === "rejection" || c.sampler === "hit_and_run", c.sampler, "rejection"),
+    samples: int("samples", base.samples, 1, 5000), seed: int("seed", base.seed, 0, Number.MAX_SAFE_INTEGER), region: int("region", base.region, 0, 5000),
+    criterion: pick("criterion", c.criterion === "trace" || c.criterion === "logdet", c.criterion, base.criterion), view,
+    sampler: pick("sampler", Object.hasOwn(SAMPLERS, c.sampler), c.sampler, base.sampler),
     layers: pick("layers", Array.isArray(c.layers), Array.isArray(c.layers) && Object.fromEntries(LAYERS.map((l) => [l, c.layers.includes(l)])), base.layers),
     preset: pick("preset", typeof c.preset === "string", c.preset, "custom"),
   };

@@ -116,6 +116,7 @@ class Fused:
     status: Optional[str]
     iterations: Optional[int]
     acceptance_rate: Optional[float]
+    sampler_choice: Optional[Dict[str, Any]]
     lmis: Optional[int]
     worst_sample_margin: Optional[float]
     lower_bound: Optional[float]
@@ -450,7 +451,8 @@ def sample_cross_covariances(
     max_trials: Optional[int] = None,
 ) -> np.ndarray:
     """``count`` admissible cross-covariances ``P_ab'`` (an array ``count × n × n``): the
-    paper's rejection sampler, or "hit_and_run" (any dimension; correlated samples)."""
+    paper's rejection sampler, "hit_and_run" (any dimension; correlated samples) or "auto" (the
+    rejection sampler where a pilot finds its acceptance workable, hit-and-run otherwise)."""
     stack, _trials = _nmci.sample_cross_covariances(
         _matrix("P_a", Pa),
         _matrix("P_b", Pb),

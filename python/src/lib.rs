@@ -296,12 +296,9 @@ fn sample_cross_covariances<'py>(
     max_trials: Option<u64>,
 ) -> PyResult<(Bound<'py, PyArray3<f64>>, u64)> {
     let kind: nmci::SamplerKind = serde_json::from_value(serde_json::Value::from(sampler))
-        .map_err(|_| {
-            error(
-                py,
-                "RequestError",
-                format!("invalid request: unknown sampler {sampler:?} (\"rejection\" or \"hit_and_run\")"),
-            )
+        .map_err(|e| {
+            // serde's message lists the variants of `SamplerKind` itself.
+            error(py, "RequestError", format!("invalid request: sampler: {e}"))
         })?;
     // The request's problem builder: the same checks and messages as `fuse`.
     let request: FuseRequest = serde_json::from_value(serde_json::json!({

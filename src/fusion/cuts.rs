@@ -319,6 +319,7 @@ pub fn optimal_fusion_cuts(
         let set = CrossSamples {
             cross: cross.clone(),
             trials: 0,
+            auto: None,
         };
         let opt = match solve_samples(problem, &set, &sdp, &deadline) {
             Ok(o) => o,
@@ -473,6 +474,7 @@ fn prune(
     let set = CrossSamples {
         cross: kept.clone(),
         trials: 0,
+        auto: None,
     };
     let reduced = match solve_samples(problem, &set, sdp, deadline) {
         Ok(r) => r,

@@ -23,6 +23,15 @@
 //! free entries. The uniform distribution on an open convex set is the chain's stationary
 //! law and every admissible `C` is reachable, so the support is the whole admissible set;
 //! samples are taken every `sweeps_per_sample` sweeps after `burn_in_sweeps`.
+//!
+//! [`SamplerKind::Auto`] picks one of the two per problem: a pilot of the rejection sampler
+//! (its own generator, derived from the seed, at most [`AUTO_PILOT_TRIALS`] proposals)
+//! estimates the acceptance rate `p̂`; the rejection sampler is used when the `count` samples
+//! are expected to need at most a quarter of the trial budget (`count / p̂ ≤ max_trials / 4`,
+//! with at least [`AUTO_MIN_ACCEPTED`] acceptances seen), hit-and-run otherwise — and also if
+//! the chosen rejection sampler still runs out of budget. Both samplers have the same law, so
+//! the choice changes how the samples are drawn, not what they are samples of; with a seed,
+//! the samples are exactly those of the chosen sampler run alone with that seed.
 
 use nalgebra::{DMatrix, DVector};
 use rand::Rng;
@@ -43,6 +52,30 @@ pub enum SamplerKind {
     Rejection,
     /// Coordinate hit-and-run on the admissible set (no rejections; correlated samples).
     HitAndRun,
+    /// The rejection sampler where its acceptance is workable, hit-and-run otherwise (decided
+    /// by a pilot; see the module docs). [`CrossSamples::auto`] says what was chosen and why.
+    Auto,
+}
+
+/// The pilot's largest number of rejection-sampler proposals ([`SamplerKind::Auto`]).
+pub const AUTO_PILOT_TRIALS: u64 = 2000;
+/// The fewest acceptances in the pilot for which [`SamplerKind::Auto`] trusts its estimate of
+/// the acceptance rate enough to choose the rejection sampler.
+pub const AUTO_MIN_ACCEPTED: u64 = 10;
+
+/// What [`SamplerKind::Auto`] chose, and the pilot it chose by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AutoChoice {
+    /// The sampler that drew the samples ([`SamplerKind::Rejection`] or
+    /// [`SamplerKind::HitAndRun`]).
+    pub kind: SamplerKind,
+    /// The pilot's proposals.
+    pub pilot_trials: u64,
+    /// The pilot's acceptances.
+    pub pilot_accepted: u64,
+    /// Whether the rejection sampler was chosen but ran out of budget, so hit-and-run drew
+    /// the samples.
+    pub fell_back: bool,
 }
 
 /// Settings of the samplers.
@@ -111,6 +144,8 @@ pub struct CrossSamples {
     /// Rejection: proposals drawn to get them. Hit-and-run: chain steps (burn-in included;
     /// every step is accepted).
     pub trials: u64,
+    /// With [`SamplerKind::Auto`]: the sampler chosen and why (`None` otherwise).
+    pub auto: Option<AutoChoice>,
 }
 
 impl CrossSamples {
@@ -153,8 +188,95 @@ pub fn sample_cross_covariances(
     seed: u64,
     settings: SamplerSettings,
 ) -> Result<CrossSamples, SampleError> {
+    if settings.kind == SamplerKind::Auto {
+        settings.validate()?;
+        let mut pilot_rng = ChaCha8Rng::seed_from_u64(pilot_seed(seed));
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        return auto(problem, count, &mut pilot_rng, &mut rng, settings);
+    }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     sample_cross_covariances_with(problem, count, &mut rng, settings)
+}
+
+/// The pilot's seed for a sampler seed: a fixed odd offset (the golden ratio's bits), so the
+/// pilot's proposals are not the chosen sampler's first ones.
+fn pilot_seed(seed: u64) -> u64 {
+    seed.wrapping_add(0x9E37_79B9_7F4A_7C15)
+}
+
+/// [`SamplerKind::Auto`]: the pilot from `pilot_rng`, then the chosen sampler from `rng` (see
+/// the module docs).
+fn auto<P: Rng, R: Rng>(
+    problem: &FusionProblem,
+    count: usize,
+    pilot_rng: &mut P,
+    rng: &mut R,
+    settings: SamplerSettings,
+) -> Result<CrossSamples, SampleError> {
+    let (pilot_trials, pilot_accepted) = pilot(problem, count, pilot_rng, settings.max_trials);
+    let workable = workable(count, pilot_trials, pilot_accepted, settings.max_trials);
+    let mut choice = AutoChoice {
+        kind: SamplerKind::HitAndRun,
+        pilot_trials,
+        pilot_accepted,
+        fell_back: false,
+    };
+    if workable {
+        match rejection(problem, count, rng, settings.max_trials) {
+            Ok(drawn) => {
+                choice.kind = SamplerKind::Rejection;
+                return Ok(CrossSamples {
+                    auto: Some(choice),
+                    ..drawn
+                });
+            }
+            Err(SampleError::BudgetExhausted { .. }) => choice.fell_back = true,
+            Err(e) => return Err(e),
+        }
+    }
+    let drawn = hit_and_run(problem, count, rng, settings)?;
+    Ok(CrossSamples {
+        auto: Some(choice),
+        ..drawn
+    })
+}
+
+/// Whether `accepted` of `trials` proposals make the rejection sampler workable for `count`
+/// samples: at least [`AUTO_MIN_ACCEPTED`] acceptances and an expected `count · trials /
+/// accepted` trials within a quarter of `max_trials` (integer arithmetic, exact).
+fn workable(count: usize, trials: u64, accepted: u64, max_trials: u64) -> bool {
+    accepted >= AUTO_MIN_ACCEPTED
+        && (count as u128) * (trials as u128) * 4 <= (accepted as u128) * (max_trials as u128)
+}
+
+/// The pilot of [`SamplerKind::Auto`]: rejection-sampler proposals until the acceptance seen
+/// makes the rejection sampler [`workable`], or [`AUTO_PILOT_TRIALS`] (at most the budget) are
+/// spent. Returns `(trials, accepted)`.
+fn pilot<R: Rng>(
+    problem: &FusionProblem,
+    count: usize,
+    rng: &mut R,
+    max_trials: u64,
+) -> (u64, u64) {
+    let n = problem.dim();
+    let (mut joint, _, _, free) = correlation_frame(problem);
+    let limit = AUTO_PILOT_TRIALS.min(max_trials);
+    let (mut trials, mut accepted) = (0_u64, 0_u64);
+    while trials < limit {
+        trials += 1;
+        for &(i, j) in &free {
+            let c: f64 = rng.random_range(-1.0..=1.0);
+            joint[(i, n + j)] = c;
+            joint[(n + j, i)] = c;
+        }
+        if nalgebra::Cholesky::new(joint.clone()).is_some() {
+            accepted += 1;
+            if workable(count, trials, accepted, max_trials) {
+                break;
+            }
+        }
+    }
+    (trials, accepted)
 }
 
 /// As [`sample_cross_covariances`], drawing from a caller's generator.
@@ -166,15 +288,31 @@ pub fn sample_cross_covariances_with<R: Rng>(
     settings: SamplerSettings,
 ) -> Result<CrossSamples, SampleError> {
     settings.validate()?;
-    if settings.kind == SamplerKind::HitAndRun {
-        return hit_and_run(problem, count, rng, settings);
+    match settings.kind {
+        SamplerKind::HitAndRun => hit_and_run(problem, count, rng, settings),
+        SamplerKind::Auto => {
+            // The pilot's generator is seeded from the caller's, which then draws the samples.
+            let mut pilot_rng = ChaCha8Rng::seed_from_u64(rng.random());
+            auto(problem, count, &mut pilot_rng, rng, settings)
+        }
+        SamplerKind::Rejection => rejection(problem, count, rng, settings.max_trials),
     }
+}
+
+/// The paper's rejection sampler (see the module docs), within `max_trials` proposals.
+#[allow(non_snake_case)]
+fn rejection<R: Rng>(
+    problem: &FusionProblem,
+    count: usize,
+    rng: &mut R,
+    max_trials: u64,
+) -> Result<CrossSamples, SampleError> {
     let n = problem.dim();
     let (mut joint, d_a, d_b, free) = correlation_frame(problem);
     let mut cross = Vec::with_capacity(count);
     let mut trials = 0_u64;
     while cross.len() < count {
-        if trials >= settings.max_trials {
+        if trials >= max_trials {
             return Err(SampleError::BudgetExhausted {
                 accepted: cross.len(),
                 requested: count,
@@ -193,7 +331,11 @@ pub fn sample_cross_covariances_with<R: Rng>(
             cross.push(P_ab);
         }
     }
-    Ok(CrossSamples { cross, trials })
+    Ok(CrossSamples {
+        cross,
+        trials,
+        auto: None,
+    })
 }
 
 /// The joint correlation matrix `[[R_a, 0], [0, R_b]]`, the scales `D_a`, `D_b` and the free
@@ -252,6 +394,7 @@ fn hit_and_run<R: Rng>(
         return Ok(CrossSamples {
             cross: vec![DMatrix::zeros(n, n); count],
             trials: 0,
+            auto: None,
         });
     }
     let mut G = inverse(&J)?;
@@ -301,5 +444,9 @@ fn hit_and_run<R: Rng>(
             cross.push(sample(&J));
         }
     }
-    Ok(CrossSamples { cross, trials })
+    Ok(CrossSamples {
+        cross,
+        trials,
+        auto: None,
+    })
 }

@@ -49,7 +49,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use super::bracket::lower_bound;
 use super::certify::check_time_limit;
 use super::check::{conservativeness_margin, worst_margin};
-use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
+use super::sample::{sample_cross_covariances, AutoChoice, CrossSamples, SamplerSettings};
 use super::{scatter_block, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::symmetrize;
@@ -207,6 +207,8 @@ pub struct SdpResult {
     pub samples: usize,
     /// Sampler acceptance rate (1 when the samples were given).
     pub acceptance_rate: f64,
+    /// With [`SamplerKind::Auto`](crate::SamplerKind::Auto): the sampler chosen and why.
+    pub sampler_choice: Option<AutoChoice>,
     /// Clarabel's dual objective of the final programs, summed over blocks: a lower bound on
     /// the `N`-sample optimum only up to the solver's tolerance (its dual point is feasible
     /// only to that tolerance); see `lower_bound` for a proven one.
@@ -327,6 +329,7 @@ pub(crate) fn solve_samples(
         lmis,
         samples: samples.len(),
         acceptance_rate: samples.acceptance_rate(),
+        sampler_choice: samples.auto,
         dual_objective,
         // A sum of non-negative floats, each a proven bound for its block (module docs of
         // `fusion::bracket`: per-block bounds add up), rounded down.

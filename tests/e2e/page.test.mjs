@@ -175,18 +175,20 @@ test("a fully unknown 4-D P_ab defeats the rejection sampler; hit-and-run gives 
   await settle();
   await page.click('button[data-pattern="full"]');
   await settle();
+  // The default sampler (auto) saw it coming and took hit-and-run.
+  assert.match(await text("#sdp-status"), /auto: hit-and-run sampler \(no rejections\) — the rejection sampler's pilot accepted \d of 2000 proposals \([\d.]+ %\), too few for 200 samples within its budget/);
+  await page.selectOption("#sampler", "rejection");
+  await settle();
   assert.match(await text("#row-sdp"), /not available: the rejection sampler accepted only \d+ of 200/);
   await page.selectOption("#sampler", "hit_and_run");
   await settle();
   assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved).*hit-and-run sampler/);
   assert.match(await text("#gap"), /duals below, the (nmCI|CI|certified) bound above/);
   assert.match(await text("#gap-verdict"), /^open: /);
-  assert.match(await text("#region-status"), /300 admissible P\s*ab drawn \(hit-and-run\)/);
+  assert.match(await text("#region-status"), /300 admissible P\s*ab drawn \(hit-and-run sampler \(no rejections\)\)/);
   // The sampler is part of the shareable state.
   assert.match(decodeURIComponent(await page.evaluate(() => location.hash)), /"sampler":"hit_and_run"/);
   await page.screenshot({ path: join(out, "explorer-hit-and-run.png"), fullPage: true });
-  await page.selectOption("#sampler", "rejection");
-  await settle();
 });
 
 test("an edit during a long solve abandons it: a fresh worker computes the newest state", async () => {
@@ -203,10 +205,6 @@ test("an edit during a long solve abandons it: a fresh worker computes the newes
   await settle();
   assert.ok((await page.evaluate(() => window.nmciStats.abandoned)) > abandoned, "no solve was abandoned");
   assert.match(await text("#sdp-status"), /final working set of 120 samples/);
-  await page.fill("#samples", "200");
-  await settle();
-  await page.selectOption("#sampler", "rejection");
-  await settle();
 });
 
 test("a URL hash restores the whole state", async () => {
@@ -373,6 +371,11 @@ test("every preset with every pattern preset shows the CLI's CI, nmCI and blocks
       assert.equal(nmci.blocks.length, expected, what);
       assert.equal(await page.locator("#grid-pattern button").count(), n * n, what);
       assert.equal(await text("#err-general"), "", what);
+      // The default sampler (auto) gives every n the optimal ellipse and the region.
+      assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved).* auto: (rejection|hit-and-run) sampler/, what);
+      assert.match(await text("#region-status"), /300 admissible P\s*ab drawn \(auto: (rejection|hit-and-run) sampler/, what);
+      assert.equal(await page.locator("#layer-sdp").count(), 1, what);
+      assert.ok((await page.locator("#layer-region path").count()) >= 100, what);
     }
   }
 });

@@ -291,3 +291,157 @@ fn hit_and_run_and_rejection_agree_in_3d_with_known_zeros() {
         }
     }
 }
+
+/// `SamplerKind::Auto` with `max_trials`.
+fn auto(max_trials: u64) -> SamplerSettings {
+    SamplerSettings {
+        kind: SamplerKind::Auto,
+        ..SamplerSettings::rejection(max_trials)
+    }
+}
+
+#[test]
+fn auto_takes_the_rejection_sampler_where_it_works_and_draws_its_samples() {
+    // The paper's example accepts every proposal: the pilot stops at AUTO_MIN_ACCEPTED.
+    let p = paper_example();
+    for seed in [0, 7] {
+        let chosen = sample_cross_covariances(&p, 200, seed, auto(2_000_000)).unwrap();
+        let alone = sample_cross_covariances(&p, 200, seed, SamplerSettings::default()).unwrap();
+        assert_eq!(
+            chosen.cross, alone.cross,
+            "the rejection sampler's own samples"
+        );
+        assert_eq!(chosen.trials, alone.trials);
+        assert_eq!(
+            chosen.auto,
+            Some(AutoChoice {
+                kind: SamplerKind::Rejection,
+                pilot_trials: AUTO_MIN_ACCEPTED,
+                pilot_accepted: AUTO_MIN_ACCEPTED,
+                fell_back: false,
+            })
+        );
+        assert_eq!(alone.auto, None);
+    }
+}
+
+#[test]
+fn auto_takes_hit_and_run_where_the_rejection_sampler_dies_and_draws_its_samples() {
+    // Fully unknown P_ab: acceptance ≈ 4·10⁻⁴ at n = 4 (the pilot sees a handful in 2000
+    // proposals at most), none at n = 6.
+    for (n, seed) in [(4, 3), (6, 5)] {
+        let P = DMatrix::<f64>::identity(n, n);
+        let p =
+            FusionProblem::from_covariances(P.clone(), P, CrossPattern::fully_unknown(n)).unwrap();
+        let chosen = sample_cross_covariances(&p, 200, seed, auto(200_000)).unwrap();
+        let alone =
+            sample_cross_covariances(&p, 200, seed, SamplerSettings::hit_and_run()).unwrap();
+        assert_eq!(
+            chosen.cross, alone.cross,
+            "n = {n}: hit-and-run's own samples"
+        );
+        let choice = chosen.auto.unwrap();
+        assert_eq!(choice.kind, SamplerKind::HitAndRun);
+        assert_eq!(choice.pilot_trials, AUTO_PILOT_TRIALS);
+        assert!(choice.pilot_accepted < AUTO_MIN_ACCEPTED, "{choice:?}");
+        assert!(!choice.fell_back);
+        assert!(chosen.cross.iter().all(|s| admissible(&p, s)));
+    }
+}
+
+#[test]
+fn auto_chooses_rejection_exactly_when_the_expected_trials_fit_a_quarter_of_the_budget() {
+    // Acceptance 1 (the paper's example), 200 samples: after 10 of 10 accepted the expected
+    // 200 trials fit a quarter of the budget iff max_trials ≥ 800. Below, the pilot runs to its
+    // end (the budget, < 2000) and the estimate never improves.
+    let p = paper_example();
+    let at = |max_trials| {
+        sample_cross_covariances(&p, 200, 1, auto(max_trials))
+            .unwrap()
+            .auto
+            .unwrap()
+    };
+    let yes = at(800);
+    assert_eq!((yes.kind, yes.pilot_trials), (SamplerKind::Rejection, 10));
+    let no = at(799);
+    assert_eq!(
+        (no.kind, no.pilot_trials, no.pilot_accepted),
+        (SamplerKind::HitAndRun, 799, 799)
+    );
+    // Fewer than AUTO_MIN_ACCEPTED acceptances never choose the rejection sampler, even when
+    // the budget would allow it: a pilot capped at 9 proposals by the budget.
+    let few = sample_cross_covariances(&p, 1, 1, auto(9))
+        .unwrap()
+        .auto
+        .unwrap();
+    assert_eq!((few.kind, few.pilot_trials), (SamplerKind::HitAndRun, 9));
+    // Settings are still checked.
+    assert!(matches!(
+        sample_cross_covariances(&p, 1, 1, auto(0)),
+        Err(SampleError::InvalidSettings(_))
+    ));
+}
+
+#[test]
+fn auto_from_a_callers_generator_is_reproducible() {
+    let p = paper_example();
+    let draw =
+        |seed| sample_cross_covariances_with(&p, 50, &mut rng(seed), auto(2_000_000)).unwrap();
+    let (a, b, c) = (draw(4), draw(4), draw(5));
+    assert_eq!(a, b);
+    assert_ne!(a.cross, c.cross);
+    assert_eq!(a.auto.unwrap().kind, SamplerKind::Rejection);
+}
+
+#[test]
+fn the_contract_and_the_explorer_report_autos_choice() {
+    let unknown = vec![vec![true; 4]; 4];
+    // A fully unknown 4-D P_ab, where the rejection sampler dies.
+    let p = |v: f64| -> Vec<Vec<f64>> {
+        (0..4)
+            .map(|i| {
+                (0..4)
+                    .map(|j| if i == j { 1.0 + v * i as f64 } else { 0.1 })
+                    .collect()
+            })
+            .collect()
+    };
+    let request = serde_json::json!({
+        "pa": p(0.5), "pb": p(0.3), "pab_unknown": unknown,
+        "method": "sdp", "samples": 60, "sampler": "auto", "max_trials": 200000,
+    });
+    let response: serde_json::Value =
+        serde_json::from_str(&fuse_json(&request.to_string()).unwrap()).unwrap();
+    assert_eq!(response["sampler_choice"]["kind"], "hit_and_run");
+    assert_eq!(
+        response["sampler_choice"]["pilot_trials"],
+        AUTO_PILOT_TRIALS
+    );
+    assert_eq!(response["sampler_choice"]["fell_back"], false);
+    // Without `auto`, no choice is reported.
+    let plain = serde_json::json!({
+        "pa": p(0.5), "pb": p(0.3), "pab_unknown": unknown,
+        "method": "sdp", "samples": 60, "sampler": "hit_and_run",
+    });
+    let plain: serde_json::Value =
+        serde_json::from_str(&fuse_json(&plain.to_string()).unwrap()).unwrap();
+    assert!(plain.get("sampler_choice").is_none());
+    let explored = explore(
+        &serde_json::from_value::<ExploreRequest>(serde_json::json!({
+            "pa": p(0.5), "pb": p(0.3), "pab_unknown": unknown,
+            "samples": 60, "region_samples": 100, "sampler": "auto",
+        }))
+        .unwrap(),
+    )
+    .unwrap();
+    assert_eq!(explored.region_count, 100);
+    assert_eq!(
+        explored.region_sampler_choice.map(|c| c.kind),
+        Some(SamplerKind::HitAndRun)
+    );
+    let sdp = explored.response(Method::Sdp).expect("the SDP is computed");
+    assert_eq!(
+        sdp.sampler_choice.map(|c| c.kind),
+        Some(SamplerKind::HitAndRun)
+    );
+}

@@ -117,7 +117,11 @@ fn nearly_singular_samples_are_handled() {
         near(0.3, 0.2),
         near(0.99, 0.99),
     ];
-    let samples = CrossSamples { cross, trials: 4 };
+    let samples = CrossSamples {
+        cross,
+        trials: 4,
+        auto: None,
+    };
     let opt = optimal_fusion_for_samples(&p, &samples, &SdpSettings::default()).unwrap();
     assert!(
         (opt.fused.trace() - 2.0).abs() < 1e-6,
@@ -181,6 +185,7 @@ fn invalid_settings_are_rejected() {
     let empty = CrossSamples {
         cross: vec![],
         trials: 0,
+        auto: None,
     };
     assert!(matches!(
         optimal_fusion_for_samples(&p, &empty, &SdpSettings::default()),
