@@ -1,6 +1,7 @@
 //! The wasm module in headless Chromium (`scripts/wasm.sh test`): the exported `fuse` on the
 //! paper's example for every method, every method against stored *native* responses
-//! (`tests/golden/native_responses.json`), and invalid requests throwing with their message.
+//! (`tests/golden/native_responses.json`) and fig. 2 records (`tests/golden/fig2.json`), and
+//! invalid requests throwing with their message.
 #![cfg(target_arch = "wasm32")]
 
 use js_sys::{Reflect, JSON};
@@ -241,4 +242,19 @@ fn every_method_matches_the_stored_native_responses() {
         let got: serde_json::Value = serde_wasm_bindgen::from_value(js).unwrap();
         golden::same_response(request, &got, &case["response"]).unwrap();
     }
+}
+
+#[wasm_bindgen_test]
+fn fig2_matches_the_stored_native_records() {
+    let config = golden::fig2_config();
+    let stored: Vec<Vec<nmci::Fig2Record>> = serde_json::from_str(golden::FIG2).unwrap();
+    let js_config = JSON::parse(&serde_json::to_string(&config).unwrap()).unwrap();
+    let got: Vec<Vec<nmci::Fig2Record>> = (0..config.runs)
+        .map(|run| {
+            let js = nmci::wasm::fig2_run(js_config.clone(), run)
+                .unwrap_or_else(|e| panic!("run {run}: {:?}", JsValue::from(e)));
+            serde_wasm_bindgen::from_value(js).unwrap()
+        })
+        .collect();
+    golden::same_fig2(&got, &stored).unwrap();
 }

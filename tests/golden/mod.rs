@@ -101,6 +101,13 @@ pub fn fixture_requests() -> Vec<serde_json::Value> {
         &pattern,
         serde_json::json!({"samples": 100, "seed": 2}),
     ));
+    // The sampler chosen by a pilot (here the rejection sampler): the same choice and the same
+    // samples on both targets.
+    out.push(two(
+        "sdp",
+        &chain,
+        serde_json::json!({"samples": 60, "seed": 4, "sampler": "auto"}),
+    ));
     out.push(two("sdp_cuts", &chain, none.clone()));
     out.push(two("certified", &chain, none.clone()));
     let estimates = serde_json::json!([
@@ -122,7 +129,16 @@ pub fn fixture_requests() -> Vec<serde_json::Value> {
 /// not be unique (the trace is; `sdp_cuts`' `x` differed by 8e-5 between the two builds), so
 /// `x`, `p`, `ka`, `kb` are not compared for them.
 const SOLVER_METHODS: [&str; 3] = ["sdp", "sdp_cuts", "certified"];
-const SOLVER_KEYS: [&str; 4] = ["method", "trace", "upper_bound", "blocks"];
+/// The sampler's bookkeeping (`acceptance_rate`, `sampler_choice`) is compared too: the samples
+/// are the same on both targets.
+const SOLVER_KEYS: [&str; 6] = [
+    "method",
+    "trace",
+    "upper_bound",
+    "blocks",
+    "acceptance_rate",
+    "sampler_choice",
+];
 
 /// Compares a response with the stored one: every key (for solver methods the keys of
 /// `SOLVER_KEYS`), numbers to `1e-9` relative (`1e-6` for solver methods), the rest equal.
@@ -166,4 +182,53 @@ fn close(a: &serde_json::Value, b: &serde_json::Value, tol: f64) -> Result<(), S
         _ if a == b => Ok(()),
         _ => Err(format!("{a} vs {b}")),
     }
+}
+
+/// `tests/golden/fig2.json`: the native records of [`fig2_config`]'s runs (one list per run),
+/// written by the native test with `NMCI_BLESS=1`.
+pub const FIG2: &str = include_str!("fig2.json");
+
+/// A small fig. 2 study: 4 runs at N = 1, 10, 100.
+pub fn fig2_config() -> nmci::Fig2Config {
+    nmci::Fig2Config {
+        runs: 4,
+        sizes: vec![1, 10, 100],
+        seed: 11,
+    }
+}
+
+/// Compares fig. 2 records with the stored ones: sizes and failures equal, nmCI's numbers
+/// (closed form) to `1e-9` relative, the SDP's (`deviation`, `eig_opt`, `coin_opt`) to the
+/// solver's tolerance, `1e-6` (absolute below 1).
+pub fn same_fig2(
+    got: &[Vec<nmci::Fig2Record>],
+    stored: &[Vec<nmci::Fig2Record>],
+) -> Result<(), String> {
+    let near = |a: f64, b: f64, tol: f64| (a - b).abs() <= tol * a.abs().max(b.abs()).max(1.0);
+    let near_opt = |a: Option<f64>, b: Option<f64>| match (a, b) {
+        (Some(a), Some(b)) => near(a, b, 1e-6),
+        (None, None) => true,
+        _ => false,
+    };
+    if got.len() != stored.len() {
+        return Err(format!("{} runs vs {}", got.len(), stored.len()));
+    }
+    for (run, (g, s)) in got.iter().zip(stored).enumerate() {
+        if g.len() != s.len() {
+            return Err(format!("run {run}: {} records vs {}", g.len(), s.len()));
+        }
+        for (g, s) in g.iter().zip(s) {
+            let ok = g.samples == s.samples
+                && g.failure == s.failure
+                && near(g.eig_nmci, s.eig_nmci, 1e-9)
+                && near(g.coin_nmci, s.coin_nmci, 1e-9)
+                && near_opt(g.deviation, s.deviation)
+                && near_opt(g.eig_opt, s.eig_opt)
+                && near_opt(g.coin_opt, s.coin_opt);
+            if !ok {
+                return Err(format!("run {run}, N = {}: {g:?} vs {s:?}", s.samples));
+            }
+        }
+    }
+    Ok(())
 }

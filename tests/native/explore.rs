@@ -34,6 +34,33 @@ fn known_correlation_fusion_is_the_blue() {
     }
 }
 
+#[test]
+fn known_correlation_fusion_on_the_boundary_takes_the_pseudo_inverse() {
+    // A singular joint covariance, not zero: state 1 is the same estimate twice (P_a = P_b =
+    // P_ab = 1: S = P_a + P_b − P_ab − P_ba = 0 there), state 2 two independent estimates
+    // (variances 1 and 4, scaled by 10¹⁰ in the second case so that the tolerance of the
+    // pseudo-inverse must be relative). The optimum per state: variance 1 (no gain from
+    // fusing an estimate with itself, K_a = 0 on S's null space) and 1·4/5 = 0.8, K_a = 4/5.
+    for scale in [1.0, 1e10] {
+        let p = FusionProblem::from_covariances(
+            diag(&[1.0, scale]),
+            diag(&[1.0, 4.0 * scale]),
+            CrossPattern::diagonal(2),
+        )
+        .unwrap();
+        let P_ab = diag(&[1.0, 0.0]);
+        let f = known_correlation_fusion(&p, &P_ab);
+        let expected_P = diag(&[1.0, 0.8 * scale]);
+        let expected_K_a = diag(&[0.0, 0.8]);
+        assert!((&f.P - &expected_P).amax() <= 1e-12 * scale, "{}", f.P);
+        assert!((&f.K_a - &expected_K_a).amax() <= 1e-12, "{}", f.K_a);
+        assert_eq!(&f.K_a + &f.K_b, DMatrix::identity(2, 2));
+        // Its gains attain it: the fused error covariance for this P_ab.
+        let own = fused_error_covariance(&p, &f.K_a, &f.K_b, &P_ab);
+        assert!((&own - &f.P).amax() <= 1e-12 * scale);
+    }
+}
+
 fn request(json: &str) -> ExploreRequest {
     serde_json::from_str(json).unwrap()
 }

@@ -51,6 +51,34 @@ fn blocks_of_hand_made_non_contiguous_patterns() {
 }
 
 #[test]
+fn a_single_entry_in_either_triangle_links_two_states() {
+    // `independent_blocks` takes any matrices: one non-zero entry of P_a or P_b, above or
+    // below the diagonal, or one unknown entry of P_ab, either way round, links its states.
+    let I3 = DMatrix::<f64>::identity(3, 3);
+    let linked = vec![vec![0, 2], vec![1]];
+    for (i, j) in [(0, 2), (2, 0)] {
+        let mut one = I3.clone();
+        one[(i, j)] = 0.3;
+        let diagonal = CrossPattern::diagonal(3);
+        assert_eq!(
+            independent_blocks(&one, &I3, &diagonal),
+            linked,
+            "P_a[{i},{j}]"
+        );
+        assert_eq!(
+            independent_blocks(&I3, &one, &diagonal),
+            linked,
+            "P_b[{i},{j}]"
+        );
+        let p = pattern(3, &[(0, 0), (1, 1), (2, 2), (i, j)]);
+        assert_eq!(independent_blocks(&I3, &I3, &p), linked, "P_ab[{i},{j}]");
+        assert_eq!(p.unknown_count(), 4);
+    }
+    assert_eq!(CrossPattern::fully_unknown(3).unknown_count(), 9);
+    assert_eq!(CrossPattern::independent(3).unknown_count(), 0);
+}
+
+#[test]
 fn one_block_is_exactly_ci() {
     let mut r = rng(2);
     for n in [2, 3, 6] {
