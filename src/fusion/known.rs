@@ -147,9 +147,27 @@ mod tests {
                 P: P_b.clone(),
             },
         ];
+        // A third pair whose P_a − P_b is positive definite too (so a factorization of the
+        // wrong combination would not fall back to `naive_fusion` unnoticed).
+        let a = [
+            a,
+            vec![Gaussian {
+                x: mean([0.5, 0.5, 0.5]),
+                P: &P_b * 10.0,
+            }],
+        ]
+        .concat();
+        let b = [
+            b,
+            vec![Gaussian {
+                x: mean([1.0, -1.0, 0.0]),
+                P: P_b.clone(),
+            }],
+        ]
+        .concat();
         let mut fused = a.clone();
         naive_in_place(&mut fused, &b);
-        for k in 0..2 {
+        for k in 0..3 {
             let p = FusionProblem::new_trusted(
                 a[k].x.clone(),
                 a[k].P.clone(),
