@@ -57,15 +57,23 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
 
   /** Drops the current worker (crashed or failed) for a fresh one; reports `message`. */
   function replace(message) {
-    if (staleTimer) {
-      clearTimeout(staleTimer);
-      staleTimer = null;
-    }
+    clearStale();
     worker.terminate();
     worker = makeWorker();
     stats.crashes++;
     inFlight = null;
     onWorkerError(message);
+    sendQueuedOrIdle();
+  }
+
+  function clearStale() {
+    if (staleTimer) {
+      clearTimeout(staleTimer);
+      staleTimer = null;
+    }
+  }
+
+  function sendQueuedOrIdle() {
     if (queued) {
       const q = queued;
       queued = null;
@@ -85,10 +93,7 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
     const { id, ok, result, error, field, crashed } = event.data;
     if (!inFlight || id !== inFlight.id) return;
     if (crashed) return replace(error);
-    if (staleTimer) {
-      clearTimeout(staleTimer);
-      staleTimer = null;
-    }
+    clearStale();
     const done = inFlight;
     inFlight = null;
     if (ok) {
@@ -100,13 +105,7 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
       onError(error, field);
     }
     onTimings(stats.median(), timings.length);
-    if (queued) {
-      const q = queued;
-      queued = null;
-      send(q);
-    } else {
-      onBusy(false);
-    }
+    sendQueuedOrIdle();
   }
 
   worker = makeWorker();
@@ -125,9 +124,7 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
             worker = makeWorker();
             stats.abandoned++;
             inFlight = null;
-            const q = queued;
-            queued = null;
-            send(q);
+            sendQueuedOrIdle();
           }, wait);
         }
         return;

@@ -264,12 +264,7 @@ fn pilot<R: Rng>(
     let (mut trials, mut accepted) = (0_u64, 0_u64);
     while trials < limit {
         trials += 1;
-        for &(i, j) in &free {
-            let c: f64 = rng.random_range(-1.0..=1.0);
-            joint[(i, n + j)] = c;
-            joint[(n + j, i)] = c;
-        }
-        if nalgebra::Cholesky::new(joint.clone()).is_some() {
+        if propose(&mut joint, &free, n, rng) {
             accepted += 1;
             if workable(count, trials, accepted, max_trials) {
                 break;
@@ -279,7 +274,10 @@ fn pilot<R: Rng>(
     (trials, accepted)
 }
 
-/// As [`sample_cross_covariances`], drawing from a caller's generator.
+/// As [`sample_cross_covariances`], drawing from a caller's generator. With
+/// [`SamplerKind::Auto`] the pilot's generator is seeded by one draw from it first, so the
+/// samples are not those of the chosen sampler run alone on the same generator (they are with
+/// [`sample_cross_covariances`] and a seed).
 #[allow(non_snake_case)]
 pub fn sample_cross_covariances_with<R: Rng>(
     problem: &FusionProblem,
@@ -321,12 +319,7 @@ fn rejection<R: Rng>(
             });
         }
         trials += 1;
-        for &(i, j) in &free {
-            let c: f64 = rng.random_range(-1.0..=1.0);
-            joint[(i, n + j)] = c;
-            joint[(n + j, i)] = c;
-        }
-        if nalgebra::Cholesky::new(joint.clone()).is_some() {
+        if propose(&mut joint, &free, n, rng) {
             let P_ab = DMatrix::from_fn(n, n, |i, j| joint[(i, n + j)] * d_a[i] * d_b[j]);
             cross.push(P_ab);
         }
@@ -336,6 +329,22 @@ fn rejection<R: Rng>(
         trials,
         auto: None,
     })
+}
+
+/// One proposal of the rejection sampler: the free entries of the correlation cross term of
+/// `joint` drawn uniformly from `[−1, 1]`; whether `joint` is then positive definite.
+fn propose<R: Rng>(
+    joint: &mut DMatrix<f64>,
+    free: &[(usize, usize)],
+    n: usize,
+    rng: &mut R,
+) -> bool {
+    for &(i, j) in free {
+        let c: f64 = rng.random_range(-1.0..=1.0);
+        joint[(i, n + j)] = c;
+        joint[(n + j, i)] = c;
+    }
+    nalgebra::Cholesky::new(joint.clone()).is_some()
 }
 
 /// The joint correlation matrix `[[R_a, 0], [0, R_b]]`, the scales `D_a`, `D_b` and the free
