@@ -3,9 +3,12 @@
 // edit arrived is stale: the worker is terminated (wasm cannot be interrupted from outside)
 // and a fresh one takes the newest state. A worker that crashed (a panic in wasm,
 // www/worker-init.js) or failed is replaced the same way; the state it was given is not sent
-// again (it would crash again), the next edit goes to the fresh worker. Timings of every round trip are kept in
-// `window.nmciStats` (the end-to-end tests read them).
+// again (it would crash again), the next edit goes to the fresh worker. After
+// MAX_FAILURES_IN_A_ROW failures without a result (say, the module cannot load) no worker is
+// started until the next edit, so a broken worker cannot respawn in a loop. Timings of every
+// round trip are kept in `window.nmciStats` (the end-to-end tests read them).
 const ABANDON_MS = 300;
+const MAX_FAILURES_IN_A_ROW = 3;
 
 /** The request of the wasm `explore` for an explorer state. */
 function request(s) {
@@ -40,9 +43,11 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
     if (inFlight) throw new Error("a request is in flight");
     inFlight = { id: nextId++, t0: performance.now(), state: null };
     onBusy(true);
+    worker ??= makeWorker();
     worker.postMessage({ id: inFlight.id, panic: message });
   };
   let worker = null;
+  let failuresInARow = 0;
   let staleTimer = null;
   let nextId = 1;
   let inFlight = null; // { id, t0, state }
@@ -59,10 +64,18 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
   function replace(message) {
     clearStale();
     worker.terminate();
-    worker = makeWorker();
     stats.crashes++;
+    failuresInARow++;
     inFlight = null;
-    onWorkerError(message);
+    if (failuresInARow >= MAX_FAILURES_IN_A_ROW) {
+      worker = null; // the next edit starts one (send)
+      queued = null;
+      onWorkerError(`${message}; ${failuresInARow} failures in a row: no new worker until the next edit`);
+      onBusy(false);
+      return;
+    }
+    worker = makeWorker();
+    onWorkerError(`${message}; its worker was replaced`);
     sendQueuedOrIdle();
   }
 
@@ -84,6 +97,7 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
   }
 
   function send(s) {
+    worker ??= makeWorker();
     inFlight = { id: nextId++, t0: performance.now(), state: s };
     onBusy(true);
     worker.postMessage({ id: inFlight.id, request: request(s) });
@@ -96,6 +110,7 @@ export function createExploreClient({ url, onResult, onError, onBusy, onTimings,
     clearStale();
     const done = inFlight;
     inFlight = null;
+    failuresInARow = 0;
     if (ok) {
       onResult(result, done.state);
       timings.push(performance.now() - done.t0);

@@ -13,5 +13,5 @@ export const ready = init().then(() => install_panic_hook());
 export function crashMessage(err) {
   if (!(err instanceof WebAssembly.RuntimeError)) return null;
   const what = (self.nmciPanic ?? err.message).replace(/\s+/g, " ").trim();
-  return `the computation crashed (${what}); its worker was replaced`;
+  return `the computation crashed (${what})`;
 }

@@ -52,7 +52,7 @@ export function workerTab({ name, label, url, readConfig, onProgress }) {
       worker.onmessage = (event) => {
         const msg = event.data;
         if (msg.type === "error" || msg.type === "crashed") {
-          error.textContent = msg.error;
+          error.textContent = msg.type === "crashed" ? `${msg.error}; a fresh worker takes the next run` : msg.error;
           if (msg.type === "crashed") drop();
           finish("error");
         } else if (msg.type === "done" || msg.type === "stopped") {

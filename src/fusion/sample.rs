@@ -31,7 +31,8 @@
 //! with at least [`AUTO_MIN_ACCEPTED`] acceptances seen), hit-and-run otherwise — and also if
 //! the chosen rejection sampler still runs out of budget. Both samplers have the same law, so
 //! the choice changes how the samples are drawn, not what they are samples of; with a seed,
-//! the samples are exactly those of the chosen sampler run alone with that seed.
+//! the samples are exactly those of the chosen sampler run alone with that seed (after a
+//! fallback, hit-and-run continues the generator the rejection sampler left).
 
 use nalgebra::{DMatrix, DVector};
 use rand::Rng;

@@ -350,6 +350,17 @@ test("a panic in the worker is reported, the worker replaced, and the next edit 
   await settle();
   assert.equal(await text("#err-general"), "");
   await assertRulesMatchCli(page, "after the crash");
+  // Three failures in a row (nothing computed between them): no worker is respawned in a
+  // loop; the next edit starts one.
+  for (let k = 1; k <= 3; k++) {
+    await page.evaluate(() => window.nmciStats.panicForTest("forced again"));
+    await settle();
+  }
+  assert.match(await text("#err-general"), /forced again\); 3 failures in a row: no new worker until the next edit; the numbers shown are of the last state computed$/);
+  await cell("pa", 1, 1).fill("4");
+  await settle();
+  assert.equal(await text("#err-general"), "");
+  await assertRulesMatchCli(page, "after three crashes");
 });
 
 test("every preset with every pattern preset shows the CLI's CI, nmCI and blocks", async () => {
@@ -494,7 +505,7 @@ test("a panic in the study's worker is reported inline, and the next run gets a 
   await page.click("#tab-study");
   await page.evaluate(() => window.nmciTabs.study.panicForTest("forced by the end-to-end test"));
   await page.waitForFunction(() => document.body.dataset.study === "error", null, { timeout: 60_000 });
-  assert.match(await text("#err-study"), /^the computation crashed \(panicked at src\/wasm\.rs:\d+:\d+: forced by the end-to-end test\); its worker was replaced$/);
+  assert.match(await text("#err-study"), /^the computation crashed \(panicked at src\/wasm\.rs:\d+:\d+: forced by the end-to-end test\); a fresh worker takes the next run$/);
   assert.equal(await page.locator("#study-start").isEnabled(), true);
   await page.fill("#study-runs", "1");
   await page.fill("#study-steps", "20");
