@@ -363,6 +363,14 @@ test("a panic in the worker is reported, the worker replaced, and the next edit 
   await assertRulesMatchCli(page, "after three crashes");
 });
 
+/** The default sampler (auto) gave the SDP its samples and drew the region: both drawn. */
+async function assertOptimalAndRegionDrawn(what) {
+  assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved).* auto: (rejection|hit-and-run) sampler/, what);
+  assert.match(await text("#region-status"), /300 admissible P\s*ab drawn \(auto: (rejection|hit-and-run) sampler/, what);
+  assert.equal(await page.locator("#layer-sdp").count(), 1, what);
+  assert.ok((await page.locator("#layer-region path").count()) >= 100, what);
+}
+
 test("every preset with every pattern preset shows the CLI's CI, nmCI and blocks", async () => {
   for (const preset of ["paper", "correlated", "twoblock", "six"]) {
     await page.selectOption("#preset", preset);
@@ -382,11 +390,7 @@ test("every preset with every pattern preset shows the CLI's CI, nmCI and blocks
       assert.equal(nmci.blocks.length, expected, what);
       assert.equal(await page.locator("#grid-pattern button").count(), n * n, what);
       assert.equal(await text("#err-general"), "", what);
-      // The default sampler (auto) gives every n the optimal ellipse and the region.
-      assert.match(await text("#sdp-status"), /status (Solved|AlmostSolved).* auto: (rejection|hit-and-run) sampler/, what);
-      assert.match(await text("#region-status"), /300 admissible P\s*ab drawn \(auto: (rejection|hit-and-run) sampler/, what);
-      assert.equal(await page.locator("#layer-sdp").count(), 1, what);
-      assert.ok((await page.locator("#layer-region path").count()) >= 100, what);
+      await assertOptimalAndRegionDrawn(what);
     }
   }
 });
@@ -405,6 +409,15 @@ test("changing n resizes the grids and the view, keeps the top-left entries, and
     // The paper's P_a, P_b extended with identities and a diagonal pattern: nmCI takes the
     // smaller variance of each state, so its trace is n.
     assert.ok(Math.abs(nmci.trace - n) <= 1e-12 * n, `n = ${n}: ${nmci.trace}`);
+    // The default sampler draws the optimal ellipse and the region at this n, for the
+    // diagonal pattern and a fully unknown one (where the rejection sampler dies from n = 4).
+    await assertOptimalAndRegionDrawn(`n = ${n}, diagonal`);
+    await page.click('button[data-pattern="full"]');
+    await settle();
+    await assertRulesMatchCli(page, `n = ${n}, fully unknown`);
+    await assertOptimalAndRegionDrawn(`n = ${n}, fully unknown`);
+    await page.click('button[data-pattern="diagonal"]');
+    await settle();
   }
   assert.equal(await page.locator("#preset").inputValue(), "custom");
   assert.equal((await text("#row-nmci .trace")).trim(), "2.000");
