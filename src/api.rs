@@ -28,7 +28,58 @@ use crate::fusion::sample::{AutoChoice, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion, SdpSettings};
 use crate::fusion::{Criterion, Fused, FusionProblem};
 use crate::linalg::{matrix_from_rows, matrix_to_rows};
-use crate::structure::CrossPattern;
+use crate::structure::{independent_blocks, CrossPattern};
+
+/// The longest request text [`fuse_json`] (and so the CLI and Python's `fuse`) reads: two
+/// 1000-state covariances written with full precision take about 50 MB. Checked before the
+/// text is parsed; the CLI stops reading past it.
+pub const MAX_REQUEST_BYTES: usize = 64 << 20;
+
+/// Most samples an `sdp` request (and the explorer's SDP or region) may ask for.
+pub const MAX_SAMPLES: usize = 100_000;
+
+/// Largest rejection-sampler budget (`max_trials`) a request may give: 50 times the default.
+pub const MAX_TRIALS: u64 = 100_000_000;
+
+/// Most estimates of an N-way request.
+pub const MAX_ESTIMATES: usize = 32;
+
+/// `Err` naming `field` when a request's count is 0 or above `max`.
+pub(crate) fn check_count<T: PartialOrd + From<u8> + std::fmt::Display>(
+    field: &str,
+    value: Option<T>,
+    max: T,
+) -> Result<(), RequestError> {
+    match value {
+        Some(v) if v < T::from(1) => Err(RequestError::invalid(
+            field,
+            format!("`{field}` must be at least 1"),
+        )),
+        Some(v) if v > max => Err(RequestError::invalid(
+            field,
+            format!("`{field}` must be at most {max} (got {v})"),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// `Err` naming `field` when a nested-rows input has more than `max` rows, or a row more
+/// than `max` entries (before any matrix is built from it).
+pub(crate) fn check_rows<T>(
+    field: &str,
+    rows: &[Vec<T>],
+    max: usize,
+    who: &str,
+) -> Result<(), RequestError> {
+    let longest = rows.iter().map(Vec::len).max().unwrap_or(0).max(rows.len());
+    if longest > max {
+        return Err(RequestError::invalid(
+            field,
+            format!("{who} accepts at most {max} states (`{field}` has {longest})"),
+        ));
+    }
+    Ok(())
+}
 
 /// The certified rule joins the `sdp` / `sdp_cuts` bracket's upper bound when every
 /// independent block has at most this many states (the level-1 program grows as
@@ -385,19 +436,73 @@ impl FuseRequest {
                 return Err(RequestError::invalid("criterion", message));
             }
         }
-        if self.samples == Some(0) {
-            return Err(RequestError::invalid(
-                "samples",
-                "`samples` must be at least 1",
-            ));
+        check_count("samples", self.samples, MAX_SAMPLES)?;
+        check_count("max_trials", self.max_trials, MAX_TRIALS)?;
+        self.check_sizes()
+    }
+
+    /// The sizes against the method's [`crate::Limits`] and [`MAX_ESTIMATES`], before any
+    /// matrix is built (the block limit needs the problem: [`check_blocks`]).
+    fn check_sizes(&self) -> Result<(), RequestError> {
+        let max = self.method.info().limits.max_dim;
+        let who = format!("method \"{}\"", self.method.name());
+        check_rows("pa", &self.pa, max, &who)?;
+        check_rows("pb", &self.pb, max, &who)?;
+        for (field, v) in [("xa", &self.xa), ("xb", &self.xb)] {
+            if let Some(v) = v {
+                check_rows(field, std::slice::from_ref(v), max, &who)?;
+            }
         }
-        if self.max_trials == Some(0) {
-            return Err(RequestError::invalid(
-                "max_trials",
-                "`max_trials` must be at least 1",
-            ));
+        if let Some(p) = &self.pab_unknown {
+            check_rows("pab_unknown", p, max, &who)?;
+        }
+        if let Some(estimates) = &self.estimates {
+            if estimates.len() > MAX_ESTIMATES {
+                return Err(RequestError::invalid(
+                    "estimates",
+                    format!(
+                        "N-way fusion takes at most {MAX_ESTIMATES} estimates (got {})",
+                        estimates.len()
+                    ),
+                ));
+            }
+            for (i, e) in estimates.iter().enumerate() {
+                check_rows(&format!("estimates[{i}].p"), &e.p, max, &who)?;
+                if let Some(x) = &e.x {
+                    check_rows(
+                        &format!("estimates[{i}].x"),
+                        std::slice::from_ref(x),
+                        max,
+                        &who,
+                    )?;
+                }
+            }
+        }
+        for pair in self.patterns.iter().flatten() {
+            check_rows("patterns", &pair.pab_unknown, max, &who)?;
         }
         Ok(())
+    }
+}
+
+/// `Err` naming `pab_unknown` when an independent block of `problem` is larger than
+/// `method`'s [`crate::Limits::max_block`].
+pub(crate) fn check_blocks(method: Method, problem: &FusionProblem) -> Result<(), RequestError> {
+    let max = method.info().limits.max_block;
+    if problem.dim() <= max {
+        return Ok(());
+    }
+    let blocks = independent_blocks(&problem.P_a, &problem.P_b, &problem.cross_pattern);
+    match blocks.iter().find(|b| b.len() > max) {
+        Some(block) => Err(RequestError::invalid(
+            "pab_unknown",
+            format!(
+                "method \"{}\" solves each independent block as one program, of at most {max} states; states {block:?} form one block of {} (linked through P_a, P_b or unknown entries of P_ab)",
+                method.name(),
+                block.len()
+            ),
+        )),
+        None => Ok(()),
     }
 }
 
@@ -476,6 +581,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
         );
     }
     let problem = request.problem()?;
+    check_blocks(request.method, &problem)?;
     match request.method {
         Method::Ci => Ok(ci_response(&problem, criterion)?.0),
         Method::Nmci => Ok(nmci_response(&problem, criterion)?.0),
@@ -741,6 +847,12 @@ pub(crate) fn sdp_response(
 
 /// Parses a JSON request, runs it and returns the JSON response.
 pub fn fuse_json(request: &str) -> Result<String, RequestError> {
+    if request.len() > MAX_REQUEST_BYTES {
+        return Err(RequestError::TooLarge {
+            bytes: request.len(),
+            limit: MAX_REQUEST_BYTES,
+        });
+    }
     let req: FuseRequest =
         serde_json::from_str(request).map_err(|e| RequestError::Malformed(e.to_string()))?;
     let res = fuse(&req)?;

@@ -194,6 +194,14 @@ pub enum RequestError {
     /// The request is not valid JSON, has an unknown field, or a value of the wrong type.
     #[error("invalid request: {0}")]
     Malformed(String),
+    /// The request text is longer than [`crate::MAX_REQUEST_BYTES`] (refused before parsing).
+    #[error("invalid request: longer than the limit of {limit} bytes ({bytes} bytes read)")]
+    TooLarge {
+        /// The bytes read (the CLI stops one past the limit).
+        bytes: usize,
+        /// The limit.
+        limit: usize,
+    },
     /// A field value out of range (e.g. `samples: 0`), or a field that does not apply.
     #[error("invalid request: {message}")]
     Invalid {
@@ -237,7 +245,9 @@ impl RequestError {
                 .and_then(|rest| rest.split('`').next())
                 .map(str::to_owned),
             RequestError::Solve(SolveError::Input(e)) => e.request_field(),
-            RequestError::Solve(_) | RequestError::Sample(_) => None,
+            RequestError::Solve(_) | RequestError::Sample(_) | RequestError::TooLarge { .. } => {
+                None
+            }
         }
     }
 }

@@ -6,9 +6,9 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{
-    bracket_certificate, certificate_response, ci_response, ei_response, ici_response,
-    naive_response, nmci_response, problem_from_parts, sdp_response, upper_bounds, FuseResponse,
-    BRACKET_CERTIFY_MAX_BLOCK,
+    bracket_certificate, certificate_response, check_blocks, check_count, check_rows, ci_response,
+    ei_response, ici_response, naive_response, nmci_response, problem_from_parts, sdp_response,
+    upper_bounds, FuseResponse, BRACKET_CERTIFY_MAX_BLOCK, MAX_SAMPLES, MAX_TRIALS,
 };
 use crate::error::RequestError;
 use crate::fusion::bracket::CLOSED_RTOL;
@@ -168,6 +168,11 @@ fn region_seed(seed: u64) -> u64 {
 /// ```
 #[allow(non_snake_case)]
 pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
+    // The explorer solves the sampled SDP of every state: its limits apply.
+    let max = Method::Sdp.info().limits.max_dim;
+    for (field, rows) in [("pa", &request.pa), ("pb", &request.pb)] {
+        check_rows(field, rows, max, "the explorer")?;
+    }
     let problem = problem_from_parts(
         &request.pa,
         &request.pb,
@@ -175,21 +180,15 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         request.xb.as_deref(),
         request.pab_unknown.as_deref(),
     )?;
+    check_blocks(Method::Sdp, &problem)?;
     let criterion = request.criterion.unwrap_or_default();
+    check_count("samples", request.samples, MAX_SAMPLES)?;
+    check_count("max_trials", request.max_trials, MAX_TRIALS)?;
+    if request.region_samples.is_some_and(|r| r > MAX_SAMPLES) {
+        check_count("region_samples", request.region_samples, MAX_SAMPLES)?;
+    }
     let samples = request.samples.unwrap_or(200);
-    if samples == 0 {
-        return Err(RequestError::invalid(
-            "samples",
-            "`samples` must be at least 1",
-        ));
-    }
     let max_trials = request.max_trials.unwrap_or(200_000);
-    if max_trials == 0 {
-        return Err(RequestError::invalid(
-            "max_trials",
-            "`max_trials` must be at least 1",
-        ));
-    }
     let seed = request.seed.unwrap_or(0);
     let n = problem.dim();
     let sampler = SamplerSettings {

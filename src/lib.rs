@@ -50,6 +50,7 @@ pub mod wasm;
 
 pub use api::{
     fuse, fuse_json, FuseRequest, FuseResponse, NwayEstimate, NwayPair, BRACKET_CERTIFY_MAX_BLOCK,
+    MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
 };
 pub use error::{request_field, InputError, ReportError, RequestError, SampleError, SolveError};
 pub use explore::{explore, CoinStats, Exploration, ExploreRequest, Gap, RuleReport};
@@ -61,7 +62,7 @@ pub use fusion::bracket::{
     Bracket, UpperBounds, CLOSED_RTOL,
 };
 pub use fusion::certify::{
-    certified_fusion, certify_gain, CertifiedResult, CertifySettings, MAX_LEVEL,
+    certified_fusion, certify_gain, CertifiedResult, CertifySettings, MAX_BLOCK_DIM, MAX_LEVEL,
 };
 pub use fusion::check::{
     conservativeness_index, conservativeness_margin, fused_coin, fused_error_covariance,
@@ -78,7 +79,9 @@ pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::nway::{
     covariance_intersection_nway, non_monolithic_ci_nway, Estimate, NwayResult, PairPattern,
 };
-pub use fusion::rules::{rules, Criteria, Guarantee, Method, RequestOption, RuleInfo, RULES};
+pub use fusion::rules::{
+    rules, Criteria, Guarantee, Limits, Method, RequestOption, RuleInfo, RULES,
+};
 pub use fusion::sample::{
     sample_cross_covariances, sample_cross_covariances_with, AutoChoice, CrossSamples, SamplerKind,
     SamplerSettings, AUTO_MIN_ACCEPTED, AUTO_PILOT_TRIALS,

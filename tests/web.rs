@@ -1,13 +1,18 @@
 //! The wasm module in headless Chromium (`scripts/wasm.sh test`): the exported `fuse` on the
 //! paper's example for every method, every method against stored *native* responses
 //! (`tests/golden/native_responses.json`) and fig. 2 records (`tests/golden/fig2.json`), and
-//! invalid requests throwing with their message.
+//! invalid requests throwing with their message, and a share of the native fuzz cases
+//! (`tests/common/fuzz.rs`) through the exported `fuse`: never a panic (wasm32 aborts on one,
+//! which fails the test), every error a thrown `Error` with a message.
 #![cfg(target_arch = "wasm32")]
 
 use js_sys::{Reflect, JSON};
 use nmci::{FuseResponse, Method};
 use wasm_bindgen::{JsCast, JsValue};
 use wasm_bindgen_test::*;
+
+#[path = "common/fuzz.rs"]
+mod fuzz;
 
 wasm_bindgen_test_configure!(run_in_browser);
 
@@ -257,4 +262,29 @@ fn fig2_matches_the_stored_native_records() {
         })
         .collect();
     golden::same_fig2(&got, &stored).unwrap();
+}
+
+#[wasm_bindgen_test]
+fn fuzz_cases_never_panic_in_wasm() {
+    // The first cases of the native fuzz stream that are JSON (a JS caller hands `fuse` an
+    // object; text that `JSON.parse` refuses never reaches it).
+    let (mut responses, mut errors) = (0, 0);
+    for i in 0..150 {
+        let text = fuzz::request(fuzz::SEED, i);
+        let Ok(js) = JSON::parse(&text) else { continue };
+        match call(js) {
+            Ok(r) => {
+                assert!(r.trace.is_finite(), "case {i}: {text}");
+                responses += 1;
+            }
+            Err(message) => {
+                assert!(!message.trim().is_empty(), "case {i}: {text}");
+                errors += 1;
+            }
+        }
+    }
+    assert!(
+        responses > 0 && errors > 0,
+        "{responses} responses, {errors} errors"
+    );
 }

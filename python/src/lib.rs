@@ -43,7 +43,9 @@ fn error_at(py: Python<'_>, kind: &str, message: String, field: Option<String>) 
 /// The exception class of a request's error.
 fn request_error_kind(e: &RequestError) -> &'static str {
     match e {
-        RequestError::Malformed(_) | RequestError::Invalid { .. } => "RequestError",
+        RequestError::Malformed(_)
+        | RequestError::Invalid { .. }
+        | RequestError::TooLarge { .. } => "RequestError",
         RequestError::Input(_) => "InputError",
         RequestError::Sample(SampleError::InvalidSettings(_)) => "RequestError",
         RequestError::Sample(_) => "SampleError",

@@ -320,18 +320,28 @@ mod cli {
         ))
     }
 
+    /// The request text, read up to one byte past [`nmci::MAX_REQUEST_BYTES`]: a longer input
+    /// is refused without being read whole.
     fn read_input(file: Option<PathBuf>) -> Result<String, String> {
+        let limit = nmci::MAX_REQUEST_BYTES;
+        let mut bytes = Vec::new();
         match file {
-            Some(path) if path.as_os_str() != "-" => std::fs::read_to_string(&path)
-                .map_err(|e| format!("cannot read {}: {e}", path.display())),
-            _ => {
-                let mut s = String::new();
-                std::io::stdin()
-                    .read_to_string(&mut s)
-                    .map_err(|e| format!("cannot read standard input: {e}"))?;
-                Ok(s)
+            Some(path) if path.as_os_str() != "-" => std::fs::File::open(&path)
+                .and_then(|f| f.take(limit as u64 + 1).read_to_end(&mut bytes))
+                .map_err(|e| format!("cannot read {}: {e}", path.display()))?,
+            _ => std::io::stdin()
+                .take(limit as u64 + 1)
+                .read_to_end(&mut bytes)
+                .map_err(|e| format!("cannot read standard input: {e}"))?,
+        };
+        if bytes.len() > limit {
+            return Err(nmci::RequestError::TooLarge {
+                bytes: bytes.len(),
+                limit,
             }
+            .to_string());
         }
+        String::from_utf8(bytes).map_err(|e| format!("the request is not UTF-8 text: {e}"))
     }
 
     /// Runs a request; a solve that takes more than a second gets a progress line on stderr

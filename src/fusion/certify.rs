@@ -110,6 +110,10 @@ use super::{scatter_block, Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::structure::independent_blocks;
 
+/// The default of [`CertifySettings::max_block_dim`], and the certified rule's block limit in
+/// the request contract ([`crate::RULES`]).
+pub const MAX_BLOCK_DIM: usize = 6;
+
 /// Settings of the certified bound, with defaults and [`CertifySettings::validate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CertifySettings {
@@ -139,7 +143,7 @@ impl Default for CertifySettings {
         Self {
             max_iter: 200,
             tolerance: 1e-10,
-            max_block_dim: 6,
+            max_block_dim: MAX_BLOCK_DIM,
             level: None,
             max_cone: 90,
             time_limit: None,

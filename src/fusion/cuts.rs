@@ -236,9 +236,7 @@ pub fn optimal_fusion_cuts(
     // With a time limit the guiding certificate gets half of it; if it does not finish, the
     // loop runs unguided (the limit is for the loop's bracket, not for the guide).
     let certify_settings = CertifySettings {
-        time_limit: settings
-            .time_limit
-            .map(|_| (0.5 * deadline.remaining()).max(1e-3)),
+        time_limit: deadline.share(0.5),
         ..settings.certify_settings
     };
     let certified = if settings.certify

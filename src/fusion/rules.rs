@@ -35,6 +35,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::certify::MAX_BLOCK_DIM;
 use super::Criterion;
 
 /// Which fusion rule a request asks for. Its JSON form is its [`RuleInfo::name`]; the variants
@@ -208,7 +209,31 @@ pub struct RuleInfo {
     pub nway: bool,
     /// Whether the explorer computes it for every state.
     pub explorer: bool,
+    /// The largest problem it accepts through the request contract.
+    pub limits: Limits,
 }
+
+/// The largest problem a rule accepts through the request contract ([`crate::fuse`], and so
+/// the CLI, the page and Python), checked before any matrix is built; a larger request is
+/// refused with an error naming the field and the limit. The library's functions take any
+/// size (their settings' `time_limit` bounds the solvers). The limits keep every accepted
+/// request to seconds and at most a few hundred MB on a small machine (README, "Limits",
+/// has the measurements they come from).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Limits {
+    /// Largest state dimension `n` (each estimate's, for N-way fusion).
+    pub max_dim: usize,
+    /// Largest independent block (states linked through `P_a`, `P_b` or the pattern of
+    /// `P_ab`, [`crate::independent_blocks`]): the size of the programs an SDP rule solves.
+    pub max_block: usize,
+}
+
+/// The closed-form rules (CI, nmCI, ICI, EI, naive): one `n × n` eigendecomposition or
+/// factorization per block, `O(n³)`.
+const CLOSED_FORM: Limits = Limits {
+    max_dim: 1000,
+    max_block: 1000,
+};
 
 impl RuleInfo {
     /// The label, with the guarantee's phrase for the unguaranteed rules
@@ -238,6 +263,7 @@ impl Serialize for RuleInfo {
         s.serialize_field("options", self.options)?;
         s.serialize_field("nway", &self.nway)?;
         s.serialize_field("explorer", &self.explorer)?;
+        s.serialize_field("limits", &self.limits)?;
         s.end()
     }
 }
@@ -254,6 +280,7 @@ pub const RULES: [RuleInfo; 8] = [
         options: &[],
         nway: true,
         explorer: true,
+        limits: CLOSED_FORM,
     },
     RuleInfo {
         method: Method::Nmci,
@@ -265,6 +292,7 @@ pub const RULES: [RuleInfo; 8] = [
         options: &[],
         nway: true,
         explorer: true,
+        limits: CLOSED_FORM,
     },
     RuleInfo {
         method: Method::Certified,
@@ -276,6 +304,11 @@ pub const RULES: [RuleInfo; 8] = [
         options: &[RequestOption::TimeLimit, RequestOption::Level],
         nway: false,
         explorer: true,
+        limits: Limits {
+            // One SDP per block, up to seconds each at the default levels.
+            max_dim: 60,
+            max_block: MAX_BLOCK_DIM,
+        },
     },
     RuleInfo {
         method: Method::Sdp,
@@ -288,6 +321,12 @@ pub const RULES: [RuleInfo; 8] = [
         options: &RequestOption::ALL,
         nway: false,
         explorer: true,
+        limits: Limits {
+            // The samples are drawn jointly (2n × 2n checks); a fully unknown 10-state block
+            // took over 100 s.
+            max_dim: 12,
+            max_block: 8,
+        },
     },
     RuleInfo {
         method: Method::SdpCuts,
@@ -303,6 +342,12 @@ pub const RULES: [RuleInfo; 8] = [
         ],
         nway: false,
         explorer: false,
+        limits: Limits {
+            // The README's cuts table reaches 6-state blocks; an 8-state one did not
+            // finish in 120 s.
+            max_dim: 12,
+            max_block: 6,
+        },
     },
     RuleInfo {
         method: Method::Ici,
@@ -314,6 +359,7 @@ pub const RULES: [RuleInfo; 8] = [
         options: &[],
         nway: false,
         explorer: true,
+        limits: CLOSED_FORM,
     },
     RuleInfo {
         method: Method::Ei,
@@ -325,6 +371,7 @@ pub const RULES: [RuleInfo; 8] = [
         options: &[],
         nway: false,
         explorer: true,
+        limits: CLOSED_FORM,
     },
     RuleInfo {
         method: Method::Naive,
@@ -336,6 +383,7 @@ pub const RULES: [RuleInfo; 8] = [
         options: &[],
         nway: false,
         explorer: true,
+        limits: CLOSED_FORM,
     },
 ];
 

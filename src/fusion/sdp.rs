@@ -149,10 +149,15 @@ pub(crate) struct Deadline {
 }
 
 impl Deadline {
-    /// `limit` seconds from now (`None`: never).
+    /// `limit` seconds from now (`None`: never). A limit beyond what the clock can represent
+    /// (`Duration` holds at most `u64::MAX` seconds, and the instant it ends at must exist)
+    /// is a deadline that cannot pass: the same as none, not an error and not a clamp.
     pub(crate) fn after(limit: Option<f64>) -> Self {
         Self {
-            end: limit.map(|t| web_time::Instant::now() + web_time::Duration::from_secs_f64(t)),
+            end: limit.and_then(|t| {
+                let duration = web_time::Duration::try_from_secs_f64(t).ok()?;
+                web_time::Instant::now().checked_add(duration)
+            }),
             limit: limit.unwrap_or(f64::INFINITY),
         }
     }
@@ -165,6 +170,12 @@ impl Deadline {
                 .saturating_duration_since(web_time::Instant::now())
                 .as_secs_f64(),
         }
+    }
+
+    /// `fraction` of the seconds left, at least a millisecond (`None` without a deadline):
+    /// the time limit of a part of the solve.
+    pub(crate) fn share(&self, fraction: f64) -> Option<f64> {
+        self.end.map(|_| (fraction * self.remaining()).max(1e-3))
     }
 
     /// Whether the deadline has passed.

@@ -17,6 +17,8 @@ mod cuts;
 mod explore;
 mod fig2;
 mod fixtures;
+mod fuzz;
+mod limits;
 mod nmci_rule;
 mod nway;
 mod properties;

@@ -1,0 +1,236 @@
+//! The request contract's size limits (`Limits` in the rule registry, `MAX_SAMPLES`,
+//! `MAX_TRIALS`, `MAX_ESTIMATES`, `MAX_REQUEST_BYTES`): one past each limit is refused with
+//! an error naming the field and the limit; at the limit the request is accepted. Also the
+//! time limits that could not be represented (`1e30` s), which used to panic.
+
+use std::process::Command;
+
+use nmci::*;
+
+fn identity_rows(n: usize) -> Vec<Vec<f64>> {
+    (0..n)
+        .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+        .collect()
+}
+
+fn request(method: Method, n: usize) -> FuseRequest {
+    FuseRequest {
+        pa: identity_rows(n),
+        pb: identity_rows(n)
+            .iter()
+            .map(|r| r.iter().map(|v| 2.0 * v).collect())
+            .collect(),
+        xa: None,
+        xb: None,
+        pab_unknown: None,
+        method,
+        criterion: None,
+        samples: None,
+        seed: None,
+        max_trials: None,
+        sampler: None,
+        time_limit: None,
+        level: None,
+        estimates: None,
+        patterns: None,
+    }
+}
+
+/// The pattern with unknown entries on the diagonal only (every state its own block).
+fn diagonal_pattern(n: usize) -> Option<Vec<Vec<bool>>> {
+    Some((0..n).map(|i| (0..n).map(|j| i == j).collect()).collect())
+}
+
+fn refused(req: &FuseRequest) -> (String, String) {
+    match fuse(req) {
+        Err(e @ RequestError::Invalid { .. }) => (e.field().unwrap(), e.to_string()),
+        other => panic!(
+            "{:?} n = {}: expected a refusal, got {other:?}",
+            req.method,
+            req.pa.len()
+        ),
+    }
+}
+
+#[test]
+fn one_state_past_each_rules_dimension_limit_is_refused_by_name() {
+    for rule in RULES {
+        let max = rule.limits.max_dim;
+        let (field, message) = refused(&request(rule.method, max + 1));
+        assert_eq!(field, "pa", "{message}");
+        assert!(
+            message.contains(&format!(
+                "method \"{}\" accepts at most {max} states",
+                rule.name
+            )) && message.contains(&format!("has {}", max + 1)),
+            "{message}"
+        );
+    }
+    // Each input is checked, not only P_a: a long x_b, a wide pattern.
+    let mut req = request(Method::Ci, 2);
+    req.xb = Some(vec![0.0; 1001]);
+    assert_eq!(refused(&req).0, "xb");
+    let mut req = request(Method::Sdp, 2);
+    req.pab_unknown = Some(vec![vec![true; 13]; 2]);
+    assert_eq!(refused(&req).0, "pab_unknown");
+}
+
+#[test]
+fn the_sdp_rules_accept_their_dimension_limit_in_small_blocks() {
+    // At max_dim with one-state blocks, the SDP rules run (no refusal).
+    for method in [Method::Sdp, Method::SdpCuts, Method::Certified] {
+        let n = method.info().limits.max_dim.min(12);
+        let mut req = request(method, n);
+        req.pab_unknown = diagonal_pattern(n);
+        if method == Method::Sdp {
+            req.samples = Some(20);
+        }
+        let r = fuse(&req).unwrap_or_else(|e| panic!("{method}: {e}"));
+        assert!(r.trace.is_finite());
+    }
+    // The closed-form rules at their limit (naive: one factorization).
+    let r = fuse(&request(
+        Method::Naive,
+        RULES[Method::Naive as usize].limits.max_dim,
+    ))
+    .unwrap();
+    assert!((r.trace - 1000.0 * 2.0 / 3.0).abs() < 1e-9);
+}
+
+#[test]
+fn one_state_past_a_block_limit_is_refused_naming_the_pattern() {
+    for method in [Method::Sdp, Method::SdpCuts, Method::Certified] {
+        let max = method.info().limits.max_block;
+        let (field, message) = refused(&request(method, max + 1));
+        assert_eq!(field, "pab_unknown", "{message}");
+        assert!(
+            message.contains(&format!("of at most {max} states"))
+                && message.contains(&format!("one block of {}", max + 1)),
+            "{message}"
+        );
+        // At the block limit the request is not refused by it (a time limit bounds the solve:
+        // a time-limit error is fine here, a refusal is not).
+        let mut req = request(method, max);
+        req.time_limit = Some(2.0);
+        if method == Method::Sdp {
+            req.samples = Some(20);
+            req.sampler = Some(SamplerKind::HitAndRun);
+        }
+        match fuse(&req) {
+            Ok(_) | Err(RequestError::Solve(SolveError::TimeLimit { .. })) => {}
+            Err(e) => panic!("{method} at its block limit: {e}"),
+        }
+    }
+    assert_eq!(MAX_BLOCK_DIM, CertifySettings::default().max_block_dim);
+}
+
+#[test]
+fn counts_past_their_limits_are_refused_by_name() {
+    let mut req = request(Method::Sdp, 2);
+    req.samples = Some(MAX_SAMPLES + 1);
+    let (field, message) = refused(&req);
+    assert_eq!(field, "samples");
+    assert!(
+        message.contains(&format!("at most {MAX_SAMPLES}")),
+        "{message}"
+    );
+    let mut req = request(Method::Sdp, 2);
+    req.max_trials = Some(MAX_TRIALS + 1);
+    assert_eq!(refused(&req).0, "max_trials");
+    let mut req = request(Method::Sdp, 2);
+    req.max_trials = Some(MAX_TRIALS);
+    req.samples = Some(5);
+    assert!(fuse(&req).is_ok());
+
+    let estimate = NwayEstimate {
+        x: None,
+        p: identity_rows(2),
+    };
+    let mut req = request(Method::Ci, 0);
+    req.pa.clear();
+    req.pb.clear();
+    req.estimates = Some(vec![estimate.clone(); MAX_ESTIMATES + 1]);
+    let (field, message) = refused(&req);
+    assert_eq!(field, "estimates");
+    assert!(
+        message.contains(&format!("at most {MAX_ESTIMATES}")),
+        "{message}"
+    );
+    req.estimates = Some(vec![estimate; MAX_ESTIMATES]);
+    let r = fuse(&req).unwrap();
+    assert!((r.trace - 2.0).abs() < 1e-9, "{}", r.trace);
+}
+
+#[test]
+fn a_request_text_past_the_byte_limit_is_refused_before_parsing() {
+    // Not even JSON: the length is checked first.
+    let text = " ".repeat(MAX_REQUEST_BYTES + 1);
+    match fuse_json(&text) {
+        Err(RequestError::TooLarge { bytes, limit }) => {
+            assert_eq!((bytes, limit), (MAX_REQUEST_BYTES + 1, MAX_REQUEST_BYTES))
+        }
+        other => panic!("{other:?}"),
+    }
+    // The CLI stops reading one byte past it, exits non-zero and says why.
+    let path = std::env::temp_dir().join(format!("nmci-too-large-{}.json", std::process::id()));
+    std::fs::write(&path, text.as_bytes()).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_nmci"))
+        .args(["fuse", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains(&format!(
+            "longer than the limit of {MAX_REQUEST_BYTES} bytes"
+        )),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn the_explorer_has_the_sampled_sdps_limits() {
+    let max = Method::Sdp.info().limits.max_dim;
+    let req = ExploreRequest {
+        pa: identity_rows(max + 1),
+        pb: identity_rows(max + 1),
+        xa: None,
+        xb: None,
+        pab_unknown: None,
+        criterion: None,
+        samples: None,
+        seed: None,
+        region_samples: Some(MAX_SAMPLES + 1),
+        max_trials: None,
+        sampler: None,
+    };
+    let field = |r: Result<Exploration, RequestError>| r.unwrap_err().field().unwrap();
+    assert_eq!(field(explore(&req)), "pa");
+    let small = ExploreRequest {
+        pa: identity_rows(2),
+        pb: identity_rows(2),
+        ..req
+    };
+    assert_eq!(field(explore(&small)), "region_samples");
+    let samples = ExploreRequest {
+        region_samples: None,
+        samples: Some(MAX_SAMPLES + 1),
+        ..small
+    };
+    assert_eq!(field(explore(&samples)), "samples");
+}
+
+#[test]
+fn time_limits_beyond_the_clock_are_no_limit() {
+    // `Duration` cannot hold 1e30 s, and now + 1e19 s is no instant: both used to panic.
+    for t in [1e19, 1e30, f64::MAX] {
+        for method in [Method::Sdp, Method::SdpCuts, Method::Certified] {
+            let mut req = request(method, 2);
+            req.pab_unknown = Some(vec![vec![true, false], vec![false, true]]);
+            req.time_limit = Some(t);
+            let r = fuse(&req).unwrap_or_else(|e| panic!("{method} {t}: {e}"));
+            assert!((r.trace - 2.0).abs() < 1e-6, "{method} {t}: {}", r.trace);
+        }
+    }
+}
