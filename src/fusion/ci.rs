@@ -718,6 +718,25 @@ mod tests {
     }
 
     #[test]
+    fn the_weight_does_not_depend_on_the_scale() {
+        // CI's ω is invariant under P_a, P_b → c P_a, c P_b (both criteria change by a
+        // constant): the endpoint tests and the stopping rule must be relative to the scale.
+        for (a, b) in interior_pairs(10) {
+            for criterion in [Criterion::Trace, Criterion::Logdet] {
+                let at = |c: f64| {
+                    let pencil = Pencil::new(&(&a * c), &(&b * c)).unwrap();
+                    optimal_omega(&[&pencil], criterion)
+                };
+                let w = at(1.0);
+                for k in [-12, -8, -4, 4, 8, 12] {
+                    let wk = at(10f64.powi(k));
+                    assert!((wk - w).abs() <= 1e-12, "{criterion:?} 1e{k}: {wk} vs {w}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn a_tie_goes_to_omega_zero_at_every_scale() {
         // Identical estimates: g ≡ 0, computed as rounding noise of either sign; the tie
         // tolerance scales with the terms, so the answer is ω = 0 at every scale and size.

@@ -210,6 +210,9 @@ fn nway(n: usize, rng: &mut ChaCha8Rng, object: &mut Map<String, Value>) {
     }
 }
 
+/// A generator of a setting's in-range value.
+type Small = fn(&mut ChaCha8Rng) -> Value;
+
 /// Request `index` of the fuzz stream `seed`, as JSON text.
 pub fn request(seed: u64, index: u64) -> String {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -247,7 +250,7 @@ pub fn request(seed: u64, index: u64) -> String {
             o.insert("pab_unknown".into(), pattern(n, &mut rng));
         }
     }
-    let options: [(&str, fn(&mut ChaCha8Rng) -> Value); 7] = [
+    let options: [(&str, Small); 7] = [
         ("criterion", |r| {
             json!(["trace", "logdet"][r.random_range(0..2)])
         }),

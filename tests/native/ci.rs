@@ -217,3 +217,25 @@ fn block_structured_ci_rejects_bad_blocks() {
         "{e}"
     );
 }
+
+#[test]
+fn ci_covariance_is_the_ci_bound_at_any_weight() {
+    // Against plain inverses at interior weights, and exactly P_b / P_a at the endpoints.
+    let mut r = rng(31);
+    for n in [1, 2, 4] {
+        let p = random_problem(n, CrossPattern::fully_unknown(n), &mut r);
+        for omega in [0.0, 0.1, 0.5, 0.9, 1.0] {
+            let got = ci_covariance(&p, omega).unwrap();
+            let expected = (p.P_a.clone().try_inverse().unwrap() * omega
+                + p.P_b.clone().try_inverse().unwrap() * (1.0 - omega))
+                .try_inverse()
+                .unwrap();
+            assert!(
+                (&got - &expected).amax() <= 1e-10 * expected.amax(),
+                "n = {n}, ω = {omega}"
+            );
+        }
+        assert_eq!(ci_covariance(&p, 0.0).unwrap(), p.P_b);
+        assert_eq!(ci_covariance(&p, 1.0).unwrap(), p.P_a);
+    }
+}
