@@ -318,6 +318,37 @@ pub(crate) fn problem_from_parts(
 }
 
 impl FuseRequest {
+    /// A two-estimate request for `method` with every optional field absent (zero means, a
+    /// fully unknown `P_ab`, the defaults), to be completed with struct-update syntax.
+    ///
+    /// ```
+    /// let req = nmci::FuseRequest {
+    ///     pab_unknown: Some(vec![vec![true, false], vec![false, true]]),
+    ///     ..nmci::FuseRequest::new(nmci::Method::Nmci, vec![vec![3.0, 0.0], vec![0.0, 1.0]],
+    ///                              vec![vec![1.0, 0.0], vec![0.0, 4.0]])
+    /// };
+    /// assert_eq!(nmci::fuse(&req).unwrap().trace, 2.0);
+    /// ```
+    pub fn new(method: Method, pa: Vec<Vec<f64>>, pb: Vec<Vec<f64>>) -> Self {
+        Self {
+            pa,
+            pb,
+            xa: None,
+            xb: None,
+            pab_unknown: None,
+            method,
+            criterion: None,
+            samples: None,
+            seed: None,
+            max_trials: None,
+            sampler: None,
+            time_limit: None,
+            level: None,
+            estimates: None,
+            patterns: None,
+        }
+    }
+
     /// The validated problem this request describes.
     pub fn problem(&self) -> Result<FusionProblem, RequestError> {
         Ok(problem_from_parts(

@@ -14,26 +14,11 @@ fn identity_rows(n: usize) -> Vec<Vec<f64>> {
 }
 
 fn request(method: Method, n: usize) -> FuseRequest {
-    FuseRequest {
-        pa: identity_rows(n),
-        pb: identity_rows(n)
-            .iter()
-            .map(|r| r.iter().map(|v| 2.0 * v).collect())
-            .collect(),
-        xa: None,
-        xb: None,
-        pab_unknown: None,
-        method,
-        criterion: None,
-        samples: None,
-        seed: None,
-        max_trials: None,
-        sampler: None,
-        time_limit: None,
-        level: None,
-        estimates: None,
-        patterns: None,
-    }
+    let pb = identity_rows(n)
+        .iter()
+        .map(|r| r.iter().map(|v| 2.0 * v).collect())
+        .collect();
+    FuseRequest::new(method, identity_rows(n), pb)
 }
 
 /// The pattern with unknown entries on the diagonal only (every state its own block).

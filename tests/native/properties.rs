@@ -80,14 +80,11 @@ proptest! {
         let finite = raw_a[..n * n].iter().all(|v| v.is_finite() && v.abs() < 1e100);
         let pa = if spd_a && finite { spd(n, &raw_a, 0.1) } else { raw(&raw_a) };
         let pb = if spd_b { spd(n, &raw_b, 0.1) } else { raw(&raw_b) };
-        let req = FuseRequest {
-            pa: rows(&pa), pb: rows(&pb), xa: None, xb: None, pab_unknown: None,
-            method: if method == "ci" { Method::Ci } else { Method::Nmci },
-            criterion: None, samples: None, seed: None, max_trials: None,
-            sampler: None, time_limit: None, level: None,
-            estimates: None,
-            patterns: None,
-        };
+        let req = FuseRequest::new(
+            if method == "ci" { Method::Ci } else { Method::Nmci },
+            rows(&pa),
+            rows(&pb),
+        );
         // Either a result or a typed error; never a panic.
         match fuse(&req) {
             Ok(r) => prop_assert!(r.trace.is_finite()),

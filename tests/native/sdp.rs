@@ -308,25 +308,14 @@ fn certified_gap_brackets_the_robust_optimum() {
                 .collect::<Vec<_>>()
         };
         let req = FuseRequest {
-            pa: rows(&p.P_a),
-            pb: rows(&p.P_b),
-            xa: None,
-            xb: None,
             pab_unknown: Some(
                 (0..n)
                     .map(|i| (0..n).map(|j| p.cross_pattern.is_unknown(i, j)).collect())
                     .collect(),
             ),
-            method: Method::Sdp,
-            criterion: None,
             samples: Some(100),
             seed: Some(1),
-            max_trials: None,
-            sampler: None,
-            time_limit: None,
-            level: None,
-            estimates: None,
-            patterns: None,
+            ..FuseRequest::new(Method::Sdp, rows(&p.P_a), rows(&p.P_b))
         };
         let r = fuse(&req).unwrap();
         let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
