@@ -782,6 +782,36 @@ mod tests {
     }
 
     #[test]
+    fn twins_of_endpoint_blocks_take_the_endpoint() {
+        // A twin (same covariances in both estimates, other means) of a block at ω = 0 takes
+        // b's estimate, of a block at ω = 1 keeps a's: as CI of the twin alone would.
+        let (a0, b0) = blocks(19);
+        for criterion in [Criterion::Trace, Criterion::Logdet] {
+            for k in [1, 2] {
+                let mut seed = 40 + k as u64;
+                let twin_a = Gaussian {
+                    x: gaussian(5, &mut seed, 1.0).x,
+                    P: a0[k].P.clone(),
+                };
+                let twin_b = Gaussian {
+                    x: gaussian(5, &mut seed, 1.0).x,
+                    P: b0[k].P.clone(),
+                };
+                let reference = covariance_intersection(&problem(&twin_a, &twin_b), criterion)
+                    .unwrap()
+                    .fused;
+                let mut a = vec![a0[k].clone(), twin_a];
+                let b = vec![b0[k].clone(), twin_b.clone()];
+                assert_eq!(covariance_twins(&a, &b), vec![None, Some(0)]);
+                let omegas = nmci_in_place(&mut a, &b, criterion).unwrap();
+                assert_eq!(omegas, vec![if k == 1 { 0.0 } else { 1.0 }; 2]);
+                assert_eq!(a[1].x, reference.x, "{criterion:?} block {k}");
+                assert_eq!(a[1].P, reference.P, "{criterion:?} block {k}");
+            }
+        }
+    }
+
+    #[test]
     fn twins_are_exactly_equal_covariances_in_both() {
         let (a, b) = blocks(3);
         assert_eq!(
