@@ -223,7 +223,7 @@ impl Pencil {
 
     /// Overwrites `a` with the fusion of `a` and `b` at `ω` (exact at the endpoints); `shared`
     /// is the fused covariance when a twin block already computed it.
-    fn fuse_into(&self, a: &mut Gaussian, b: &Gaussian, omega: f64, shared: Option<DMatrix<f64>>) {
+    fn fuse_into(&self, a: &mut Gaussian, b: &Gaussian, omega: f64, shared: Option<&DMatrix<f64>>) {
         if omega == 1.0 {
             return;
         }
@@ -232,7 +232,7 @@ impl Pencil {
             return;
         }
         a.x = self.fused_mean(&a.x, &b.x, omega);
-        a.P = shared.unwrap_or_else(|| self.covariance(omega));
+        a.P = shared.cloned().unwrap_or_else(|| self.covariance(omega));
     }
 }
 
@@ -512,9 +512,10 @@ pub(crate) fn ci_in_place(
     let omega = optimal_omega(&refs, criterion);
     for k in 0..a.len() {
         if let Some(pencil) = &pencils[source(k)] {
-            let interior = omega > 0.0 && omega < 1.0;
-            let shared = twins[k].filter(|_| interior).map(|t| a[t].P.clone());
-            pencil.fuse_into(&mut a[k], &b[k], omega, shared);
+            // A twin's source t < k is fused already: its covariance is the twin's.
+            let (done, rest) = a.split_at_mut(k);
+            let shared = twins[k].map(|t| &done[t].P);
+            pencil.fuse_into(&mut rest[0], &b[k], omega, shared);
         }
     }
     Ok(omega)
@@ -540,8 +541,8 @@ pub(crate) fn nmci_in_place(
                 let omega = omegas[t];
                 match &pencils[t] {
                     Some(p) => {
-                        let shared = Some(a[t].P.clone()); // p exists only for interior ω
-                        p.fuse_into(&mut a[k], &b[k], omega, shared);
+                        let (done, rest) = a.split_at_mut(k);
+                        p.fuse_into(&mut rest[0], &b[k], omega, Some(&done[t].P));
                     }
                     None if omega == 0.0 => a[k].clone_from(&b[k]),
                     None => {} // ω = 1: keep a
@@ -725,7 +726,15 @@ mod tests {
             for criterion in [Criterion::Trace, Criterion::Logdet] {
                 let at = |c: f64| {
                     let pencil = Pencil::new(&(&a * c), &(&b * c)).unwrap();
-                    optimal_omega(&[&pencil], criterion)
+                    let w = optimal_omega(&[&pencil], criterion);
+                    // The in-place rule decides the endpoints its own way: the same ω.
+                    let g = |P: &DMatrix<f64>| Gaussian {
+                        x: DVector::zeros(P.nrows()),
+                        P: P * c,
+                    };
+                    let (w_in_place, _) = ci_block_in_place(&mut g(&a), &g(&b), criterion).unwrap();
+                    assert_eq!(w_in_place, w);
+                    w
                 };
                 let w = at(1.0);
                 for k in [-12, -8, -4, 4, 8, 12] {
