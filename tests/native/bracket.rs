@@ -271,7 +271,7 @@ fn time_limits_end_in_typed_errors_or_an_honest_bracket() {
         .collect();
     let json = serde_json::json!({
         "pa": rows(&q.P_a), "pb": rows(&q.P_b), "pab_unknown": pattern,
-        "method": "sdp_cuts", "time_limit": 1.0,
+        "method": "sdp_cuts", "time_limit": 5.0,
     });
     let r: serde_json::Value =
         serde_json::from_str(&fuse_json(&json.to_string()).expect("a response")).unwrap();
