@@ -505,8 +505,9 @@ def rules() -> List[Dict[str, Any]]:
     """Every fusion rule, from the registry the CLI and the page read (``nmci::RULES``): its
     ``name`` (the ``method`` of the JSON contract), ``label``, ``legend``, ``colour``,
     ``guarantee`` (``conservative``, ``relaxation``, ``common_information`` or ``none``),
-    ``criteria``, ``options`` (the method-specific request fields it takes), ``nway`` and
-    ``explorer``."""
+    ``criteria``, ``options`` (the method-specific request fields it takes), ``nway``,
+    ``explorer`` and ``limits`` (``max_dim``, ``max_block``: the largest problem the contract
+    accepts for it)."""
     return json.loads(_nmci.rules_json())
 
 
