@@ -64,12 +64,18 @@ fn acceptance_collapses_with_dimension_and_the_budget_stops_it() {
     let s = sample_cross_covariances(&p, 20, 1, SamplerSettings::default()).unwrap();
     let rate = s.acceptance_rate();
     assert!(rate > 1e-4 && rate < 2e-3, "acceptance {rate}");
-    let err = sample_cross_covariances(&p, 20, 1, SamplerSettings::rejection(1000)).unwrap_err();
+    // A budget with some acceptances (about 4 in 10 000): the error reports them and their rate.
+    let err = sample_cross_covariances(&p, 20, 1, SamplerSettings::rejection(10_000)).unwrap_err();
     match &err {
         SampleError::BudgetExhausted {
-            requested, trials, ..
+            accepted,
+            requested,
+            trials,
+            rate,
         } => {
-            assert_eq!((*requested, *trials), (20, 1000));
+            assert_eq!((*requested, *trials), (20, 10_000));
+            assert!(*accepted > 0 && *accepted < 20, "{accepted}");
+            assert_eq!(*rate, *accepted as f64 / 10_000.0);
         }
         other => panic!("unexpected {other:?}"),
     }
