@@ -496,3 +496,20 @@ fn sample_sets_say_whether_they_are_empty() {
     let some = sample_cross_covariances(&p, 3, 0, SamplerSettings::default()).unwrap();
     assert!(!some.is_empty() && some.len() == 3);
 }
+
+#[test]
+fn hit_and_run_thins_by_sweeps_per_sample_after_its_burn_in() {
+    // Every step is one free entry of one sweep: count samples spaced k sweeps apart after b
+    // burn-in sweeps take exactly |free| · (b + k · count) steps.
+    let p = paper_example(); // two free entries (the diagonal of P_ab)
+    for (b, k, count) in [(50, 1, 10), (50, 3, 10), (7, 4, 5)] {
+        let settings = SamplerSettings {
+            sweeps_per_sample: k,
+            burn_in_sweeps: b,
+            ..SamplerSettings::hit_and_run()
+        };
+        let s = sample_cross_covariances(&p, count, 2, settings).unwrap();
+        assert_eq!(s.len(), count);
+        assert_eq!(s.trials, 2 * (b + k * count) as u64, "b {b}, k {k}");
+    }
+}
