@@ -8,6 +8,8 @@
 # Needs `cargo install cargo-mutants --locked` (crates.io). Mutants are built in cargo-mutants'
 # scratch copies of the tree, all sharing one target directory (target/mutants/build), so the
 # dependencies are compiled once; .cargo/mutants.toml lists what is skipped and why.
+# Never run two of these at once on one target directory: the crate's test binary has the
+# same file name in every scratch copy, so each run would test the other's build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="$HOME/.cargo/bin:$PATH"
