@@ -58,6 +58,21 @@ fn one_state_past_each_rules_dimension_limit_is_refused_by_name() {
     let mut req = request(Method::Sdp, 2);
     req.pab_unknown = Some(vec![vec![true; 13]; 2]);
     assert_eq!(refused(&req).0, "pab_unknown");
+    let mut req = request(Method::Ci, 2);
+    req.pb = identity_rows(1001);
+    assert_eq!(refused(&req).0, "pb");
+    let mut req = request(Method::Nmci, 0);
+    req.estimates = Some(vec![
+        NwayEstimate {
+            x: None,
+            p: identity_rows(2),
+        },
+        NwayEstimate {
+            x: None,
+            p: identity_rows(1001),
+        },
+    ]);
+    assert_eq!(refused(&req).0, "estimates[1].p");
 }
 
 #[test]
