@@ -23,7 +23,7 @@ table=(
   "known|src/fusion/known.rs|known rules:: fig2:: explore::known_correlation"
   "check|src/fusion/check.rs|check rules:: sample:: nmci_rule:: ci::"
   "sample|src/fusion/sample.rs|sample::"
-  "coin|src/sim/coin.rs|brute_force_dense matches_monte_carlo coin_of_the_paper_study summary_attaches_coin"
+  "coin|src/sim/coin.rs|study_coin:: coin::tests::"
 )
 
 export CARGO_TARGET_DIR=$PWD/target/mutants/build

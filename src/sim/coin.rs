@@ -272,10 +272,9 @@ impl ErrorPropagation {
                                     None => K_a.clone(),
                                 });
                             }
-                            match coef[k].iter_mut().find(|(j, _)| *j == b) {
-                                Some((_, Some(c))) => *c += &K_b,
-                                _ => coef[k].push((b, Some(K_b))),
-                            }
+                            // A second entry for `b` (a repeated edge) is summed by
+                            // `right_multiply` below, as a merged one would be.
+                            coef[k].push((b, Some(K_b)));
                         }
                     }
                 }
@@ -434,4 +433,51 @@ pub fn coin_series(
         series.push(propagation.coin(filter));
     }
     Ok(series)
+}
+
+#[cfg(test)]
+#[allow(non_snake_case)]
+mod tests {
+    use super::*;
+
+    /// `λ_max` of a symmetric 2 × 2 matrix in closed form (independent of any eigensolver).
+    fn lambda_max_2x2(a: f64, b: f64, c: f64) -> f64 {
+        0.5 * (a + c) + (0.25 * (a - c).powi(2) + b * b).sqrt()
+    }
+
+    /// Where `P` is well conditioned nothing is floored, and the floored COIN is the COIN of
+    /// [`conservativeness_index`] (Cholesky and triangular solves: another computation).
+    #[test]
+    fn floored_coin_equals_the_coin_where_nothing_is_floored() {
+        let P = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
+        for E in [
+            DMatrix::from_row_slice(3, 3, &[2.0, -0.3, 0.1, -0.3, 5.0, 1.0, 0.1, 1.0, 1.5]),
+            DMatrix::from_row_slice(3, 3, &[0.5, 0.1, 0.0, 0.1, 0.2, 0.0, 0.0, 0.0, 0.1]),
+        ] {
+            let expected = conservativeness_index(&P, &E).unwrap();
+            let got = floored_coin(&P, &E);
+            assert!(
+                (got - expected).abs() <= 1e-13 * expected,
+                "{got} vs {expected}"
+            );
+        }
+    }
+
+    /// A singular (and a slightly indefinite) `P`: its small eigenvalue is floored at
+    /// `λ_max(P)·ε`, and the COIN is `λ_max(D^{-1/2} E D^{-1/2})` with `D = diag(4, 4ε)`,
+    /// here in closed form. `P` is diagonal, so its eigen-decomposition is exact.
+    #[test]
+    fn floored_coin_floors_the_small_eigenvalues_of_a_singular_covariance() {
+        let E = DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, 3.0]);
+        let (d1, d2) = (4.0, 4.0 * f64::EPSILON);
+        let expected = lambda_max_2x2(2.0 / d1, 1.0 / (d1 * d2).sqrt(), 3.0 / d2);
+        for small in [0.0, -1e-20, 1e-30] {
+            let P = DMatrix::from_diagonal(&DVector::from_row_slice(&[4.0, small]));
+            let got = floored_coin(&P, &E);
+            assert!(
+                (got - expected).abs() <= 1e-12 * expected,
+                "P₂₂ = {small}: {got} vs {expected}"
+            );
+        }
+    }
 }

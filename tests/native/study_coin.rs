@@ -214,12 +214,17 @@ fn summary_attaches_coin() {
 /// whole joint error covariance of all agents over the whole state (no blocks, no twins, no
 /// sparse rows), dense `M Σ Mᵀ` for every scalar update and `C Σ Cᵀ` for the exchange, with
 /// the fusion gains recomputed from the dense rules' weights (`K_a = ω P P_a⁻¹`,
-/// `K_b = (1 − ω) P P_b⁻¹`, per block for nmCI; naive `K = P P⁻¹`). On a network where agents have 2 and 3
-/// neighbours, so one step chains several fusions of one agent.
+/// `K_b = (1 − ω) P P_b⁻¹`, per block for nmCI; naive `K = P P⁻¹`; ICI
+/// `K_a = P (P_a⁻¹ − ω Γ⁻¹)`, `K_b = P (P_b⁻¹ − (1 − ω) Γ⁻¹)`, `Γ = ω P_a + (1 − ω) P_b`). On a
+/// network where agents have 2 and 3 neighbours, so one step chains several fusions of one
+/// agent.
 #[test]
 #[allow(non_snake_case)]
 fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
-    use nmci::{covariance_intersection, non_monolithic_ci, Criterion, FusionProblem};
+    use nmci::{
+        covariance_intersection, inverse_covariance_intersection, non_monolithic_ci, Criterion,
+        FusionProblem,
+    };
     let scenario = Scenario {
         groups: 1,
         agents_per_group: 4,
@@ -232,8 +237,11 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
     let nb = scenario.neighbours();
     assert_eq!(nb.iter().map(Vec::len).collect::<Vec<_>>(), [3, 2, 3, 2]);
     let inv = |m: &DMatrix<f64>| m.clone().try_inverse().unwrap();
-    for rule in [Rule::Ci, Rule::Nmci, Rule::Naive] {
+    let central = ErrorPropagation::new(&model, Estimator::Central);
+    assert!(central.is_central() && central.steps_done() == 0);
+    for rule in [Rule::Ci, Rule::Nmci, Rule::Naive, Rule::Ici] {
         let mut exact = ErrorPropagation::new(&model, Estimator::Decentralized(rule));
+        assert!(!exact.is_central());
         // Brute force: every agent's dense covariance and the joint error covariance.
         let mut P: Vec<DMatrix<f64>> = vec![model.P0.clone(); agents];
         let big = agents * n;
@@ -305,7 +313,19 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
                                 F,
                             )
                         }
-                        _ => {
+                        Rule::Ici => {
+                            let ici = inverse_covariance_intersection(&problem, Criterion::Trace)
+                                .unwrap();
+                            let w = ici.omega;
+                            let Gamma = &P[a] * w + &sent[b] * (1.0 - w);
+                            let F = ici.fused.P;
+                            (
+                                &F * (inv(&P[a]) - inv(&Gamma) * w),
+                                &F * (inv(&sent[b]) - inv(&Gamma) * (1.0 - w)),
+                                F,
+                            )
+                        }
+                        Rule::Naive => {
                             let F = inv(&(inv(&P[a]) + inv(&sent[b])));
                             (&F * inv(&P[a]), &F * inv(&sent[b]), F)
                         }
@@ -320,6 +340,7 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
             }
             S = &C * &S * C.transpose();
             exact.step(&model).unwrap();
+            assert_eq!(exact.steps_done(), step + 1);
             // Compare every agent's covariance and true error covariance.
             for (a, P_a) in P.iter().enumerate() {
                 let E_brute = S.view((a * n, a * n), (n, n)).into_owned();
