@@ -99,12 +99,12 @@
 use std::collections::{BTreeMap, HashMap};
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettings, SolverStatus, SupportedConeT};
+use clarabel::solver::SupportedConeT;
 use nalgebra::DMatrix;
 
 use super::bracket::{trace_upper_bound, young_bound, young_omega};
 use super::ci::covariance_intersection;
-use super::sdp::{solve_program, svec_index, SdpStatus};
+use super::sdp::{solve_program, svec_index, Deadline, Kkt, SdpStatus};
 use super::verify::{is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::{scatter_block, Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
@@ -682,34 +682,18 @@ fn certify_block(
         SupportedConeT::PSDTriangleConeT(cone),
     ];
     cones.push(SupportedConeT::PSDTriangleConeT(s));
-    let clarabel_settings = DefaultSettings {
-        verbose: false,
-        max_threads: 1,
-        max_iter: settings.max_iter,
-        tol_gap_abs: settings.tolerance,
-        tol_gap_rel: settings.tolerance,
-        tol_feas: settings.tolerance,
-        time_limit: settings.time_limit.unwrap_or(f64::INFINITY),
-        ..DefaultSettings::default()
-    };
-    let solver = solve_program(&P_quad, &q, &A, &b, &cones, clarabel_settings)?;
+    let (solver, status) = solve_program(
+        &P_quad,
+        &q,
+        &A,
+        &b,
+        &cones,
+        Kkt::Platform,
+        (settings.max_iter, settings.tolerance),
+        &Deadline::after(settings.time_limit),
+        "the certified bound's SDP",
+    )?;
     let sol = &solver.solution;
-    let status = match sol.status {
-        SolverStatus::Solved => SdpStatus::Solved,
-        SolverStatus::AlmostSolved => SdpStatus::AlmostSolved,
-        SolverStatus::MaxTime => {
-            return Err(SolveError::TimeLimit {
-                seconds: settings.time_limit.unwrap_or(f64::INFINITY),
-                what: "the certified bound's SDP".into(),
-            })
-        }
-        other => {
-            return Err(SolveError::SolverFailed {
-                status: format!("{other:?}"),
-                iterations: sol.iterations,
-            })
-        }
-    };
     let K_a = match gain {
         Some(K_a) => K_a.clone(),
         None => DMatrix::from_fn(n, n, |k, i| sol.x[var_k(k, i)]),

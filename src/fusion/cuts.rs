@@ -50,7 +50,7 @@
 //! failure is returned as an error. Measurements: README (`examples/cuts_probe.rs`).
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use clarabel::solver::SupportedConeT;
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -60,7 +60,9 @@ use super::certify::{certification_blocks, certified_fusion, check_time_limit, C
 use super::check::{conservativeness_margin, fused_error_covariance, worst_margin};
 use super::nmci::non_monolithic_ci;
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
-use super::sdp::{solve_samples, svec_index, Deadline, SdpResult, SdpSettings, SdpStatus};
+use super::sdp::{
+    solve_program, solve_samples, svec_index, Deadline, Kkt, SdpResult, SdpSettings, SdpStatus,
+};
 use super::{Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::symmetrize;
@@ -264,7 +266,7 @@ pub fn optimal_fusion_cuts(
             } else {
                 DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0)).normalize()
             };
-            let (_, P_ab) = worst_case_search(problem, &cert.fused, v, settings)?;
+            let (_, P_ab) = worst_case_search(problem, &cert.fused, v, settings, &deadline)?;
             if !cross
                 .iter()
                 .any(|c| (c - &P_ab).amax() <= 1e-12 * P_ab.amax().max(1.0))
@@ -355,9 +357,26 @@ pub fn optimal_fusion_cuts(
         }
         // Every start that finds a violation contributes its cut (distinct directions cut off
         // different parts of the current relaxation); the worst decides convergence.
+        // The searches' programs share the deadline: one stopped by it ends the loop with
+        // this iteration's program and the violation found so far, as a time limit (never as
+        // convergence: the search was cut short).
+        let mut cut_short = false;
+        let mut search = |fused: &Fused, v: DVector<f64>| {
+            if cut_short {
+                return Ok(None);
+            }
+            match worst_case_search(problem, fused, v, settings, &deadline) {
+                Ok(f) => Ok(Some(f)),
+                Err(SolveError::TimeLimit { .. }) => {
+                    cut_short = true;
+                    Ok(None)
+                }
+                Err(e) => Err(e),
+            }
+        };
         let mut found: Vec<(f64, DMatrix<f64>)> = Vec::with_capacity(starts.len());
         for start in starts {
-            found.push(worst_case_search(problem, &opt.fused, start, settings)?);
+            found.extend(search(&opt.fused, start)?);
         }
         let mut violation = found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
         let gap_closed = certified_trace
@@ -365,13 +384,16 @@ pub fn optimal_fusion_cuts(
         if violation <= threshold && !gap_closed && certified_trace.is_some() {
             // The local search found nothing but the proven bracket is still open: before
             // stopping, look for violations from random admissible points too (module docs).
-            let mut extra =
-                random_search(problem, &opt.fused, settings, iterations as u64, threshold)?;
+            let mut extra = Vec::new();
+            for v in random_starts(problem, &opt.fused, settings, iterations as u64, threshold)? {
+                extra.extend(search(&opt.fused, v)?);
+            }
             for _ in 0..OPEN_BRACKET_STARTS * settings.restarts {
                 let v = DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0)).normalize();
-                let f = worst_case_search(problem, &opt.fused, v, settings)?;
-                if f.0 > threshold {
-                    extra.push(f);
+                if let Some(f) = search(&opt.fused, v)? {
+                    if f.0 > threshold {
+                        extra.push(f);
+                    }
                 }
             }
             if !extra.is_empty() {
@@ -379,12 +401,12 @@ pub fn optimal_fusion_cuts(
                 found.extend(extra);
             }
         }
-        let converged = violation <= threshold || gap_closed;
-        let timed_out = deadline.passed();
+        let converged = gap_closed || (!cut_short && violation <= threshold);
+        let timed_out = cut_short || deadline.passed();
         if converged || timed_out || iterations >= settings.max_iterations {
             let stop = if gap_closed {
                 CutsStop::GapClosed
-            } else if violation <= threshold {
+            } else if violation <= threshold && !cut_short {
                 CutsStop::Tolerance
             } else if timed_out {
                 CutsStop::TimeLimit
@@ -425,7 +447,7 @@ pub fn optimal_fusion_cuts(
             let mut deeper = Vec::with_capacity(found.len());
             for (_, P_ab) in &found {
                 let (_, v) = top_eigen(&violation_matrix(problem, &mid, P_ab));
-                deeper.push(worst_case_search(problem, &mid, v, settings)?);
+                deeper.push(worst_case_search(problem, &mid, v, settings, &deadline)?);
             }
             let worst = deeper.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
             if worst <= threshold {
@@ -489,7 +511,12 @@ fn prune(
     let mut found = f64::NEG_INFINITY;
     for k in 0..problem.dim() {
         let v = eig.eigenvectors.column(k).into_owned();
-        found = found.max(worst_case_search(problem, &reduced.fused, v, settings)?.0);
+        match worst_case_search(problem, &reduced.fused, v, settings, deadline) {
+            Ok((v, _)) => found = found.max(v),
+            // Not verified in time: keep the full program.
+            Err(SolveError::TimeLimit { .. }) => return Ok(None),
+            Err(e) => return Err(e),
+        }
     }
     if found > threshold.max(violation) {
         return Ok(None);
@@ -498,16 +525,17 @@ fn prune(
 }
 
 /// Admissible cross-covariances drawn at random (hit-and-run, [`RANDOM_SEARCH_SAMPLES`]):
-/// the most violated ones, each polished by the worst-case search from the top eigenvector of
-/// its violation (at most `restarts`; empty when none is violated beyond `threshold`).
+/// the top eigenvectors of the violations of the most violated ones, the starting directions
+/// of the worst-case search (at most `restarts`; empty when none is violated beyond
+/// `threshold`).
 #[allow(non_snake_case)]
-fn random_search(
+fn random_starts(
     problem: &FusionProblem,
     fused: &Fused,
     settings: &CutsSettings,
     round: u64,
     threshold: f64,
-) -> Result<Vec<(f64, DMatrix<f64>)>, SolveError> {
+) -> Result<Vec<DVector<f64>>, SolveError> {
     let drawn = sample_cross_covariances(
         problem,
         RANDOM_SEARCH_SAMPLES,
@@ -522,12 +550,11 @@ fn random_search(
         .filter(|(v, _)| *v > threshold)
         .collect();
     scored.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let mut out = Vec::new();
-    for &(_, i) in scored.iter().take(settings.restarts) {
-        let (_, v) = top_eigen(&violation_matrix(problem, fused, &drawn.cross[i]));
-        out.push(worst_case_search(problem, fused, v, settings)?);
-    }
-    Ok(out)
+    Ok(scored
+        .iter()
+        .take(settings.restarts)
+        .map(|&(_, i)| top_eigen(&violation_matrix(problem, fused, &drawn.cross[i])).1)
+        .collect())
 }
 
 /// Extra random starting directions (times `restarts`) of the worst-case search when the
@@ -558,13 +585,14 @@ fn worst_case_search(
     fused: &Fused,
     mut v: DVector<f64>,
     settings: &CutsSettings,
+    deadline: &Deadline,
 ) -> Result<(f64, DMatrix<f64>), SolveError> {
     let mut best = (
         f64::NEG_INFINITY,
         DMatrix::zeros(problem.dim(), problem.dim()),
     );
     for _ in 0..10 {
-        let P_ab = worst_cross_for_direction(problem, fused, &v, settings)?;
+        let P_ab = worst_cross_for_direction(problem, fused, &v, settings, deadline)?;
         let (violation, next) = top_eigen(&violation_matrix(problem, fused, &P_ab));
         let improved = violation > best.0 + 1e-12 * violation.abs().max(1.0);
         if violation > best.0 {
@@ -586,6 +614,7 @@ fn worst_cross_for_direction(
     fused: &Fused,
     v: &DVector<f64>,
     settings: &CutsSettings,
+    deadline: &Deadline,
 ) -> Result<DMatrix<f64>, SolveError> {
     let n = problem.dim();
     let (u_a, u_b) = (fused.K_a.tr_mul(v), fused.K_b.tr_mul(v));
@@ -619,33 +648,56 @@ fn worst_cross_for_direction(
     let A = CscMatrix::new_from_triplets(b.len(), free.len(), rows, cols, vals);
     let P = CscMatrix::zeros((free.len(), free.len()));
     let cones = [SupportedConeT::PSDTriangleConeT(m)];
-    let clarabel_settings = DefaultSettings {
-        verbose: false,
-        // One thread, as every other program of the crate: a worst-case search is small, and
-        // its caller (a study, a Python process pool, a page's worker) owns the parallelism.
-        max_threads: 1,
-        max_iter: settings.sdp.max_iter,
-        tol_gap_abs: settings.sdp.tolerance,
-        tol_gap_rel: settings.sdp.tolerance,
-        tol_feas: settings.sdp.tolerance,
-        ..DefaultSettings::default()
-    };
-    let mut solver = DefaultSolver::new(&P, &q, &A, &b, &cones, clarabel_settings)
-        .map_err(|e| SolveError::Setup(e.to_string()))?;
-    solver.solve();
+    let (solver, _) = solve_program(
+        &P,
+        &q,
+        &A,
+        &b,
+        &cones,
+        Kkt::Qdldl,
+        (settings.sdp.max_iter, settings.sdp.tolerance),
+        deadline,
+        "the cutting planes' worst-case search",
+    )?;
     let sol = &solver.solution;
-    match sol.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => {}
-        other => {
-            return Err(SolveError::SolverFailed {
-                status: format!("{other:?}"),
-                iterations: sol.iterations,
-            })
-        }
-    }
     let mut P_ab = DMatrix::zeros(n, n);
     for (k, &(i, j)) in free.iter().enumerate() {
         P_ab[(i, j)] = sol.x[k];
     }
     Ok(P_ab * (1.0 - CUT_SHRINK))
+}
+
+#[cfg(test)]
+#[allow(non_snake_case)]
+mod tests {
+    use super::*;
+    use crate::fusion::ci::covariance_intersection;
+    use crate::structure::CrossPattern;
+
+    fn problem() -> FusionProblem {
+        let P_a = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
+        let P_b = DMatrix::from_row_slice(3, 3, &[2.0, -0.3, 0.1, -0.3, 5.0, 1.0, 0.1, 1.0, 1.5]);
+        FusionProblem::from_covariances(P_a, P_b, CrossPattern::fully_unknown(3)).unwrap()
+    }
+
+    /// The worst-case search's programs share the solve's deadline: past it, the search ends
+    /// in the time-limit error (which the loop turns into `CutsStop::TimeLimit`), instead of
+    /// running its programs to the end.
+    #[test]
+    fn the_worst_case_search_stops_at_the_deadline() {
+        let p = problem();
+        let ci = covariance_intersection(&p, Criterion::Trace).unwrap().fused;
+        let v = DVector::from_row_slice(&[1.0, 0.0, 0.0]);
+        let settings = CutsSettings::default();
+        // Without a deadline: a worst case (CI is conservative: no violation beyond rounding).
+        let (violation, _) =
+            worst_case_search(&p, &ci, v.clone(), &settings, &Deadline::after(None)).unwrap();
+        assert!(violation.is_finite() && violation <= 1e-7, "{violation}");
+        let passed = Deadline::after(Some(1e-9));
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        assert!(passed.passed());
+        let err = worst_case_search(&p, &ci, v, &settings, &passed).unwrap_err();
+        assert!(matches!(err, SolveError::TimeLimit { .. }), "{err}");
+        assert!(err.to_string().contains("worst-case search"), "{err}");
+    }
 }

@@ -462,46 +462,97 @@ struct Solved {
     duals: Vec<DMatrix<f64>>,
 }
 
-/// Clarabel's KKT solver. The KKT system is an arrow of dense PSD-cone blocks around the few
-/// gain variables, where faer's supernodal LDLᵀ is several times faster than QDLDL's scalar
-/// factorization; faer does not build for 32-bit wasm, where QDLDL is used.
-#[cfg(not(target_arch = "wasm32"))]
-const KKT_SOLVER: &str = "faer";
-#[cfg(target_arch = "wasm32")]
-const KKT_SOLVER: &str = "qdldl";
+/// Clarabel's KKT solver for a program.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Kkt {
+    /// The platform's: natively faer's supernodal LDLᵀ — the sampled SDP's and the
+    /// certificate's KKT systems are an arrow of dense PSD-cone blocks around the few gain
+    /// variables, where it is several times faster than QDLDL's scalar factorization; faer
+    /// does not build for 32-bit wasm, where QDLDL is used.
+    Platform,
+    /// QDLDL everywhere: the cutting planes' worst-case search (one small cone). With faer
+    /// there, the search missed violations QDLDL's solves find (the anti-diagonal bracket test
+    /// `bracket::higher_levels_…`, case 2: the cuts' lower end stopped at 4.6214578 instead of
+    /// 4.6214648, leaving the bracket open), and the search is local, so a weaker worst case
+    /// is a weaker cut.
+    Qdldl,
+}
 
-/// Builds and solves a Clarabel program with the platform's KKT solver; natively, when faer's
-/// factorization breaks down (status `NumericalError` or `InsufficientProgress`: seen on
-/// certificate programs, where faer's first solve returned NaN), solves again with QDLDL.
-/// The caller reads the status.
+impl Kkt {
+    fn method(self) -> &'static str {
+        match self {
+            #[cfg(not(target_arch = "wasm32"))]
+            Kkt::Platform => "faer",
+            #[cfg(target_arch = "wasm32")]
+            Kkt::Platform => "qdldl",
+            Kkt::Qdldl => "qdldl",
+        }
+    }
+}
+
+/// Builds and solves one Clarabel program — every program of the crate goes through here
+/// (the sampled SDP, the certified bound's SDP, the cutting planes' worst-case search) — with
+/// the crate's settings: one thread (the caller — a study, a Python process pool, a page's
+/// worker — owns the parallelism), `tolerance` on the absolute and relative gap and on
+/// feasibility, at most `max_iter` iterations, and the time left before `deadline`, with the
+/// KKT solver `kkt`; when faer's factorization breaks down (status `NumericalError` or
+/// `InsufficientProgress`: seen on certificate programs, where faer's first solve returned
+/// NaN), the program is solved again with QDLDL.
+///
+/// Returns the solver (its solution) and the status when Clarabel solved the program to its
+/// tolerance (`Solved`) or to its reduced one (`AlmostSolved`); a program stopped by the
+/// deadline is [`SolveError::TimeLimit`] naming `what`, any other status
+/// [`SolveError::SolverFailed`]. Never hidden: the caller reports the status.
 #[allow(non_snake_case)]
+#[allow(clippy::too_many_arguments)]
 pub(super) fn solve_program(
     P: &CscMatrix<f64>,
     q: &[f64],
     A: &CscMatrix<f64>,
     b: &[f64],
     cones: &[SupportedConeT<f64>],
-    settings: DefaultSettings<f64>,
-) -> Result<DefaultSolver<f64>, SolveError> {
+    kkt: Kkt,
+    (max_iter, tolerance): (u32, f64),
+    deadline: &Deadline,
+    what: &str,
+) -> Result<(DefaultSolver<f64>, SdpStatus), SolveError> {
     let run = |method: &str| -> Result<DefaultSolver<f64>, SolveError> {
         let settings = DefaultSettings {
+            verbose: false,
+            max_threads: 1,
+            max_iter,
+            tol_gap_abs: tolerance,
+            tol_gap_rel: tolerance,
+            tol_feas: tolerance,
+            time_limit: deadline.remaining(),
             direct_solve_method: method.into(),
-            ..settings.clone()
+            ..DefaultSettings::default()
         };
         let mut solver = DefaultSolver::new(P, q, A, b, cones, settings)
             .map_err(|e| SolveError::Setup(e.to_string()))?;
         solver.solve();
         Ok(solver)
     };
-    let solver = run(KKT_SOLVER)?;
+    let mut solver = run(kkt.method())?;
     let broke_down = matches!(
         solver.solution.status,
         SolverStatus::NumericalError | SolverStatus::InsufficientProgress
     );
-    if broke_down && KKT_SOLVER != "qdldl" {
-        return run("qdldl");
+    if broke_down && kkt.method() != "qdldl" {
+        solver = run("qdldl")?;
     }
-    Ok(solver)
+    let status = match solver.solution.status {
+        SolverStatus::Solved => SdpStatus::Solved,
+        SolverStatus::AlmostSolved => SdpStatus::AlmostSolved,
+        SolverStatus::MaxTime => return Err(deadline.error(what)),
+        other => {
+            return Err(SolveError::SolverFailed {
+                status: format!("{other:?}"),
+                iterations: solver.solution.iterations,
+            })
+        }
+    };
+    Ok((solver, status))
 }
 
 /// svec index of `(r, c)`, `r ≤ c`, in Clarabel's column-major upper-triangle order.
@@ -576,29 +627,18 @@ fn solve_lmis(
         .iter()
         .map(|_| SupportedConeT::PSDTriangleConeT(m))
         .collect();
-    let clarabel_settings = DefaultSettings {
-        verbose: false,
-        max_threads: 1,
-        max_iter: settings.max_iter,
-        tol_gap_abs: settings.tolerance,
-        tol_gap_rel: settings.tolerance,
-        tol_feas: settings.tolerance,
-        time_limit: deadline.remaining(),
-        ..DefaultSettings::default()
-    };
-    let solver = solve_program(&P, &q, &A, &b, &cones, clarabel_settings)?;
+    let (solver, status) = solve_program(
+        &P,
+        &q,
+        &A,
+        &b,
+        &cones,
+        Kkt::Platform,
+        (settings.max_iter, settings.tolerance),
+        deadline,
+        "the sampled SDP",
+    )?;
     let sol = &solver.solution;
-    let status = match sol.status {
-        SolverStatus::Solved => SdpStatus::Solved,
-        SolverStatus::AlmostSolved => SdpStatus::AlmostSolved,
-        SolverStatus::MaxTime => return Err(deadline.error("the sampled SDP")),
-        other => {
-            return Err(SolveError::SolverFailed {
-                status: format!("{other:?}"),
-                iterations: sol.iterations,
-            })
-        }
-    };
     let K_a = DMatrix::from_fn(n, n, |r, k| sol.x[ka(r, k)]);
     let K_b = DMatrix::identity(n, n) - &K_a;
     let P_bar = DMatrix::from_fn(n, n, |i, j| sol.x[pbar(i, j)]);
