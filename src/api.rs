@@ -537,6 +537,30 @@ pub(crate) fn check_blocks(method: Method, problem: &FusionProblem) -> Result<()
     }
 }
 
+/// A covariance's size: a response's `trace` and `det` ([`FuseResponse`]), and the explorer's
+/// row of each estimate ([`crate::Exploration::estimates`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CovarianceSummary {
+    /// The field it comes from (`pa`, `pb`; `p` for a response).
+    pub name: String,
+    /// `tr P`.
+    pub trace: f64,
+    /// `det P`.
+    pub det: f64,
+}
+
+impl CovarianceSummary {
+    /// `field`'s covariance `P`.
+    #[allow(non_snake_case)]
+    pub fn of(field: &str, P: &DMatrix<f64>) -> Self {
+        Self {
+            name: field.into(),
+            trace: P.trace(),
+            det: P.determinant(),
+        }
+    }
+}
+
 /// A response with the estimate and its bound only (every optional field absent).
 #[allow(non_snake_case)]
 fn bare_response(
@@ -545,6 +569,7 @@ fn bare_response(
     x: &DVector<f64>,
     P: &DMatrix<f64>,
 ) -> FuseResponse {
+    let summary = CovarianceSummary::of("p", P);
     FuseResponse {
         method,
         criterion,
@@ -554,8 +579,8 @@ fn bare_response(
         kb: None,
         gains: None,
         weights: None,
-        trace: P.trace(),
-        det: P.determinant(),
+        trace: summary.trace,
+        det: summary.det,
         omega: None,
         blocks: None,
         samples: None,

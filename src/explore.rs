@@ -8,7 +8,8 @@ use serde::{Deserialize, Serialize};
 use crate::api::{
     bracket_certificate, certificate_response, check_blocks, check_count, check_rows, ci_response,
     ei_response, ici_response, naive_response, nmci_response, problem_from_parts, sdp_response,
-    upper_bounds, FuseResponse, BRACKET_CERTIFY_MAX_BLOCK, MAX_SAMPLES, MAX_TRIALS,
+    upper_bounds, CovarianceSummary, FuseResponse, BRACKET_CERTIFY_MAX_BLOCK, MAX_SAMPLES,
+    MAX_TRIALS,
 };
 use crate::error::RequestError;
 use crate::fusion::bracket::CLOSED_RTOL;
@@ -115,6 +116,9 @@ pub struct RuleReport {
 pub struct Exploration {
     /// State dimension.
     pub n: usize,
+    /// The two estimates' covariances summarised as the rules' responses are (`trace`,
+    /// `det`): `P_a`, then `P_b`.
+    pub estimates: [CovarianceSummary; 2],
     /// Every rule the explorer computes ([`crate::RuleInfo::explorer`]), in
     /// [`crate::RULES`] order. CI, nmCI and ICI use the request's criterion; the SDP and the
     /// certified rule (blocks of at most [`BRACKET_CERTIFY_MAX_BLOCK`] states) minimise the
@@ -298,6 +302,10 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         .collect::<Result<Vec<_>, RequestError>>()?;
     Ok(Exploration {
         n,
+        estimates: [
+            CovarianceSummary::of("pa", &problem.P_a),
+            CovarianceSummary::of("pb", &problem.P_b),
+        ],
         rules,
         gap,
         region_count,

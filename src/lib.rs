@@ -49,8 +49,8 @@ mod structure;
 pub mod wasm;
 
 pub use api::{
-    fuse, fuse_json, FuseRequest, FuseResponse, NwayEstimate, NwayPair, BRACKET_CERTIFY_MAX_BLOCK,
-    MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
+    fuse, fuse_json, CovarianceSummary, FuseRequest, FuseResponse, NwayEstimate, NwayPair,
+    BRACKET_CERTIFY_MAX_BLOCK, MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
 };
 pub use error::{request_field, InputError, ReportError, RequestError, SampleError, SolveError};
 pub use explore::{explore, CoinStats, Exploration, ExploreRequest, Gap, RuleReport};

@@ -32,24 +32,6 @@ function samplerText(requested, choice, acceptance, count) {
 /** Fills the numbers table and the details under it from an analysis `a` of the explorer
  * state `s`. */
 export function renderNumbersPanel(a, s) {
-  const det2 = (m) => {
-    // det of a small dense matrix by Gaussian elimination.
-    const A = m.map((r) => [...r]);
-    let d = 1;
-    for (let c = 0; c < A.length; c++) {
-      let p = c;
-      for (let r = c + 1; r < A.length; r++) if (Math.abs(A[r][c]) > Math.abs(A[p][c])) p = r;
-      if (A[p][c] === 0) return 0;
-      if (p !== c) { [A[p], A[c]] = [A[c], A[p]]; d = -d; }
-      d *= A[c][c];
-      for (let r = c + 1; r < A.length; r++) {
-        const f = A[r][c] / A[c][c];
-        for (let k = c; k < A.length; k++) A[r][k] -= f * A[c][k];
-      }
-    }
-    return d;
-  };
-  const tr = (m) => m.reduce((t, r, k) => t + r[k], 0);
   // Negative = not conservative for some drawn P' (red). Within 1e-8·max(1, tr P) of zero it is
   // solver round-off of a bound that touches the region (the SDP's optimum does by design).
   const margin = (v, scale) => {
@@ -92,8 +74,9 @@ export function renderNumbersPanel(a, s) {
       tr_.append(td);
     }
   };
-  for (const key of ["pa", "pb"]) {
-    cells(row(key, STYLE[key].color, STYLE[key].label), [["trace", f3(tr(s[key]))], ["det", f3(det2(s[key]))], ["omega", ""], ["margin", "—"], ["coin", "—"]]);
+  // The estimates' trace and det come from wasm, computed as the rules' are.
+  for (const e of a.estimates) {
+    cells(row(e.name, STYLE[e.name].color, STYLE[e.name].label), [["trace", f3(e.trace)], ["det", f3(e.det)], ["omega", ""], ["margin", "—"], ["coin", "—"]]);
   }
   for (const report of a.rules) {
     const rule = RULE[report.method];
@@ -115,28 +98,46 @@ export function renderNumbersPanel(a, s) {
   const response = (m) => a.rules.find((r) => r.method === m)?.response;
   const [nmci, ci, sdp, certified] = ["nmci", "ci", "sdp", "certified"].map(response);
   const blocks = nmci.blocks.map((b, k) => `{${b.map((x) => "x" + (x + 1)).join(", ")}}: ω = ${f3(nmci.omega[k])}`).join(" · ");
-  const d = $("details");
+  // Built as DOM nodes: every number and message is text, never parsed as HTML.
+  const key = (...children) => el("span", { class: "k" }, ...children);
   const parts = [];
-  parts.push(`<div id="blocks"><span class="k">nmCI blocks (${nmci.blocks.length}):</span> ${blocks}</div>`);
+  parts.push(el("div", { id: "blocks" }, key(`nmCI blocks (${nmci.blocks.length}):`), ` ${blocks}`));
   if (sdp) {
-    parts.push(`<div id="sdp-status"><span class="k">SDP:</span> status <b>${sdp.status}</b>, ${sdp.iterations} iterations, ${sdp.lmis} LMIs in the final working set of ${sdp.samples} samples, ${samplerText(s.sampler, sdp.sampler_choice, sdp.acceptance_rate, sdp.samples)}</div>`);
+    parts.push(el("div", { id: "sdp-status" }, key("SDP:"), " status ", el("b", {}, sdp.status),
+      `, ${sdp.iterations} iterations, ${sdp.lmis} LMIs in the final working set of ${sdp.samples} samples, ${samplerText(s.sampler, sdp.sampler_choice, sdp.acceptance_rate, sdp.samples)}`));
   }
   if (a.gap) {
     const upperName = `the ${RULE[a.gap.upper_rule].label} bound`;
     const level = a.gap.levels ? ` (certificate level${a.gap.levels.length > 1 ? "s" : ""} ${a.gap.levels.join(", ")})` : "";
     const verdict = a.gap.closed
-      ? `<span id="gap-verdict" class="ok">proven optimal to 10⁻⁶ (relative): ${upperName}${a.gap.upper_rule === "certified" ? level : ""} is within 10⁻⁶ of the robust optimum</span>`
-      : `<span id="gap-verdict" class="open">open: the robust optimum lies between the ends${level}</span>`;
-    parts.push(`<div id="gap"><span class="k">robust optimum of tr P̄ lies in</span> [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] <span class="k">(both ends proven, every rounding accounted for: a Lagrangian bound from the SDP's duals below, ${upperName} above): gap</span> ${a.gap.absolute.toExponential(2)} <span class="k">absolute,</span> ${(a.gap.relative * 100).toPrecision(3)} % <span class="k">relative —</span> ${verdict}</div>`);
+      ? el("span", { id: "gap-verdict", class: "ok" }, `proven optimal to 10⁻⁶ (relative): ${upperName}${a.gap.upper_rule === "certified" ? level : ""} is within 10⁻⁶ of the robust optimum`)
+      : el("span", { id: "gap-verdict", class: "open" }, `open: the robust optimum lies between the ends${level}`);
+    parts.push(el("div", { id: "gap" }, key("robust optimum of tr P̄ lies in"), ` [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] `,
+      key(`(both ends proven, every rounding accounted for: a Lagrangian bound from the SDP's duals below, ${upperName} above): gap`),
+      ` ${a.gap.absolute.toExponential(2)} `, key("absolute,"), ` ${(a.gap.relative * 100).toPrecision(3)} % `, key("relative —"), " ", verdict));
   }
   if (certified) {
     const best = Math.min(ci.trace, nmci.trace);
-    parts.push(`<div id="certified-status"><span class="k">certified rule:</span> tr P̄ ${certified.trace.toFixed(6)}${s.criterion !== "trace" ? " (minimises the trace; CI and nmCI above minimise log det)" : certified.trace < best - 1e-9 ? ` — ${((1 - certified.trace / best) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here"}, proven to dominate K P' Kᵀ for every admissible P' (level ${(certified.levels || []).join(", ")}, status ${certified.status}, ${certified.iterations} iterations, repair ${certified.repair.toExponential(1)})</div>`);
+    const comparison = s.criterion !== "trace"
+      ? " (minimises the trace; CI and nmCI above minimise log det)"
+      : certified.trace < best - 1e-9 ? ` — ${((1 - certified.trace / best) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here";
+    parts.push(el("div", { id: "certified-status" }, key("certified rule:"),
+      ` tr P̄ ${certified.trace.toFixed(6)}${comparison}, proven to dominate K P' Kᵀ for every admissible P' (level ${(certified.levels || []).join(", ")}, status ${certified.status}, ${certified.iterations} iterations, repair ${certified.repair.toExponential(1)})`));
   }
   if (a.region_error) {
-    parts.push(`<div class="err" id="region-status">region: ${a.region_error}</div>`);
+    parts.push(el("div", { class: "err", id: "region-status" }, `region: ${a.region_error}`));
   } else if (a.region_count) {
-    parts.push(`<div id="region-status"><span class="k">region and worst λ<sub>min</sub>:</span> ${a.region_count} admissible P<sub>ab</sub> drawn (${samplerText(s.sampler, a.region_sampler_choice, a.region_acceptance_rate, a.region_count)}), independent of the SDP's samples</div>`);
+    parts.push(el("div", { id: "region-status" }, key("region and worst λ", el("sub", {}, "min"), ":"),
+      ` ${a.region_count} admissible P`, el("sub", {}, "ab"),
+      ` drawn (${samplerText(s.sampler, a.region_sampler_choice, a.region_acceptance_rate, a.region_count)}), independent of the SDP's samples`));
   }
-  d.innerHTML = parts.join("");
+  $("details").replaceChildren(...parts);
+}
+
+/** An element with attributes and children (strings become text nodes). */
+function el(tag, attrs, ...children) {
+  const node = document.createElement(tag);
+  for (const [name, value] of Object.entries(attrs)) node.setAttribute(name, value);
+  node.append(...children);
+  return node;
 }

@@ -27,7 +27,10 @@ function buildInputs() {
   rows.forEach((row, k) => {
     const tr = document.createElement("tr");
     const name = document.createElement("td");
-    name.innerHTML = `<span class="swatch" style="border-color:${COLORS[k]}"></span> e${k + 1}`;
+    const swatch = document.createElement("span");
+    swatch.className = "swatch";
+    swatch.style.borderColor = COLORS[k];
+    name.append(swatch, ` e${k + 1}`);
     tr.append(name);
     for (const f of FIELDS) {
       const td = document.createElement("td");

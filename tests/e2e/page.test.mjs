@@ -61,6 +61,8 @@ const cell = (key, i, j) => page.locator(`#grid-${key} input[aria-label="${key =
 test("opens on the paper's example: nmCI trace 2.000, ω = [0, 1], CI looser", async () => {
   assert.equal(await page.locator("#preset").inputValue(), "paper");
   assert.equal((await text("#row-nmci .trace")).trim(), "2.000");
+  // The estimates' rows (from wasm): P_a = diag(3, 1), P_b = diag(1, 4).
+  assert.deepEqual([await text("#row-pa .trace"), await text("#row-pa .det"), await text("#row-pb .trace"), await text("#row-pb .det")].map((t) => t.trim()), ["4.000", "3.000", "5.000", "4.000"]);
   const omega = (await text("#row-nmci .omega")).split(",").map(Number);
   assert.deepEqual(omega, [0, 1]);
   assert.ok((await num("#row-ci .trace")) > 2.5);

@@ -72,6 +72,13 @@ fn paper_example_analysis() {
     ))
     .unwrap();
     assert_eq!(a.n, 2);
+    // The estimates' rows: tr and det of diag(3, 1) and diag(1, 4).
+    let rows: Vec<(&str, f64, f64)> = a
+        .estimates
+        .iter()
+        .map(|e| (e.name.as_str(), e.trace, e.det))
+        .collect();
+    assert_eq!(rows, [("pa", 4.0, 3.0), ("pb", 5.0, 4.0)]);
     // Every rule the registry marks for the explorer, in registry order.
     let methods: Vec<Method> = a.rules.iter().map(|r| r.method).collect();
     let expected: Vec<Method> = RULES
