@@ -9,11 +9,10 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{InputError, RequestError, SolveError};
-use crate::fusion::bracket::{trace_upper_bound, UpperBounds};
-use crate::fusion::certify::{
-    certification_blocks, certified_fusion, certify_gain, CertifiedResult, CertifySettings,
-    MAX_LEVEL,
+use crate::fusion::bracket::{
+    bracket_certificate, gain_certified_trace, trace_upper_bound, upper_bounds, UpperBounds,
 };
+use crate::fusion::certify::{certified_fusion, CertifiedResult, CertifySettings, MAX_LEVEL};
 use crate::fusion::ci::covariance_intersection;
 use crate::fusion::cuts::{optimal_fusion_cuts, CutsSettings, CutsStop};
 use crate::fusion::ei::ellipsoidal_intersection;
@@ -80,12 +79,6 @@ pub(crate) fn check_rows<T>(
     }
     Ok(())
 }
-
-/// The certified rule joins the `sdp` / `sdp_cuts` bracket's upper bound when every
-/// independent block has at most this many states (the level-1 program grows as
-/// `(2n² + 1)²`; timings in the README). Method `"certified"` itself goes to
-/// [`CertifySettings::max_block_dim`].
-pub const BRACKET_CERTIFY_MAX_BLOCK: usize = 4;
 
 /// One estimate of an N-way request.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -233,7 +226,7 @@ pub struct FuseResponse {
     /// `sdp`, `sdp_cuts`, `certified`: a proven upper bound on the robust optimum — the
     /// rounded-up trace of the best conservative rule: CI, nmCI (recomputed with Young's
     /// inequality in exact arithmetic) or the certified rule (proven by its certificate; in the
-    /// bracket when every independent block has at most [`BRACKET_CERTIFY_MAX_BLOCK`] states).
+    /// bracket when every independent block has at most [`crate::BRACKET_CERTIFY_MAX_BLOCK`] states).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub upper_bound: Option<f64>,
     /// Which rule gives `upper_bound` (`ci`, `nmci` or `certified`; ties go to CI / nmCI).
@@ -252,7 +245,7 @@ pub struct FuseResponse {
     pub repair: Option<f64>,
     /// `sdp`, `sdp_cuts`: `tr P̄` of the tightest bound *proven* for this method's own gain
     /// (`certify_gain`): what the optimal gain costs when the bound must hold for every
-    /// admissible `P_ab` (blocks of at most [`BRACKET_CERTIFY_MAX_BLOCK`] states).
+    /// admissible `P_ab` (blocks of at most [`crate::BRACKET_CERTIFY_MAX_BLOCK`] states).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gain_certified_trace: Option<f64>,
     /// `certified`: the certificate level used on each block; `sdp`, `sdp_cuts`: those of the
@@ -678,7 +671,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             // Past the time limit the own-gain certificate is left out, not an error (the loop
             // has its bracket).
             r.gain_certified_trace =
-                match own_gain_certified(&problem, &cuts.fused.K_a, &settings.certify_settings) {
+                match gain_certified_trace(&problem, &cuts.fused.K_a, &settings.certify_settings) {
                     Ok(t) => t,
                     Err(SolveError::TimeLimit { .. }) => None,
                     Err(e) => return Err(e.into()),
@@ -736,51 +729,6 @@ fn fuse_nway(
         iterations: Some(result.iterations as u32),
         ..bare_response(method, criterion, &result.x, &result.P)
     })
-}
-
-/// The certified rule for the bracket: `None` when a block exceeds
-/// [`BRACKET_CERTIFY_MAX_BLOCK`] states (too slow for every SDP request).
-pub(crate) fn bracket_certificate(
-    problem: &FusionProblem,
-    settings: &CertifySettings,
-) -> Result<Option<CertifiedResult>, SolveError> {
-    if !small_enough(problem, None) {
-        return Ok(None);
-    }
-    certified_fusion(problem, settings).map(Some)
-}
-
-/// Whether every block a certificate would be computed on has at most
-/// [`BRACKET_CERTIFY_MAX_BLOCK`] states.
-fn small_enough(problem: &FusionProblem, gain: Option<&DMatrix<f64>>) -> bool {
-    certification_blocks(problem, gain)
-        .iter()
-        .all(|b| b.len() <= BRACKET_CERTIFY_MAX_BLOCK)
-}
-
-/// `tr P̄` of the tightest bound certified for an optimal-fusion method's own gain (`None`
-/// for blocks above [`BRACKET_CERTIFY_MAX_BLOCK`] states).
-#[allow(non_snake_case)]
-fn own_gain_certified(
-    problem: &FusionProblem,
-    K_a: &DMatrix<f64>,
-    settings: &CertifySettings,
-) -> Result<Option<f64>, SolveError> {
-    if !small_enough(problem, Some(K_a)) {
-        return Ok(None);
-    }
-    Ok(Some(trace_upper_bound(
-        &certify_gain(problem, K_a, settings)?.fused.P,
-    )))
-}
-
-/// The proven upper bounds of a problem: CI, nmCI and (for small blocks) the certified rule.
-#[allow(non_snake_case)]
-pub(crate) fn upper_bounds(
-    problem: &FusionProblem,
-    certified_P: Option<&DMatrix<f64>>,
-) -> Result<UpperBounds, InputError> {
-    UpperBounds::of(problem, certified_P.map(trace_upper_bound))
 }
 
 /// Fills `lower_bound` and `upper_bound` (both proven: `fusion::bracket`), the rule of the
@@ -885,7 +833,7 @@ pub(crate) fn sdp_response(
     r.worst_sample_margin = Some(opt.worst_sample_margin);
     r.blocks = Some(opt.blocks.clone());
     if own_gain {
-        r.gain_certified_trace = own_gain_certified(problem, &opt.fused.K_a, certify)?;
+        r.gain_certified_trace = gain_certified_trace(problem, &opt.fused.K_a, certify)?;
     }
     let uppers = match uppers {
         Some(u) => u,

@@ -6,13 +6,14 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{
-    bracket_certificate, certificate_response, check_blocks, check_count, check_rows, ci_response,
-    ei_response, ici_response, naive_response, nmci_response, problem_from_parts, sdp_response,
-    upper_bounds, CovarianceSummary, FuseResponse, BRACKET_CERTIFY_MAX_BLOCK, MAX_SAMPLES,
-    MAX_TRIALS,
+    certificate_response, check_blocks, check_count, check_rows, ci_response, ei_response,
+    ici_response, naive_response, nmci_response, problem_from_parts, sdp_response,
+    CovarianceSummary, FuseResponse, MAX_SAMPLES, MAX_TRIALS,
 };
 use crate::error::RequestError;
-use crate::fusion::bracket::CLOSED_RTOL;
+use crate::fusion::bracket::{
+    bracket_certificate, upper_bounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
+};
 use crate::fusion::certify::CertifySettings;
 use crate::fusion::check::{fused_coin, worst_margin};
 use crate::fusion::known::known_correlation_fusion;

@@ -50,7 +50,7 @@ pub mod wasm;
 
 pub use api::{
     fuse, fuse_json, CovarianceSummary, FuseRequest, FuseResponse, NwayEstimate, NwayPair,
-    BRACKET_CERTIFY_MAX_BLOCK, MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
+    MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
 };
 pub use error::{request_field, InputError, ReportError, RequestError, SampleError, SolveError};
 pub use explore::{explore, CoinStats, Exploration, ExploreRequest, Gap, RuleReport};
@@ -59,7 +59,7 @@ pub use fig2::write_fig2;
 pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
 pub use fusion::bracket::{
     ci_upper_bound, lower_bound as lagrangian_lower_bound, nmci_upper_bound, trace_upper_bound,
-    Bracket, UpperBounds, CLOSED_RTOL,
+    Bracket, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
 pub use fusion::certify::{
     certified_fusion, certify_gain, CertifiedResult, CertifySettings, MAX_BLOCK_DIM, MAX_LEVEL,

@@ -51,20 +51,81 @@
 //!
 //! `upper_bound` is the smallest of these, `lower_bound ≤ V* ≤ upper_bound` holds
 //! rigorously, and `gap = upper_bound − lower_bound ≥ 0` (rounded up).
+//!
+//! ## Which certificate joins the bracket (policy, shared by `fuse` and the explorer)
+//! CI and nmCI cost a pencil each and always join. The certified rule joins when every
+//! independent block has at most [`BRACKET_CERTIFY_MAX_BLOCK`] states
+//! ([`bracket_certificate`]; its level-1 program grows as `(2n² + 1)²`); the same limit
+//! applies to certifying an optimal-fusion method's own gain ([`gain_certified_trace`]).
+//! Method `"certified"` itself takes larger blocks.
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
+use super::certify::{
+    certification_blocks, certified_fusion, certify_gain, CertifiedResult, CertifySettings,
+};
 use super::ci::{covariance_intersection, CiResult};
 use super::nmci::{non_monolithic_ci, NmciResult};
 use super::rules::Method;
 use super::verify::{down, is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::Criterion;
 use super::FusionProblem;
-use crate::error::InputError;
+use crate::error::{InputError, SolveError};
 
 /// The relative gap below which a bracket counts as closed: the robust optimum is then
 /// proven to that relative accuracy (`gap ≤ 10⁻⁶ · upper`).
 pub const CLOSED_RTOL: f64 = 1e-6;
+
+/// The certified rule joins the `sdp` / `sdp_cuts` bracket's upper bound when every
+/// independent block has at most this many states (the level-1 program grows as
+/// `(2n² + 1)²`; timings in the README). Method `"certified"` itself goes to
+/// [`CertifySettings::max_block_dim`](super::certify::CertifySettings::max_block_dim).
+pub const BRACKET_CERTIFY_MAX_BLOCK: usize = 4;
+
+/// The certified rule for the bracket: `None` when a block exceeds
+/// [`BRACKET_CERTIFY_MAX_BLOCK`] states (too slow for every SDP request).
+pub(crate) fn bracket_certificate(
+    problem: &FusionProblem,
+    settings: &CertifySettings,
+) -> Result<Option<CertifiedResult>, SolveError> {
+    if !small_enough(problem, None) {
+        return Ok(None);
+    }
+    certified_fusion(problem, settings).map(Some)
+}
+
+/// Whether every block a certificate would be computed on has at most
+/// [`BRACKET_CERTIFY_MAX_BLOCK`] states.
+fn small_enough(problem: &FusionProblem, gain: Option<&DMatrix<f64>>) -> bool {
+    certification_blocks(problem, gain)
+        .iter()
+        .all(|b| b.len() <= BRACKET_CERTIFY_MAX_BLOCK)
+}
+
+/// `tr P̄` (rounded up) of the tightest bound certified for an optimal-fusion method's own
+/// gain `K_a` (`None` for blocks above [`BRACKET_CERTIFY_MAX_BLOCK`] states).
+#[allow(non_snake_case)]
+pub(crate) fn gain_certified_trace(
+    problem: &FusionProblem,
+    K_a: &DMatrix<f64>,
+    settings: &CertifySettings,
+) -> Result<Option<f64>, SolveError> {
+    if !small_enough(problem, Some(K_a)) {
+        return Ok(None);
+    }
+    Ok(Some(trace_upper_bound(
+        &certify_gain(problem, K_a, settings)?.fused.P,
+    )))
+}
+
+/// The proven upper bounds of a problem: CI, nmCI and (for small blocks) the certified rule.
+#[allow(non_snake_case)]
+pub(crate) fn upper_bounds(
+    problem: &FusionProblem,
+    certified_P: Option<&DMatrix<f64>>,
+) -> Result<UpperBounds, InputError> {
+    UpperBounds::of(problem, certified_P.map(trace_upper_bound))
+}
 
 /// `[lower, upper] ∋ V*`, both ends proven (module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]

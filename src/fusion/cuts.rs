@@ -447,10 +447,18 @@ pub fn optimal_fusion_cuts(
             let mut deeper = Vec::with_capacity(found.len());
             for (_, P_ab) in &found {
                 let (_, v) = top_eigen(&violation_matrix(problem, &mid, P_ab));
-                deeper.push(worst_case_search(problem, &mid, v, settings, &deadline)?);
+                match worst_case_search(problem, &mid, v, settings, &deadline) {
+                    Ok(f) => deeper.push(f),
+                    // Out of time: keep the cuts found at the optimum (the next program
+                    // stops at the deadline and the loop returns this one).
+                    Err(SolveError::TimeLimit { .. }) => break,
+                    Err(e) => return Err(e),
+                }
             }
             let worst = deeper.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
-            if worst <= threshold {
+            if deeper.len() < found.len() {
+                // The separation was cut short: neither a new feasible point nor new cuts.
+            } else if worst <= threshold {
                 inside = mid;
             } else {
                 found = deeper;
