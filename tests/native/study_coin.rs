@@ -221,32 +221,61 @@ fn summary_attaches_coin() {
 #[test]
 #[allow(non_snake_case)]
 fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
+    // One group: a ring 1-2-3-4 plus the chord 1–3 (degrees 3, 2, 3, 2), one model block per
+    // axis, every rule. Two groups of three agents (rings) with two bridges, 3–4 and 1–5,
+    // nmCI: several blocks per axis, so nmCI keeps or takes whole blocks (ω = 1 or 0) while
+    // it mixes others — agents 4 and 5 take group 1's blocks from agents 3 and 1, and agent 6
+    // mixes the two, reading the cross-covariances of blocks taken at the exchange before
+    // (with a single bridge every fusion in the far group keeps or takes, and those are
+    // never read).
+    let chained = Scenario {
+        groups: 1,
+        agents_per_group: 4,
+        targets_per_group: 5,
+        bridges: vec![(1, 3)],
+        ..Scenario::default()
+    };
+    brute_force_check(&chained, 6, &[Rule::Ci, Rule::Nmci, Rule::Naive, Rule::Ici]);
+    let two_groups = Scenario {
+        groups: 2,
+        agents_per_group: 3,
+        targets_per_group: 4,
+        bridges: vec![(3, 4), (1, 5)],
+        ..Scenario::default()
+    };
+    assert!(
+        brute_force_check(&two_groups, 6, &[Rule::Nmci]) > 0,
+        "no kept or taken nmCI block"
+    );
+}
+
+/// [`exact_error_covariance_matches_a_brute_force_dense_propagation`] on one network for
+/// `steps` steps with each of `rules`; returns how many nmCI block weights were exactly 0 or
+/// 1 (kept or taken blocks).
+#[allow(non_snake_case)]
+fn brute_force_check(scenario: &Scenario, steps: usize, rules: &[Rule]) -> usize {
     use nmci::{
         covariance_intersection, inverse_covariance_intersection, non_monolithic_ci, Criterion,
         FusionProblem,
     };
-    let scenario = Scenario {
-        groups: 1,
-        agents_per_group: 4,
-        targets_per_group: 5,
-        bridges: vec![(1, 3)], // a ring 1-2-3-4 plus the chord 1–3: degrees 3, 2, 3, 2
-        ..Scenario::default()
-    };
-    let model = Model::new(&scenario).unwrap();
+    let model = Model::new(scenario).unwrap();
     let (n, agents) = (model.dim(), scenario.agents());
     let nb = scenario.neighbours();
-    assert_eq!(nb.iter().map(Vec::len).collect::<Vec<_>>(), [3, 2, 3, 2]);
+    if scenario.groups == 1 {
+        assert_eq!(nb.iter().map(Vec::len).collect::<Vec<_>>(), [3, 2, 3, 2]);
+    }
     let inv = |m: &DMatrix<f64>| m.clone().try_inverse().unwrap();
     let central = ErrorPropagation::new(&model, Estimator::Central);
     assert!(central.is_central() && central.steps_done() == 0);
-    for rule in [Rule::Ci, Rule::Nmci, Rule::Naive, Rule::Ici] {
+    let mut endpoints = 0;
+    for &rule in rules {
         let mut exact = ErrorPropagation::new(&model, Estimator::Decentralized(rule));
         assert!(!exact.is_central());
         // Brute force: every agent's dense covariance and the joint error covariance.
         let mut P: Vec<DMatrix<f64>> = vec![model.P0.clone(); agents];
         let big = agents * n;
         let mut S = DMatrix::from_fn(big, big, |i, j| model.P0[(i % n, j % n)]);
-        for step in 0..6 {
+        for step in 0..steps {
             // Prediction with the common process noise.
             let mut A = DMatrix::zeros(big, big);
             for i in 0..agents {
@@ -300,6 +329,7 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
                             let nm = non_monolithic_ci(&problem, Criterion::Trace).unwrap();
                             // ω of each state's block (the estimates are block-diagonal).
                             let mut w = DVector::zeros(n);
+                            endpoints += nm.omega.iter().filter(|&&w| w == 0.0 || w == 1.0).count();
                             for (block, omega) in nm.blocks.iter().zip(&nm.omega) {
                                 for &i in block {
                                     w[i] = *omega;
@@ -359,6 +389,7 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
             }
         }
     }
+    endpoints
 }
 
 /// The model blocks of a full matrix.
