@@ -514,3 +514,45 @@ fn hit_and_run_thins_by_sweeps_per_sample_after_its_burn_in() {
         assert_eq!(s.trials, 2 * (b + k * count) as u64, "b {b}, k {k}");
     }
 }
+
+/// In one dimension hit-and-run is the textbook chain, replayed here step by step from the
+/// same generator: from the correlation `x`, the chord of admissible moves is
+/// `(−1 − x, 1 − x)` and the next state is `x + t` with `t` uniform on it; every sweep after
+/// the burn-in is a sample `P_ab = x σ_a σ_b`. Checks the state and its sign (the admissible
+/// set and the target law are symmetric under `P_ab → −P_ab`, so a sampler reporting the
+/// negated state passes every law test).
+#[test]
+fn hit_and_run_in_one_dimension_is_the_textbook_chain() {
+    use rand::{Rng, SeedableRng};
+    let p = FusionProblem::from_covariances(
+        DMatrix::from_element(1, 1, 4.0),
+        DMatrix::from_element(1, 1, 9.0),
+        CrossPattern::fully_unknown(1),
+    )
+    .unwrap();
+    let settings = SamplerSettings {
+        burn_in_sweeps: 3,
+        sweeps_per_sample: 2,
+        ..SamplerSettings::hit_and_run()
+    };
+    let count = 20;
+    let drawn = sample_cross_covariances(&p, count, 5, settings).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let (mut x, mut expected) = (0.0_f64, Vec::new());
+    for sweep in 1.. {
+        let t: f64 = rng.random_range(-1.0 - x..1.0 - x);
+        x += t;
+        if sweep > 3 && (sweep - 3) % 2 == 0 {
+            expected.push(x * 2.0 * 3.0);
+            if expected.len() == count {
+                break;
+            }
+        }
+    }
+    let got: Vec<f64> = drawn.cross.iter().map(|m| m[(0, 0)]).collect();
+    for (g, e) in got.iter().zip(&expected) {
+        assert!((g - e).abs() <= 1e-12, "{got:?}\nvs\n{expected:?}");
+    }
+    assert_eq!(got.len(), count);
+    assert!(expected.iter().any(|&e| e > 0.5) && expected.iter().any(|&e| e < -0.5));
+}
