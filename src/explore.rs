@@ -15,7 +15,7 @@ use crate::fusion::bracket::{
     bracket_certificate, upper_bounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
 use crate::fusion::certify::CertifySettings;
-use crate::fusion::check::{fused_coin, worst_margin};
+use crate::fusion::check::{fused_coins, worst_margin};
 use crate::fusion::known::known_correlation_fusion;
 use crate::fusion::rules::{Method, RULES};
 use crate::fusion::sample::{sample_cross_covariances, AutoChoice, SamplerKind, SamplerSettings};
@@ -324,10 +324,7 @@ fn coin_stats(
     fused: &Fused,
     cross: &[DMatrix<f64>],
 ) -> Result<CoinStats, RequestError> {
-    let mut values = cross
-        .iter()
-        .map(|P_ab| fused_coin(problem, fused, P_ab))
-        .collect::<Result<Vec<f64>, _>>()?;
+    let mut values = fused_coins(problem, fused, cross)?;
     values.sort_by(f64::total_cmp);
     let k = values.len();
     let median = match k {

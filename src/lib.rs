@@ -65,8 +65,8 @@ pub use fusion::certify::{
     certified_fusion, certify_gain, CertifiedResult, CertifySettings, MAX_BLOCK_DIM, MAX_LEVEL,
 };
 pub use fusion::check::{
-    conservativeness_index, conservativeness_margin, fused_coin, fused_error_covariance,
-    worst_margin,
+    conservativeness_index, conservativeness_margin, fused_coin, fused_coins,
+    fused_error_covariance, worst_margin,
 };
 pub use fusion::ci::{
     ci_covariance, covariance_intersection, covariance_intersection_blocks, CiResult,

@@ -1,10 +1,18 @@
 //! Conservativeness: does a bound `P̄` with gains `K = [K_a, K_b]` dominate the true fused
 //! covariance `K P' Kᵀ` for a given admissible joint covariance `P'`?
+//!
+//! Over many cross-covariances (a sample set, the explorer's region) only one term depends
+//! on `P_ab`: `K P' Kᵀ = D + M + Mᵀ` with `D = K_a P_a K_aᵀ + K_b P_b K_bᵀ` and
+//! `M = K_a P_ab K_bᵀ`. [`worst_margin`] forms `P̄ − D` once and takes `λ_min(P̄ − D − M − Mᵀ)`
+//! per `P_ab`; [`fused_coins`] forms `A = L⁻¹ K_a`, `B = L⁻¹ K_b` (`P̄ = L Lᵀ`) and
+//! `A P_a Aᵀ + B P_b Bᵀ` once and takes `λ_max` of it plus `N + Nᵀ`, `N = A P_ab Bᵀ`. The same
+//! quantities as [`conservativeness_margin`] and [`fused_coin`] per `P_ab`, summed in another
+//! order (rounding-level differences, tested).
 
 use nalgebra::DMatrix;
 
 use super::{Fused, FusionProblem};
-use crate::linalg::min_eigenvalue;
+use crate::linalg::{max_eigenvalue, min_eigenvalue, symmetrize};
 
 /// The fused error covariance `K P' Kᵀ = K_a P_a K_aᵀ + K_a P_ab K_bᵀ + K_b P_abᵀ K_aᵀ + K_b P_b K_bᵀ`
 /// (the paper's `P_f`) of the gains in `fused` when the cross-covariance is `P_ab`.
@@ -41,10 +49,21 @@ pub fn conservativeness_margin(problem: &FusionProblem, fused: &Fused, P_ab: &DM
 /// let s = sample_cross_covariances(&p, 100, 1, SamplerSettings::default()).unwrap();
 /// assert!(worst_margin(&p, &nm.fused, &s.cross) >= -1e-12);
 /// ```
+#[allow(non_snake_case)]
 pub fn worst_margin(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f64>]) -> f64 {
+    if cross.is_empty() {
+        return f64::INFINITY;
+    }
+    let K_bt = fused.K_b.transpose();
+    let C = &fused.P
+        - &fused.K_a * &problem.P_a * fused.K_a.transpose()
+        - &fused.K_b * &problem.P_b * &K_bt;
     cross
         .iter()
-        .map(|p| conservativeness_margin(problem, fused, p))
+        .map(|P_ab| {
+            let M = &fused.K_a * P_ab * &K_bt;
+            min_eigenvalue(&(&C - &M - M.transpose()))
+        })
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -83,8 +102,7 @@ pub fn conservativeness_index(
     L.solve_lower_triangular_mut(&mut W);
     let mut W = W.transpose();
     L.solve_lower_triangular_mut(&mut W);
-    let W = crate::linalg::symmetrize(&W);
-    Ok(-min_eigenvalue(&(-W)))
+    Ok(max_eigenvalue(&W))
 }
 
 /// COIN of a fused result for one cross-covariance: `E = K P' Kᵀ`.
@@ -96,4 +114,35 @@ pub fn fused_coin(
 ) -> Result<f64, crate::error::InputError> {
     let E = fused_error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
     conservativeness_index(&fused.P, &E)
+}
+
+/// [`fused_coin`] for each of many cross-covariances (module docs: the parts that do not
+/// depend on `P_ab` are computed once).
+#[allow(non_snake_case)]
+pub fn fused_coins(
+    problem: &FusionProblem,
+    fused: &Fused,
+    cross: &[DMatrix<f64>],
+) -> Result<Vec<f64>, crate::error::InputError> {
+    let L = crate::linalg::cholesky(&fused.P)
+        .ok_or_else(|| crate::error::InputError::NotPositiveDefinite {
+            name: "P".into(),
+            min_eigenvalue: min_eigenvalue(&fused.P),
+        })?
+        .unpack();
+    let solve = |K: &DMatrix<f64>| {
+        let mut X = K.clone();
+        L.solve_lower_triangular_mut(&mut X);
+        X
+    };
+    let (A, B) = (solve(&fused.K_a), solve(&fused.K_b));
+    let Bt = B.transpose();
+    let W0 = symmetrize(&(&A * &problem.P_a * A.transpose() + &B * &problem.P_b * &Bt));
+    Ok(cross
+        .iter()
+        .map(|P_ab| {
+            let N = &A * P_ab * &Bt;
+            max_eigenvalue(&(&W0 + &N + N.transpose()))
+        })
+        .collect())
 }
