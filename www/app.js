@@ -259,8 +259,11 @@ function render() {
   el("rect", { x: 46, y: 46, width: 428, height: 428 }, clip);
   const g = el("g", { "clip-path": "url(#clip)" }, svg);
   if (state.layers.region && region.length) {
+    // One path of one closed subpath per ellipse: all drawn in the same direction, so the
+    // nonzero fill paints their union once — the look of one path each under the group's
+    // opacity, with one DOM node instead of hundreds.
     const rg = el("g", { opacity: 0.32, id: "layer-region" }, g);
-    for (const m of region) el("path", { d: ellipsePath(m, toPx, 40), fill: STYLE.region.color, stroke: "none" }, rg);
+    el("path", { d: region.map((m) => ellipsePath(m, toPx, 40)).join(""), fill: STYLE.region.color, stroke: "none", "data-count": region.length }, rg);
   }
   for (const k of LAYERS.filter((l) => l !== "region")) {
     if (!state.layers[k] || !mats[k]) continue;
