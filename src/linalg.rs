@@ -23,27 +23,30 @@ pub(crate) fn symmetrize_in_place(P: &mut DMatrix<f64>) {
     }
 }
 
-/// Smallest eigenvalue of a symmetric matrix (`+∞` for an empty one). Eigenvalues only:
-/// nalgebra's symmetric QR iteration without accumulating eigenvectors (the same iteration, so
-/// the same values, at a fraction of the cost).
-/// Sizes 1 and 2 in closed form ([`eigenvalues_2x2`]).
+/// Smallest eigenvalue of a symmetric matrix (`+∞` for an empty one): sizes 1 and 2 in closed
+/// form, larger ones by nalgebra's symmetric QR iteration (eigenvalues only).
 pub fn min_eigenvalue(a: &DMatrix<f64>) -> f64 {
-    match a.nrows() {
-        0 => f64::INFINITY,
-        1 => a[(0, 0)],
-        2 => eigenvalues_2x2(a).0,
-        _ => symmetrize(a).symmetric_eigenvalues().min(),
-    }
+    extremes(a).map_or(f64::INFINITY, |e| e.0)
 }
 
-/// Largest eigenvalue of a symmetric matrix (`−∞` for an empty one); sizes 1 and 2 in closed
-/// form.
+/// Largest eigenvalue of a symmetric matrix (`−∞` for an empty one), as [`min_eigenvalue`].
 pub fn max_eigenvalue(a: &DMatrix<f64>) -> f64 {
+    extremes(a).map_or(f64::NEG_INFINITY, |e| e.1)
+}
+
+/// `(λ_min, λ_max)` of the symmetric part of `a` (`None` when empty): sizes 1 and 2 in closed
+/// form ([`eigenvalues_2x2`]), larger ones by nalgebra's symmetric QR iteration without
+/// accumulating eigenvectors (the same iteration as with them, so the same values, at a
+/// fraction of the cost).
+fn extremes(a: &DMatrix<f64>) -> Option<(f64, f64)> {
     match a.nrows() {
-        0 => f64::NEG_INFINITY,
-        1 => a[(0, 0)],
-        2 => eigenvalues_2x2(a).1,
-        _ => symmetrize(a).symmetric_eigenvalues().max(),
+        0 => None,
+        1 => Some((a[(0, 0)], a[(0, 0)])),
+        2 => Some(eigenvalues_2x2(a)),
+        _ => {
+            let e = symmetrize(a).symmetric_eigenvalues();
+            Some((e.min(), e.max()))
+        }
     }
 }
 
