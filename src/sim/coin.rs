@@ -350,7 +350,7 @@ fn floored_coin(P: &DMatrix<f64>, E: &DMatrix<f64>) -> f64 {
             W[(i, j)] *= scale[i] * scale[j];
         }
     }
-    -crate::linalg::min_eigenvalue(&(-crate::linalg::symmetrize(&W)))
+    crate::linalg::max_eigenvalue(&W)
 }
 
 /// Agent `a`'s error after the exchange in one block: `Σⱼ C_aj eⱼ` (`None` = identity).
