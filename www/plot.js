@@ -31,17 +31,32 @@ export function fromAxes(major, minor, theta) {
   return [[c * c * l1 + s * s * l2, c * s * (l1 - l2)], [c * s * (l1 - l2), s * s * l1 + c * c * l2]];
 }
 
+/** `(cos t, sin t)` at `steps + 1` points of the circle, computed once per `steps`. */
+const circles = new Map();
+function unitCircle(steps) {
+  let c = circles.get(steps);
+  if (!c) {
+    c = Float64Array.from({ length: 2 * (steps + 1) }, (_, k) => (k % 2 ? Math.sin : Math.cos)((2 * Math.PI * (k >> 1)) / steps));
+    circles.set(steps, c);
+  }
+  return c;
+}
+
+/** Two decimals (what `toFixed(2)` keeps, without its trailing zeros), as a path number. */
+const r2 = (v) => Math.round(v * 100) / 100;
+
+/** The closed SVG path of the 1σ ellipse of the 2×2 covariance `m` (pixels by `toPx`). */
 export function ellipsePath(m, toPx, steps = 72) {
   const { major, minor, theta } = axes(m);
   const [c, s] = [Math.cos(theta), Math.sin(theta)];
-  let d = "";
+  const circle = unitCircle(steps);
+  const parts = new Array(steps + 1);
   for (let k = 0; k <= steps; k++) {
-    const t = (2 * Math.PI * k) / steps;
-    const [u, v] = [major * Math.cos(t), minor * Math.sin(t)];
+    const [u, v] = [major * circle[2 * k], minor * circle[2 * k + 1]];
     const [x, y] = toPx(c * u - s * v, s * u + c * v);
-    d += (k === 0 ? "M" : "L") + x.toFixed(2) + "," + y.toFixed(2);
+    parts[k] = (k === 0 ? "M" : "L") + r2(x) + "," + r2(y);
   }
-  return d + "Z";
+  return parts.join("") + "Z";
 }
 
 export function niceStep(range, target = 6) {
