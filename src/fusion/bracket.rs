@@ -53,7 +53,7 @@
 //! rigorously, and `gap = upper_bound − lower_bound ≥ 0` (rounded up).
 //!
 //! ## Which certificate joins the bracket (policy, shared by `fuse` and the explorer)
-//! CI and nmCI cost a pencil each and always join. The certified rule joins when every
+//! CI (one pencil) and nmCI (one pencil per block) always join. The certified rule joins when every
 //! independent block has at most [`BRACKET_CERTIFY_MAX_BLOCK`] states
 //! ([`bracket_certificate`]; its level-1 program grows as `(2n² + 1)²`); the same limit
 //! applies to certifying an optimal-fusion method's own gain ([`gain_certified_trace`]).

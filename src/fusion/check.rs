@@ -84,12 +84,7 @@ pub fn conservativeness_index(
     P: &DMatrix<f64>,
     E: &DMatrix<f64>,
 ) -> Result<f64, crate::error::InputError> {
-    let L = crate::linalg::cholesky(P)
-        .ok_or_else(|| crate::error::InputError::NotPositiveDefinite {
-            name: "P".into(),
-            min_eigenvalue: min_eigenvalue(P),
-        })?
-        .unpack();
+    let L = bound_factor(P)?;
     if E.shape() != P.shape() {
         return Err(crate::error::InputError::SizeMismatch {
             name: "E".into(),
@@ -103,6 +98,18 @@ pub fn conservativeness_index(
     let mut W = W.transpose();
     L.solve_lower_triangular_mut(&mut W);
     Ok(max_eigenvalue(&W))
+}
+
+/// `L` with `P = L Lᵀ` for the COIN's bound `P`; an error naming `P` when it is not positive
+/// definite.
+#[allow(non_snake_case)]
+fn bound_factor(P: &DMatrix<f64>) -> Result<DMatrix<f64>, crate::error::InputError> {
+    Ok(crate::linalg::cholesky(P)
+        .ok_or_else(|| crate::error::InputError::NotPositiveDefinite {
+            name: "P".into(),
+            min_eigenvalue: min_eigenvalue(P),
+        })?
+        .unpack())
 }
 
 /// COIN of a fused result for one cross-covariance: `E = K P' Kᵀ`.
@@ -124,12 +131,7 @@ pub fn fused_coins(
     fused: &Fused,
     cross: &[DMatrix<f64>],
 ) -> Result<Vec<f64>, crate::error::InputError> {
-    let L = crate::linalg::cholesky(&fused.P)
-        .ok_or_else(|| crate::error::InputError::NotPositiveDefinite {
-            name: "P".into(),
-            min_eigenvalue: min_eigenvalue(&fused.P),
-        })?
-        .unpack();
+    let L = bound_factor(&fused.P)?;
     let solve = |K: &DMatrix<f64>| {
         let mut X = K.clone();
         L.solve_lower_triangular_mut(&mut X);

@@ -455,13 +455,14 @@ pub fn optimal_fusion_cuts(
                     Err(e) => return Err(e),
                 }
             }
-            let worst = deeper.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
-            if deeper.len() < found.len() {
-                // The separation was cut short: neither a new feasible point nor new cuts.
-            } else if worst <= threshold {
-                inside = mid;
-            } else {
-                found = deeper;
+            // Cut short by the deadline: neither a new feasible point nor new cuts.
+            if deeper.len() == found.len() {
+                let worst = deeper.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
+                if worst <= threshold {
+                    inside = mid;
+                } else {
+                    found = deeper;
+                }
             }
         }
         for (v, P_ab) in found {
