@@ -8,7 +8,7 @@
 //! is the smaller of nmCI's proven trace and the level-`r` certified rule's. Both are
 //! rigorous, so the gap is too.
 //!
-//! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--cuts-tol 1e-10]`
+//! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--tolerance 1e-10] [--verbose]`
 //!
 //! Pattern classes (`P_ab[i][j]` unknown where listed, known zero elsewhere):
 //! - `anti-diagonal`: `j = n − 1 − i`;
@@ -51,6 +51,13 @@ fn pattern(class: &str, n: usize, rng: &mut ChaCha8Rng) -> CrossPattern {
     })
 }
 
+fn name(family: Family) -> String {
+    match family {
+        Family::Global(level) => format!("level {level}"),
+        Family::Sectors(count) => format!("{count} sectors"),
+    }
+}
+
 fn quantile(v: &mut [f64], q: f64) -> f64 {
     v.sort_by(f64::total_cmp);
     v[((v.len() - 1) as f64 * q).round() as usize]
@@ -61,27 +68,49 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dims = arg_list(&args, "--dims", &[2, 3]);
     let count = arg_list(&args, "--count", &[50])[0];
     let verbose = args.iter().any(|a| a == "--verbose");
-    let levels: Vec<u32> = arg_list(&args, "--levels", &[1, 2, 3])
+    // `--classes "random 0.6,one zero"`: only those pattern classes (same seeds).
+    let classes: Option<Vec<String>> = args
+        .iter()
+        .position(|a| a == "--classes")
+        .map(|i| args[i + 1].split(',').map(str::to_string).collect());
+    // Certificates: `--levels 1,2,3` (one certificate of that level for every direction)
+    // and `--sectors 16,32` (two states: level 1 on that many sectors).
+    let mut families: Vec<Family> = arg_list(&args, "--levels", &[1, 2, 3])
         .into_iter()
-        .map(|l| l as u32)
+        .map(|l| Family::Global(l as u32))
         .collect();
+    families.extend(
+        arg_list(&args, "--sectors", &[])
+            .into_iter()
+            .map(|s| Family::Sectors(s as u32)),
+    );
     // The cutting planes stop when the worst violation is below this times tr P̄ (the
     // library default is 1e-7; the lower end needs less to close brackets to 1e-6).
     let cuts_tol = match args.iter().position(|a| a == "--cuts-tol") {
         Some(i) => args[i + 1].parse()?,
         None => 1e-10,
     };
-    println!("| n | pattern | level | median gap | worst gap | closed (≤ 1e-6) | median time | worst time | notes |");
+    // The certificate's solver tolerance (`CertifySettings::tolerance`; default the library's).
+    let tolerance = match args.iter().position(|a| a == "--tolerance") {
+        Some(i) => args[i + 1].parse()?,
+        None => CertifySettings::default().tolerance,
+    };
+    println!("| n | pattern | certificate | median gap | worst gap | closed (≤ 1e-6) | median time | worst time | notes |");
     println!("|---|---|---|---|---|---|---|---|---|");
     for &n in &dims {
         for (c, class) in ["anti-diagonal", "chain", "random 0.6", "one zero"]
             .into_iter()
             .enumerate()
+            .filter(|(_, class)| {
+                classes
+                    .as_ref()
+                    .is_none_or(|l| l.iter().any(|x| x == class))
+            })
         {
             let mut rng = ChaCha8Rng::seed_from_u64(1000 * n as u64 + c as u64);
-            let mut gaps = vec![Vec::new(); levels.len()];
-            let mut lowered = vec![0; levels.len()];
-            let mut times = vec![Vec::new(); levels.len()];
+            let mut gaps = vec![Vec::new(); families.len()];
+            let mut lowered = vec![0; families.len()];
+            let mut times = vec![Vec::new(); families.len()];
             let mut done = 0;
             let mut failed = 0;
             while done < count {
@@ -125,16 +154,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 let nm = non_monolithic_ci(&p, Criterion::Trace)?;
                 let nm_upper = nmci_upper_bound(&p, &nm).unwrap_or(f64::INFINITY);
-                for (k, &level) in levels.iter().enumerate() {
+                for (k, &family) in families.iter().enumerate() {
+                    if matches!(family, Family::Sectors(_)) && n != 2 {
+                        continue;
+                    }
                     let start = Instant::now();
-                    let cert = certified_fusion(
-                        &p,
-                        &CertifySettings {
+                    let settings = match family {
+                        Family::Global(level) => CertifySettings {
                             level: Some(level),
+                            tolerance,
                             ..CertifySettings::default()
                         },
-                    )?;
-                    if cert.levels != vec![level] {
+                        Family::Sectors(count) => CertifySettings {
+                            sectors: Some(count),
+                            tolerance,
+                            ..CertifySettings::default()
+                        },
+                    };
+                    let cert = certified_fusion(&p, &settings)?;
+                    if cert.levels != vec![family.level()] || cert.sectors != vec![family.sectors()]
+                    {
                         lowered[k] += 1;
                     }
                     times[k].push(start.elapsed().as_secs_f64());
@@ -147,13 +186,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     gaps[k].push(bracket.gap_relative());
                     if verbose {
                         eprintln!(
-                            "  level {level}: upper {upper:.10} gap {:.1e}",
-                            bracket.gap_relative()
+                            "  {}: upper {upper:.10} gap {:.1e} status {:?} repair {:.1e}",
+                            name(family),
+                            bracket.gap_relative(),
+                            cert.status,
+                            cert.repair
                         );
                     }
                 }
             }
-            for (k, level) in levels.iter().enumerate() {
+            for (k, &family) in families.iter().enumerate() {
+                if gaps[k].is_empty() {
+                    continue;
+                }
                 let closed = gaps[k].iter().filter(|&&g| g <= 1e-6).count();
                 let mut notes = Vec::new();
                 if failed > 0 {
@@ -163,7 +208,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     notes.push(format!("{} solved at a lower level", lowered[k]));
                 }
                 println!(
-                    "| {n} | {class} | {level} | {:.1e} | {:.1e} | {closed}/{count} | {:.0} ms | {:.0} ms | {} |",
+                    "| {n} | {class} | {} | {:.1e} | {:.1e} | {closed}/{count} | {:.0} ms | {:.0} ms | {} |",
+                    name(family),
                     quantile(&mut gaps[k], 0.5),
                     quantile(&mut gaps[k], 1.0),
                     1e3 * quantile(&mut times[k], 0.5),

@@ -12,7 +12,9 @@ use crate::error::{InputError, RequestError, SolveError};
 use crate::fusion::bracket::{
     bracket_certificate, gain_certified_trace, trace_upper_bound, upper_bounds, UpperBounds,
 };
-use crate::fusion::certify::{certified_fusion, CertifiedResult, CertifySettings, MAX_LEVEL};
+use crate::fusion::certify::{
+    certified_fusion, CertifiedResult, CertifySettings, MAX_LEVEL, MAX_SECTORS,
+};
 use crate::fusion::ci::covariance_intersection;
 use crate::fusion::cuts::{optimal_fusion_cuts, CutsSettings, CutsStop};
 use crate::fusion::ei::ellipsoidal_intersection;
@@ -152,6 +154,11 @@ pub struct FuseRequest {
     /// and the bracket's upper end); default per block size (`CertifySettings::auto_level`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub level: Option<u32>,
+    /// `certified`, `sdp`, `sdp_cuts`: blocks of two states are certified on this many sectors
+    /// of directions (`2..=64`), a level-1 certificate each; default 32 unless `level` is set
+    /// (`CertifySettings::sectors`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sectors: Option<u32>,
     /// N-way fusion (methods `ci`, `nmci`): `k ≥ 2` estimates, instead of `pa`, `pb`, `xa`,
     /// `xb`, `pab_unknown`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -252,6 +259,10 @@ pub struct FuseResponse {
     /// certified rule in the bracket.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub levels: Option<Vec<u32>>,
+    /// With `levels`: the number of sectors on each block (0: one certificate for every
+    /// direction).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sectors: Option<Vec<u32>>,
     /// `sdp_cuts`: why the loop stopped: `tolerance`, `gap_closed`, `max_iterations` or
     /// `time_limit`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -337,6 +348,7 @@ impl FuseRequest {
             sampler: None,
             time_limit: None,
             level: None,
+            sectors: None,
             estimates: None,
             patterns: None,
         }
@@ -357,13 +369,14 @@ impl FuseRequest {
     fn certify_settings(&self) -> CertifySettings {
         CertifySettings {
             level: self.level,
+            sectors: self.sectors,
             time_limit: self.time_limit,
             ..CertifySettings::default()
         }
     }
 
     /// The method-specific fields this request sets.
-    fn options(&self) -> [(RequestOption, bool); 6] {
+    fn options(&self) -> [(RequestOption, bool); 7] {
         RequestOption::ALL.map(|o| {
             let set = match o {
                 RequestOption::Samples => self.samples.is_some(),
@@ -372,6 +385,7 @@ impl FuseRequest {
                 RequestOption::Seed => self.seed.is_some(),
                 RequestOption::TimeLimit => self.time_limit.is_some(),
                 RequestOption::Level => self.level.is_some(),
+                RequestOption::Sectors => self.sectors.is_some(),
             };
             (o, set)
         })
@@ -440,6 +454,14 @@ impl FuseRequest {
                 return Err(RequestError::invalid(
                     "level",
                     format!("`level` must be in 1..={MAX_LEVEL} (got {l})"),
+                ));
+            }
+        }
+        if let Some(count) = self.sectors {
+            if !(2..=MAX_SECTORS).contains(&count) {
+                return Err(RequestError::invalid(
+                    "sectors",
+                    format!("`sectors` must be in 2..={MAX_SECTORS} (got {count})"),
                 ));
             }
         }
@@ -590,6 +612,7 @@ fn bare_response(
         gap_relative: None,
         repair: None,
         levels: None,
+        sectors: None,
         stop: None,
         gain_certified_trace: None,
         violation: None,
@@ -678,6 +701,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                 };
             r.gap_closed = Some(cuts.gap_closed);
             r.levels = cuts.certified_levels.clone();
+            r.sectors = cuts.certified_sectors.clone();
             // The loop computed the certified rule already (blocks of up to 6 states).
             let uppers = UpperBounds::of(&problem, cuts.certified_trace)?;
             fill_bracket(cuts.lower_bound, &uppers, &mut r);
@@ -761,6 +785,7 @@ pub(crate) fn certificate_response(cert: &CertifiedResult) -> FuseResponse {
     r.blocks = Some(cert.blocks.clone());
     r.repair = Some(cert.repair);
     r.levels = Some(cert.levels.clone());
+    r.sectors = Some(cert.sectors.clone());
     r.upper_bound = Some(trace_upper_bound(&cert.fused.P));
     r.upper_bound_rule = Some(Method::Certified);
     r
@@ -841,6 +866,7 @@ pub(crate) fn sdp_response(
             let cert = bracket_certificate(problem, certify)?;
             if let Some(c) = &cert {
                 r.levels = Some(c.levels.clone());
+                r.sectors = Some(c.sectors.clone());
             }
             upper_bounds(problem, cert.as_ref().map(|c| &c.fused.P))?
         }

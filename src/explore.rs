@@ -82,6 +82,9 @@ pub struct Gap {
     pub closed: bool,
     /// The certified rule's level on each block (when computed).
     pub levels: Option<Vec<u32>>,
+    /// The certified rule's number of sectors on each block (0: one certificate for every
+    /// direction), with `levels`.
+    pub sectors: Option<Vec<u32>>,
 }
 
 /// The conservativeness index of one rule over the region's cross-covariances:
@@ -252,6 +255,10 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
             closed: s.gap_relative? <= CLOSED_RTOL,
             levels: match &certificate {
                 Ok(Some(cert)) => Some(cert.levels.clone()),
+                _ => None,
+            },
+            sectors: match &certificate {
+                Ok(Some(cert)) => Some(cert.sectors.clone()),
                 _ => None,
             },
         })

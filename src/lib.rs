@@ -62,7 +62,8 @@ pub use fusion::bracket::{
     Bracket, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
 pub use fusion::certify::{
-    certified_fusion, certify_gain, CertifiedResult, CertifySettings, MAX_BLOCK_DIM, MAX_LEVEL,
+    certified_fusion, certify_gain, CertifiedResult, CertifySettings, Family, DEFAULT_SECTORS,
+    MAX_BLOCK_DIM, MAX_LEVEL, MAX_SECTORS,
 };
 pub use fusion::check::{
     conservativeness_index, conservativeness_margin, fused_coin, fused_coins,

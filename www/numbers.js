@@ -19,6 +19,13 @@ const percent = (rate) => `${(rate * 100).toPrecision(3)} %`;
 
 /** Which sampler drew `count` samples and, for `auto`, why (its `choice`: `kind`,
  * `pilot_trials`, `pilot_accepted`, `fell_back`). */
+// Which certificate proved each block's bound: a level-r certificate for every direction, or
+// (two-state blocks) level 1 on each of k sectors of directions (`sectors[i] > 0`).
+function certificateText(levels, sectors) {
+  const one = (level, i) => (sectors && sectors[i] > 0 ? `level ${level} on ${sectors[i]} sectors` : `level ${level}`);
+  return `certificate${levels.length > 1 ? "s" : ""} ${levels.map(one).join(", ")}`;
+}
+
 function samplerText(requested, choice, acceptance, count) {
   const kind = choice ? choice.kind : requested;
   const drawn = kind === "hit_and_run" ? "hit-and-run sampler (no rejections)" : `rejection sampler, acceptance ${percent(acceptance)}`;
@@ -108,7 +115,7 @@ export function renderNumbersPanel(a, s) {
   }
   if (a.gap) {
     const upperName = `the ${RULE[a.gap.upper_rule].label} bound`;
-    const level = a.gap.levels ? ` (certificate level${a.gap.levels.length > 1 ? "s" : ""} ${a.gap.levels.join(", ")})` : "";
+    const level = a.gap.levels ? ` (${certificateText(a.gap.levels, a.gap.sectors)})` : "";
     const verdict = a.gap.closed
       ? el("span", { id: "gap-verdict", class: "ok" }, `proven optimal to 10⁻⁶ (relative): ${upperName}${a.gap.upper_rule === "certified" ? level : ""} is within 10⁻⁶ of the robust optimum`)
       : el("span", { id: "gap-verdict", class: "open" }, `open: the robust optimum lies between the ends${level}`);
@@ -122,7 +129,7 @@ export function renderNumbersPanel(a, s) {
       ? " (minimises the trace; CI and nmCI above minimise log det)"
       : certified.trace < best - 1e-9 ? ` — ${((1 - certified.trace / best) * 100).toPrecision(3)} % below the best of CI and nmCI` : " — no tighter than nmCI here";
     parts.push(el("div", { id: "certified-status" }, key("certified rule:"),
-      ` tr P̄ ${certified.trace.toFixed(6)}${comparison}, proven to dominate K P' Kᵀ for every admissible P' (level ${(certified.levels || []).join(", ")}, status ${certified.status}, ${certified.iterations} iterations, repair ${certified.repair.toExponential(1)})`));
+      ` tr P̄ ${certified.trace.toFixed(6)}${comparison}, proven to dominate K P' Kᵀ for every admissible P' (${certificateText(certified.levels || [], certified.sectors)}, status ${certified.status}, ${certified.iterations} iterations, repair ${certified.repair.toExponential(1)})`));
   }
   if (a.region_error) {
     parts.push(el("div", { class: "err", id: "region-status" }, `region: ${a.region_error}`));

@@ -127,6 +127,7 @@ class Fused:
     repair: Optional[float]
     gain_certified_trace: Optional[float]
     levels: Optional[List[int]]
+    sectors: Optional[List[int]]
     stop: Optional[str]
     violation: Optional[float]
     converged: Optional[bool]
@@ -298,6 +299,7 @@ def optimal(
     max_trials: Optional[int] = None,
     time_limit: Optional[float] = None,
     level: Optional[int] = None,
+    sectors: Optional[int] = None,
 ) -> Fused:
     """The paper's sampled SDP (method "sdp"): the tightest bound over ``samples`` sampled
     cross-covariances — a lower bound on the robust optimum, not guaranteed conservative.
@@ -316,6 +318,7 @@ def optimal(
         max_trials=max_trials,
         time_limit=time_limit,
         level=level,
+        sectors=sectors,
     )
 
 
@@ -329,12 +332,22 @@ def sdp_cuts(
     seed: int = 0,
     time_limit: Optional[float] = None,
     level: Optional[int] = None,
+    sectors: Optional[int] = None,
 ) -> Fused:
     """The robust SDP by cutting planes: worst-case cross-covariances as constraints, with a
     proven bracket on the robust optimum (``lower_bound``, ``upper_bound``, ``gap_closed``,
     ``stop``)."""
     return _two(
-        "sdp_cuts", Pa, Pb, xa, xb, pab_unknown, seed=seed, time_limit=time_limit, level=level
+        "sdp_cuts",
+        Pa,
+        Pb,
+        xa,
+        xb,
+        pab_unknown,
+        seed=seed,
+        time_limit=time_limit,
+        level=level,
+        sectors=sectors,
     )
 
 
@@ -346,12 +359,25 @@ def certified(
     *,
     pab_unknown: Optional[ArrayLike] = None,
     level: Optional[int] = None,
+    sectors: Optional[int] = None,
     time_limit: Optional[float] = None,
 ) -> Fused:
     """A bound proven to dominate ``K P' Kᵀ`` for every admissible ``P'`` by a sum-of-squares
-    certificate of level ``level`` (``levels`` per block); its trace never above nmCI's or
+    certificate of level ``level`` (``levels`` per block), or, on blocks of two states, by a
+    level-1 certificate on each of ``sectors`` sectors of directions (default 32 unless
+    ``level`` is set; ``sectors`` per block, 0 where none); its trace never above nmCI's or
     CI's beyond rounding."""
-    return _two("certified", Pa, Pb, xa, xb, pab_unknown, level=level, time_limit=time_limit)
+    return _two(
+        "certified",
+        Pa,
+        Pb,
+        xa,
+        xb,
+        pab_unknown,
+        level=level,
+        sectors=sectors,
+        time_limit=time_limit,
+    )
 
 
 def ici(

@@ -58,6 +58,34 @@
 //! `2n·s + C(n + r − 2, r − 1)` (Clarabel). [`certify_gain`] keeps `K` fixed — e.g. the
 //! sampled SDP's — and gives the tightest bound of the level for that gain.
 //!
+//! ## Sectors: two states, one certificate per cone of directions
+//! The inequality `vᵀ K J Kᵀ v ≤ vᵀ Q v` is needed for every `v`, and it is even in `v`, so
+//! it suffices on a set of cones covering a half-plane. For `n = 2` split the closed upper
+//! half-plane by integer directions `d_0 = (64, 0), d_1, …, d_S = (−64, 0)`, `d_k ≈
+//! 64 (cos πk/S, sin πk/S)` rounded, each turning counterclockwise from the one before
+//! (checked exactly in integers, [`sector_multipliers`]). Sector `k` is
+//! `{v : det(d_k, v) ≥ 0, det(v, d_{k+1}) ≥ 0}`, on which the quadratic form
+//! `q_k(v) = det(d_k, v)·det(v, d_{k+1}) = vᵀ S_k v` is non-negative; the sectors and their
+//! negatives cover the plane. Per sector take, besides the shared `Q` and `K`, a level-1
+//! `C_k`, `G_k` as above, a PSD `C′_k` (`2n × 2n`) and a scalar `g′_k`, with
+//!
+//! 1′. `C_k − S_k ⊗ C′_k ⪰ w wᵀ` (`w` as in condition 1, `r = 1`) and `C′_k ⪰ 0`;
+//! 2′. condition 2 for `C_k` (only `C_k` reaches `⟨J, Z⟩`);
+//! 3′. `vᵀ Q v − ⟨J₀, Z_k(v)⟩ = vᵀ G_k v + g′_k q_k(v)` (equal coefficients), `G_k ⪰ 0`,
+//!     `g′_k ≥ 0`.
+//!
+//! On sector `k`, `Z_k(v) = (v ⊗ I)ᵀ(C_k − S_k ⊗ C′_k)(v ⊗ I) + q_k(v) C′_k ⪰ Kᵀ v vᵀ K`
+//! (1′, `q_k ≥ 0`), and `vᵀ Q v − ⟨J₀, Z_k(v)⟩ ≥ 0` (3′); with 2′ the chain of the level-`r`
+//! proof gives `vᵀ K J Kᵀ v ≤ vᵀ Q v` there, hence everywhere: **`Q ⪰ K J Kᵀ`**. This is the
+//! S-procedure with the sector's defining product as multiplier (a Positivstellensatz
+//! certificate on each semialgebraic piece, as in Putinar's); `C′_k = 0`, `g′_k = 0` is the
+//! level-1 certificate, so sectors are never looser than level 1, and the bound approaches
+//! the exact per-direction dual as sectors shrink (up to solver tolerance; not monotone in
+//! `S` in floating point, measured in the README). The program: `min tr Q` with `S` copies of
+//! the level-1 cone (size `2n² + 1 = 9` each), `S` cones of size `2n = 4` for the `C′_k`,
+//! and `g′ ≥ 0`. The multipliers' coefficients are integers below `2¹⁴` times `2⁻¹²`,
+//! exact floats, so the repair below treats `S_k ⊗ C′_k` exactly.
+//!
 //! ## Exact in floating point, whatever the solver's accuracy
 //! The solver's point satisfies 1–4 only to its tolerance. The reported bound is made to
 //! satisfy them exactly, for the reported floats `K_a`, `P̄ = Q` and `K_b = I − K_a` taken
@@ -71,6 +99,9 @@
 //! - **Condition 1 proven.** `C ← C + δ I` (no cross entries: condition 2 still holds) with
 //!   `δ` the smallest of a doubling sequence for which `fusion::verify::is_psd` proves
 //!   `C − W D Wᵀ ⪰ 0`, every rounding of forming it (including `K_b = I − K_a`) in the radius.
+//!   For a sector, `C′ ⪰ 0` is proven first (its diagonal shifted the same way if needed),
+//!   then `C − S ⊗ C′ − W Wᵀ ⪰ 0` with `S ⊗ C′` formed in balls; a negative `g′` from the
+//!   solver is set to 0 before step 3 (which then absorbs the difference).
 //! - **Conditions 3–4 proven.** With `C` fixed, the coefficients of
 //!   `p(v) = ‖v‖^{2(r−1)} vᵀQv − ⟨J₀, Z(v)⟩ − m_rᵀ G m_r` are enclosed in balls and written
 //!   as a Gram matrix `E` (each coefficient on one entry pair), so `p + m_rᵀGm_r = m_rᵀ(G + E)m_r`
@@ -136,6 +167,11 @@ pub struct CertifySettings {
     /// Wall-clock limit of each block's solve in seconds (default none); past it the solve
     /// ends with [`SolveError::TimeLimit`].
     pub time_limit: Option<f64>,
+    /// Blocks of two states: the number of sectors of the half-circle of directions, each
+    /// with its own level-1 certificate (module docs, "Sectors"), in
+    /// `2..=`[`MAX_SECTORS`]. `None` (default): [`DEFAULT_SECTORS`] unless `level` is set,
+    /// which then applies to two-state blocks too (one certificate for every direction).
+    pub sectors: Option<u32>,
 }
 
 impl Default for CertifySettings {
@@ -147,6 +183,7 @@ impl Default for CertifySettings {
             level: None,
             max_cone: 90,
             time_limit: None,
+            sectors: None,
         }
     }
 }
@@ -172,7 +209,26 @@ impl CertifySettings {
                 )));
             }
         }
+        if let Some(count) = self.sectors {
+            if !(2..=MAX_SECTORS).contains(&count) {
+                return Err(SolveError::InvalidSettings(format!(
+                    "sectors must be in 2..={MAX_SECTORS} (got {count})"
+                )));
+            }
+        }
         check_time_limit(self.time_limit)
+    }
+
+    /// The certificate of a block of `dim` states: sectors for two states (the setting, or
+    /// [`DEFAULT_SECTORS`] when neither `sectors` nor `level` is set), else one certificate
+    /// of [`CertifySettings::level_for`].
+    pub fn family_for(&self, dim: usize) -> Family {
+        match (dim, self.sectors, self.level) {
+            (2, Some(_), _) | (2, None, None) => {
+                Family::Sectors(self.sectors.unwrap_or(DEFAULT_SECTORS))
+            }
+            _ => Family::Global(self.level_for(dim)),
+        }
     }
 
     /// The level used for a block of `dim` states: the setting, or by default the level
@@ -202,6 +258,105 @@ impl CertifySettings {
 /// Highest certificate level accepted.
 pub const MAX_LEVEL: u32 = 6;
 
+/// Most sectors accepted ([`CertifySettings::sectors`]).
+pub const MAX_SECTORS: u32 = 64;
+
+/// The default number of sectors of a two-state block, chosen from the measured
+/// gap-and-time curves (README, `examples/certify_levels.rs`).
+pub const DEFAULT_SECTORS: u32 = 32;
+
+/// A block solved only `AlmostSolved` whose repair added more than this fraction of its trace
+/// is certified again with the next lower family, and the smaller bound kept (a tenth of
+/// [`crate::CLOSED_RTOL`]: below it the repair cannot keep a bracket open).
+const RETRY_REPAIR_RTOL: f64 = 1e-7;
+
+/// Sectors halve down to this count before a failed or reduced-accuracy sector certificate
+/// falls back to a level (`Family::lower`).
+const MIN_FALLBACK_SECTORS: u32 = 16;
+
+/// Which certificate a block gets (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    /// One certificate of this level for every direction.
+    Global(u32),
+    /// Two states: a level-1 certificate on each of this many sectors of directions.
+    Sectors(u32),
+}
+
+impl Family {
+    /// The family's level (1 for sectors).
+    pub fn level(self) -> u32 {
+        match self {
+            Family::Global(level) => level,
+            Family::Sectors(_) => 1,
+        }
+    }
+
+    /// The number of sectors (0 for one certificate for every direction).
+    pub fn sectors(self) -> u32 {
+        match self {
+            Family::Global(_) => 0,
+            Family::Sectors(count) => count,
+        }
+    }
+
+    /// The family tried when this one breaks down numerically or solves to reduced accuracy
+    /// only: sectors halve down to [`MIN_FALLBACK_SECTORS`], then fall back to the default
+    /// level of a two-state block, a level to the one below; `None` after level 1.
+    fn lower(self) -> Option<Family> {
+        match self {
+            Family::Sectors(count) if count / 2 >= MIN_FALLBACK_SECTORS => {
+                Some(Family::Sectors(count / 2))
+            }
+            Family::Sectors(_) => Some(Family::Global(CertifySettings::auto_level(2))),
+            Family::Global(level) if level > 1 => Some(Family::Global(level - 1)),
+            Family::Global(_) => None,
+        }
+    }
+}
+
+/// The sectors' multipliers: integer directions `d_k ≈ 2⁶ (cos πk/S, sin πk/S)`,
+/// `k = 0..S`, with `d_S = −d_0`, and for each sector `q(v) = det(d_k, v)·det(v, d_{k+1})`
+/// by its coefficients on `v₁², v₁v₂, v₂²` (integers below `2¹⁴` times `2⁻¹²`, exact). Consecutive directions are
+/// checked to turn counterclockwise within the closed upper half-plane, exactly in
+/// integers — the covering argument of the module docs needs nothing else.
+pub(crate) fn sector_multipliers(count: u32) -> Result<Vec<[f64; 3]>, SolveError> {
+    let radius = 64.0;
+    let s = count as usize;
+    let mut d: Vec<[i64; 2]> = (0..=s)
+        .map(|k| {
+            let t = std::f64::consts::PI * k as f64 / count as f64;
+            [
+                (radius * t.cos()).round() as i64,
+                (radius * t.sin()).round() as i64,
+            ]
+        })
+        .collect();
+    d[0] = [64, 0];
+    d[s] = [-64, 0];
+    let turns = d
+        .windows(2)
+        .all(|w| w[0][1] >= 0 && w[1][1] >= 0 && w[0][0] * w[1][1] - w[0][1] * w[1][0] > 0);
+    if count < 2 || !turns {
+        return Err(SolveError::InvalidSettings(format!(
+            "sectors must be in 2..={MAX_SECTORS} (got {count})"
+        )));
+    }
+    Ok(d.windows(2)
+        .map(|w| {
+            let ([x0, y0], [x1, y1]) = (w[0], w[1]);
+            // (x0 v₂ − y0 v₁)(y1 v₁ − x1 v₂) / 2¹²: integers below 2¹⁴ times a power of two,
+            // exact, and of order one (the solver needs a well-scaled program).
+            let scale = 1.0 / (radius * radius);
+            [
+                (-y0 * y1) as f64 * scale,
+                (x0 * y1 + y0 * x1) as f64 * scale,
+                (-x0 * x1) as f64 * scale,
+            ]
+        })
+        .collect())
+}
+
 /// Checks an optional wall-clock limit (positive and finite).
 pub(crate) fn check_time_limit(limit: Option<f64>) -> Result<(), SolveError> {
     match limit {
@@ -226,8 +381,10 @@ pub struct CertifiedResult {
     /// The independent blocks certified separately.
     pub blocks: Vec<Vec<usize>>,
     /// The level used on each block: the requested one, or a lower one where the solver
-    /// broke down numerically on it.
+    /// broke down numerically on it (1 on a block certified by sectors).
     pub levels: Vec<u32>,
+    /// The number of sectors used on each block (0: one certificate for every direction).
+    pub sectors: Vec<u32>,
     /// Per block: whether CI's proven bound (for the block's CI gain, or for the given gain
     /// with its best `ω`) was tighter than the solver's certificate and was taken instead —
     /// the solver can end looser than CI where CI is optimal (`AlmostSolved` at high levels),
@@ -325,7 +482,7 @@ fn certify(
                 limit: settings.max_block_dim,
             });
         }
-        let level = settings.level_for(block.len());
+        let level = settings.family_for(block.len()).level();
         let cone = CertifySettings::cone_size(block.len(), level);
         if cone > settings.max_cone {
             return Err(SolveError::ConeTooLarge {
@@ -340,26 +497,46 @@ fn certify(
     let mut P = DMatrix::zeros(n, n);
     let (mut status, mut iterations, mut repair) = (SdpStatus::Solved, 0, 0.0);
     let mut levels = Vec::with_capacity(blocks.len());
+    let mut sectors = Vec::with_capacity(blocks.len());
     let mut ci_blocks = Vec::with_capacity(blocks.len());
     for block in &blocks {
         let sub = problem.restrict(block);
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
-        // The requested level, or — where the solver breaks down numerically on it — the
-        // highest lower level that solves; CI's proven bound when none does.
-        let mut level = settings.level_for(block.len());
+        // The requested family, or — where the solver breaks down numerically on it — the
+        // next lower one that solves (`Family::lower`); CI's proven bound when none does.
+        let mut family = settings.family_for(block.len());
         let mut solved = loop {
-            match certify_block(&sub, sub_gain.as_ref(), level, settings) {
+            match certify_block(&sub, sub_gain.as_ref(), family, settings) {
                 Ok(s) => break Some(s),
-                Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. })
-                    if level > 1 =>
-                {
-                    level -= 1
+                Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => {
+                    match family.lower() {
+                        Some(lower) => family = lower,
+                        None => break None,
+                    }
                 }
-                Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => break None,
                 Err(e) => return Err(e),
             }
         };
+        // Solved to reduced accuracy only and repaired by more than RETRY_REPAIR_RTOL of the
+        // trace: the repair can cost more than a coarser family loses (degenerate optima,
+        // e.g. one row of P_ab unknown). Both are proofs; keep the smaller trace of this
+        // family's and the next lower one's.
+        if let (Some(first), Some(lower)) = (&solved, family.lower()) {
+            if first.status == SdpStatus::AlmostSolved
+                && first.repair > RETRY_REPAIR_RTOL * first.P.trace().abs()
+            {
+                match certify_block(&sub, sub_gain.as_ref(), lower, settings) {
+                    Ok(s) if trace_upper_bound(&s.P) < trace_upper_bound(&first.P) => {
+                        solved = Some(s);
+                        family = lower;
+                    }
+                    Ok(_) | Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => {
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+        }
         // CI's bound (Young's inequality, proven in exact arithmetic) is a level-1
         // certificate: keep it where the solver's certificate ended looser (module docs).
         let (ci_gain, omega) = match &sub_gain {
@@ -396,7 +573,8 @@ fn certify(
         }
         iterations += solved.iterations;
         repair += solved.repair;
-        levels.push(level);
+        levels.push(family.level());
+        sectors.push(family.sectors());
         scatter_block(&mut K_a, block, &solved.K_a);
         scatter_block(&mut P, block, &solved.P);
     }
@@ -409,6 +587,7 @@ fn certify(
         repair,
         blocks,
         levels,
+        sectors,
         ci_blocks,
     })
 }
@@ -515,6 +694,18 @@ impl Layout {
         k
     }
 
+    /// A sector multiplier's coefficient (`σ` on `v₁², v₁v₂, v₂²`) on the monomial of index
+    /// `g` in `products` (level 1, two states).
+    fn sector_coefficient(&self, sigma: &[f64; 3], g: usize) -> f64 {
+        let power = self
+            .products
+            .iter()
+            .find(|(_, &i)| i == g)
+            .map(|(e, _)| e[1])
+            .expect("a degree-2 monomial");
+        sigma[power]
+    }
+
     /// Index in `products` of `2β + e_k + e_l`.
     fn quad(&self, beta: &[usize], k: usize, l: usize) -> usize {
         let mut g: Vec<usize> = beta.iter().map(|b| 2 * b).collect();
@@ -533,14 +724,36 @@ struct BlockCertificate {
     repair: f64,
 }
 
+/// One piece of a block's certificate: its conditions hold for every direction (`sigma`
+/// `None`), or only on a sector's double cone, through the multiplier
+/// `q(v) = Σ_γ σ_γ v^γ ≥ 0` there (level 1, two states; module docs, "Sectors").
+struct Piece {
+    sigma: Option<[f64; 3]>,
+}
+
 #[allow(non_snake_case)]
 fn certify_block(
     problem: &FusionProblem,
     gain: Option<&DMatrix<f64>>,
-    level: u32,
+    family: Family,
     settings: &CertifySettings,
 ) -> Result<BlockCertificate, SolveError> {
     let n = problem.dim();
+    let (level, pieces) = match family {
+        Family::Global(level) => (level, vec![Piece { sigma: None }]),
+        Family::Sectors(count) => {
+            if n != 2 {
+                return Err(SolveError::InvalidSettings(format!(
+                    "sectors certify blocks of two states (got a block of {n})"
+                )));
+            }
+            let pieces = sector_multipliers(count)?
+                .into_iter()
+                .map(|sigma| Piece { sigma: Some(sigma) })
+                .collect::<Vec<_>>();
+            (1, pieces)
+        }
+    };
     let lay = Layout::new(n, level as usize);
     let (m, s, N) = (lay.m, lay.mons.len(), lay.big());
     let nb = lay.lower.len();
@@ -549,61 +762,104 @@ fn certify_block(
         (false, false) => problem.P_b[(p - n, q - n)],
         _ => 0.0,
     };
-    // Variables: C (svec of N), Q (svec of n), G (svec of s), then K_a (n², when free).
-    let var_c = |x: usize, y: usize| svec_index(x.min(y), x.max(y));
-    let off_q = N * (N + 1) / 2;
-    let var_q = |k: usize, l: usize| off_q + svec_index(k.min(l), k.max(l));
-    let off_g = off_q + n * (n + 1) / 2;
-    let var_g = |a: usize, b: usize| off_g + svec_index(a.min(b), a.max(b));
-    let off_k = off_g + s * (s + 1) / 2;
+    // Variables: Q (svec of n), K_a (n², when free), then per piece C (svec of N), G (svec of
+    // s) and, for a sector, C' (svec of m) and g' (one).
+    let var_q = |k: usize, l: usize| svec_index(k.min(l), k.max(l));
+    let off_k = n * (n + 1) / 2;
     let var_k = |k: usize, i: usize| off_k + k + i * n;
-    let total_vars = off_k + if gain.is_none() { n * n } else { 0 };
+    let mut next = off_k + if gain.is_none() { n * n } else { 0 };
+    struct Offsets {
+        c: usize,
+        g: usize,
+        cp: usize,
+        gp: usize,
+    }
+    let offsets: Vec<Offsets> = pieces
+        .iter()
+        .map(|piece| {
+            let c = next;
+            let g = c + N * (N + 1) / 2;
+            let cp = g + s * (s + 1) / 2;
+            let gp = cp + m * (m + 1) / 2;
+            next = if piece.sigma.is_some() { gp + 1 } else { cp };
+            Offsets { c, g, cp, gp }
+        })
+        .collect();
+    let total_vars = next;
+    let var_c = |o: &Offsets, x: usize, y: usize| o.c + svec_index(x.min(y), x.max(y));
+    let var_g = |o: &Offsets, a: usize, b: usize| o.g + svec_index(a.min(b), a.max(b));
+    let var_cp = |o: &Offsets, x: usize, y: usize| o.cp + svec_index(x.min(y), x.max(y));
 
-    // Condition 2: one group of C entries per (γ, unknown (i, j)) that must sum to zero.
-    let mut groups: BTreeMap<(usize, usize, usize), Vec<usize>> = BTreeMap::new();
-    for a in 0..s {
-        for b in 0..s {
-            let g = lay.sum[a][b];
-            for i in 0..n {
-                for j in 0..n {
-                    if problem.cross_pattern.is_unknown(i, j) {
-                        groups
-                            .entry((g, i, j))
-                            .or_default()
-                            .push(var_c(a * m + i, b * m + n + j));
+    // Condition 2: per piece, one group of C entries per (γ, unknown (i, j)) that must sum to
+    // zero.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    // Condition 3, per piece one row per degree-2r monomial γ.
+    let mut sos: Vec<BTreeMap<usize, f64>> = Vec::new();
+    for (piece, o) in pieces.iter().zip(&offsets) {
+        let mut by_key: BTreeMap<(usize, usize, usize), Vec<usize>> = BTreeMap::new();
+        for a in 0..s {
+            for b in 0..s {
+                let g = lay.sum[a][b];
+                for i in 0..n {
+                    for j in 0..n {
+                        if problem.cross_pattern.is_unknown(i, j) {
+                            by_key.entry((g, i, j)).or_default().push(var_c(
+                                o,
+                                a * m + i,
+                                b * m + n + j,
+                            ));
+                        }
                     }
                 }
             }
         }
-    }
-    let groups: Vec<Vec<usize>> = groups.into_values().collect();
-    // Condition 3, one row per degree-2r monomial γ.
-    let mut sos: Vec<BTreeMap<usize, f64>> = vec![BTreeMap::new(); lay.products.len()];
-    for (beta, c) in &lay.lower {
-        for k in 0..n {
-            for l in 0..n {
-                *sos[lay.quad(beta, k, l)].entry(var_q(k, l)).or_default() += c;
-            }
-        }
-    }
-    for a in 0..s {
-        for b in 0..s {
-            let row = &mut sos[lay.sum[a][b]];
-            for p in 0..m {
-                for q in 0..m {
-                    let j = J0(p, q);
-                    if j != 0.0 {
-                        *row.entry(var_c(a * m + p, b * m + q)).or_default() -= j;
-                    }
+        groups.extend(by_key.into_values());
+        let mut rows = vec![BTreeMap::new(); lay.products.len()];
+        for (beta, c) in &lay.lower {
+            for k in 0..n {
+                for l in 0..n {
+                    *rows[lay.quad(beta, k, l)].entry(var_q(k, l)).or_default() += c;
                 }
             }
-            *row.entry(var_g(a, b)).or_default() -= 1.0;
         }
+        for a in 0..s {
+            for b in 0..s {
+                let row = &mut rows[lay.sum[a][b]];
+                for p in 0..m {
+                    for q in 0..m {
+                        let j = J0(p, q);
+                        if j != 0.0 {
+                            *row.entry(var_c(o, a * m + p, b * m + q)).or_default() -= j;
+                        }
+                    }
+                }
+                *row.entry(var_g(o, a, b)).or_default() -= 1.0;
+            }
+        }
+        if let Some(sigma) = &piece.sigma {
+            for (g, row) in rows.iter_mut().enumerate() {
+                let sg = lay.sector_coefficient(sigma, g);
+                if sg != 0.0 {
+                    *row.entry(o.gp).or_default() -= sg;
+                }
+            }
+        }
+        sos.extend(rows);
     }
     let sqrt2 = std::f64::consts::SQRT_2;
     let zeros = groups.len() + sos.len();
     let cone = N + nb;
-    let rows_total = zeros + cone * (cone + 1) / 2 + s * (s + 1) / 2;
+    let sectors = pieces.iter().filter(|p| p.sigma.is_some()).count();
+    let piece_rows = |piece: &Piece| {
+        cone * (cone + 1) / 2
+            + s * (s + 1) / 2
+            + if piece.sigma.is_some() {
+                m * (m + 1) / 2
+            } else {
+                0
+            }
+    };
+    let rows_total = zeros + pieces.iter().map(piece_rows).sum::<usize>() + sectors;
     let mut b = vec![0.0; rows_total];
     let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
     for (e, group) in groups.iter().enumerate() {
@@ -626,49 +882,107 @@ fn certify_block(
             }
         }
     }
-    // Condition 1: [[C, W D^{1/2}], [·, I]] ⪰ 0.
-    let base = zeros;
-    for c in 0..N {
-        for r in 0..=c {
-            rows.push(base + svec_index(r, c));
-            cols.push(var_c(r, c));
-            vals.push(if r == c { -1.0 } else { -sqrt2 });
+    let mut base = zeros;
+    let mut cones = vec![SupportedConeT::ZeroConeT(zeros)];
+    let psd = |rows: &mut Vec<usize>,
+               cols: &mut Vec<usize>,
+               vals: &mut Vec<f64>,
+               base: usize,
+               size: usize,
+               var: &dyn Fn(usize, usize) -> usize| {
+        for c in 0..size {
+            for r in 0..=c {
+                rows.push(base + svec_index(r, c));
+                cols.push(var(r, c));
+                vals.push(if r == c { -1.0 } else { -sqrt2 });
+            }
         }
-    }
-    for (t, (beta, cb)) in lay.lower.iter().enumerate() {
-        let scale = sqrt2 * cb.sqrt();
-        for alpha in 0..s {
-            let Some(k) = lay.step(alpha, beta) else {
-                continue;
-            };
-            for p in 0..m {
-                let e = base + svec_index(alpha * m + p, N + t);
-                // K[k, p] = K_a[k, p] (p < n), δ_{k, p−n} − K_a[k, p−n] (p ≥ n).
-                let (constant, coefficient, column) = if p < n {
-                    (0.0, 1.0, p)
-                } else {
-                    (if k == p - n { 1.0 } else { 0.0 }, -1.0, p - n)
-                };
-                match gain {
-                    Some(K_a) => b[e] = scale * (constant + coefficient * K_a[(k, column)]),
-                    None => {
-                        b[e] = scale * constant;
-                        rows.push(e);
-                        cols.push(var_k(k, column));
-                        vals.push(-scale * coefficient);
+    };
+    // Per piece: condition 1 as [[C, W D^{1/2}], [·, I]] ⪰ 0, condition 4 (G ⪰ 0) and, for
+    // a sector, C' ⪰ 0.
+    let mut schur_bases = Vec::with_capacity(pieces.len());
+    for (piece, o) in pieces.iter().zip(&offsets) {
+        psd(&mut rows, &mut cols, &mut vals, base, N, &|x, y| {
+            var_c(o, x, y)
+        });
+        if let Some(sigma) = &piece.sigma {
+            // The top left block is C − S ⊗ C' (S the matrix of q): (S ⊗ C')[(a,p),(b,q)] =
+            // S_ab C'_pq.
+            let S = sector_matrix(sigma);
+            let mut coef: BTreeMap<(usize, usize), f64> = BTreeMap::new();
+            for c in 0..N {
+                for r in 0..=c {
+                    let (a, p, bb, q) = (r / m, r % m, c / m, c % m);
+                    let w = if r == c { 1.0 } else { sqrt2 };
+                    if S[(a, bb)] != 0.0 {
+                        *coef
+                            .entry((base + svec_index(r, c), var_cp(o, p, q)))
+                            .or_default() += w * S[(a, bb)];
                     }
                 }
             }
+            for ((row, var), c) in coef {
+                rows.push(row);
+                cols.push(var);
+                vals.push(c);
+            }
         }
-        b[base + svec_index(N + t, N + t)] = 1.0;
+        schur_bases.push(base);
+        base += cone * (cone + 1) / 2;
+        cones.push(SupportedConeT::PSDTriangleConeT(cone));
+        psd(&mut rows, &mut cols, &mut vals, base, s, &|x, y| {
+            var_g(o, x, y)
+        });
+        base += s * (s + 1) / 2;
+        cones.push(SupportedConeT::PSDTriangleConeT(s));
+        if piece.sigma.is_some() {
+            psd(&mut rows, &mut cols, &mut vals, base, m, &|x, y| {
+                var_cp(o, x, y)
+            });
+            base += m * (m + 1) / 2;
+            cones.push(SupportedConeT::PSDTriangleConeT(m));
+        }
     }
-    // Condition 4: G ⪰ 0.
-    let base_g = base + cone * (cone + 1) / 2;
-    for c in 0..s {
-        for r in 0..=c {
-            rows.push(base_g + svec_index(r, c));
-            cols.push(var_g(r, c));
-            vals.push(if r == c { -1.0 } else { -sqrt2 });
+    // g' ≥ 0 for each sector.
+    for (piece, o) in pieces.iter().zip(&offsets) {
+        if piece.sigma.is_some() {
+            rows.push(base);
+            cols.push(o.gp);
+            vals.push(-1.0);
+            base += 1;
+        }
+    }
+    if sectors > 0 {
+        cones.push(SupportedConeT::NonnegativeConeT(sectors));
+    }
+    debug_assert_eq!(base, rows_total);
+    for &schur in &schur_bases {
+        for (t, (beta, cb)) in lay.lower.iter().enumerate() {
+            let scale = sqrt2 * cb.sqrt();
+            for alpha in 0..s {
+                let Some(k) = lay.step(alpha, beta) else {
+                    continue;
+                };
+                for p in 0..m {
+                    let e = schur + svec_index(alpha * m + p, N + t);
+                    // K[k, p] = K_a[k, p] (p < n), δ_{k, p−n} − K_a[k, p−n] (p ≥ n).
+                    let (constant, coefficient, column) = if p < n {
+                        (0.0, 1.0, p)
+                    } else {
+                        (if k == p - n { 1.0 } else { 0.0 }, -1.0, p - n)
+                    };
+                    match gain {
+                        Some(K_a) => b[e] = scale * (constant + coefficient * K_a[(k, column)]),
+                        None => {
+                            b[e] = scale * constant;
+                            rows.push(e);
+                            cols.push(var_k(k, column));
+                            vals.push(-scale * coefficient);
+                        }
+                    }
+                }
+            }
+            b[schur + svec_index(N + t, N + t)] = 1.0;
         }
     }
     let mut q = vec![0.0; total_vars];
@@ -677,11 +991,6 @@ fn certify_block(
     }
     let A = CscMatrix::new_from_triplets(rows_total, total_vars, rows, cols, vals);
     let P_quad = CscMatrix::zeros((total_vars, total_vars));
-    let mut cones = vec![
-        SupportedConeT::ZeroConeT(zeros),
-        SupportedConeT::PSDTriangleConeT(cone),
-    ];
-    cones.push(SupportedConeT::PSDTriangleConeT(s));
     let (solver, status) = solve_program(
         &P_quad,
         &q,
@@ -701,18 +1010,57 @@ fn certify_block(
     let mut x = sol.x.clone();
     for group in &groups {
         exact_zero_sum(&mut x, group);
+        let terms: Vec<f64> = group.iter().map(|&v| x[v]).collect();
+        if !sums_to_zero(&terms) {
+            return Err(repair_failed("the zero-sum groups"));
+        }
     }
-    let C = DMatrix::from_fn(N, N, |r, c| x[var_c(r, c)]);
-    let Q = DMatrix::from_fn(n, n, |k, l| x[var_q(k, l)]);
-    let G = DMatrix::from_fn(s, s, |a, b| x[var_g(a, b)]);
-    let (P, repair) = repair(problem, &lay, &K_a, C, Q, &G)?;
+    let mut Q = DMatrix::from_fn(n, n, |k, l| x[var_q(k, l)]);
+    let trace_solver = Q.trace();
+    for (piece, o) in pieces.iter().zip(&offsets) {
+        let C = DMatrix::from_fn(N, N, |r, c| x[var_c(o, r, c)]);
+        let G = DMatrix::from_fn(s, s, |a, b| x[var_g(o, a, b)]);
+        let sector = piece.sigma.map(|sigma| SectorPart {
+            sigma,
+            Cp: DMatrix::from_fn(m, m, |r, c| x[var_cp(o, r, c)]),
+            gp: x[o.gp].max(0.0),
+        });
+        repair(problem, &lay, &K_a, C, &mut Q, &G, sector)?;
+    }
+    let repair = (Q.trace() - trace_solver).max(0.0);
     Ok(BlockCertificate {
         K_a,
-        P,
+        P: Q,
         status,
         iterations: sol.iterations,
         repair,
     })
+}
+
+/// Whether floats sum to exactly zero, decided exactly: Shewchuk's GROW-EXPANSION (Discrete
+/// Comput. Geom. 18, 1997, Thm. 10) keeps the running sum as a nonoverlapping expansion,
+/// which is zero exactly when all its components are.
+fn sums_to_zero(terms: &[f64]) -> bool {
+    let mut expansion: Vec<f64> = Vec::with_capacity(terms.len());
+    for &t in terms {
+        if !t.is_finite() {
+            return false;
+        }
+        let mut q = t;
+        for h in expansion.iter_mut() {
+            // TwoSum(q, h): s + e = q + h exactly (no overflow below 2^1023).
+            let s = q + *h;
+            let bv = s - q;
+            let e = (q - (s - bv)) + (*h - bv);
+            *h = e;
+            q = s;
+        }
+        expansion.push(q);
+        if !q.is_finite() {
+            return false;
+        }
+    }
+    expansion.iter().all(|&h| h == 0.0)
 }
 
 /// Makes the entries `group` of `x` sum to exactly zero (module docs: a grid, then the last
@@ -746,17 +1094,36 @@ fn exact_zero_sum(x: &mut [f64], group: &[usize]) {
     x[*last] = -sum;
 }
 
-/// The verified repair (module docs): `C ← C + δI` until `C − W D Wᵀ ⪰ 0` is proven, then
-/// `Q ← Q + ηI` until `G + E ⪰ 0` is proven. Returns `P̄ = Q` and the trace added.
+/// The symmetric matrix `S` of a sector's multiplier, `q(v) = vᵀ S v`, from its coefficients
+/// `σ` on `v₁², v₁v₂, v₂²` (`σ₁₂ / 2` is exact).
+#[allow(non_snake_case)]
+fn sector_matrix(sigma: &[f64; 3]) -> nalgebra::Matrix2<f64> {
+    nalgebra::Matrix2::new(sigma[0], 0.5 * sigma[1], 0.5 * sigma[1], sigma[2])
+}
+
+/// A sector piece's multiplier part (module docs, "Sectors"): `σ` (on `v₁², v₁v₂, v₂²`), `C'`
+/// and `g' ≥ 0`.
+#[allow(non_snake_case)]
+struct SectorPart {
+    sigma: [f64; 3],
+    Cp: DMatrix<f64>,
+    gp: f64,
+}
+
+/// The verified repair of one piece (module docs): `C ← C + δI` until `C − W D Wᵀ ⪰ 0` is
+/// proven (and, for a sector, `C' ← C' + δ'I` until `C' ⪰ 0` is), then `Q ← Q + ηI` until
+/// `G + E ⪰ 0` is proven. `Q` only grows (by multiples of `I`), so a piece proven before
+/// stays proven.
 #[allow(non_snake_case)]
 fn repair(
     problem: &FusionProblem,
     lay: &Layout,
     K_a: &DMatrix<f64>,
     mut C: DMatrix<f64>,
-    mut Q: DMatrix<f64>,
+    Q: &mut DMatrix<f64>,
     G: &DMatrix<f64>,
-) -> Result<(DMatrix<f64>, f64), SolveError> {
+    sector: Option<SectorPart>,
+) -> Result<(), SolveError> {
     let n = lay.n;
     let (m, s, N) = (lay.m, lay.mons.len(), lay.big());
     let K_b = BallMatrix::identity_minus(K_a);
@@ -785,10 +1152,51 @@ fn repair(
             rad: up(c * w.rad + U * mid.abs(), 3),
         }
     });
+    // A sector's C' ⪰ 0 proven first (its diagonal shifted if needed: the diagonal holds no
+    // cross entry, and C enters only through C − S ⊗ C', proven next).
+    let sector = match sector {
+        None => None,
+        Some(SectorPart { sigma, mut Cp, gp }) => {
+            let zero = DMatrix::zeros(m, m);
+            if !is_psd(&Cp, &zero) {
+                let exact = BallMatrix::exact(&Cp);
+                let mut delta = psd_shift(&exact).ok_or_else(|| repair_failed("C' ⪰ 0"))?;
+                let scale = Cp.amax().max(f64::MIN_POSITIVE);
+                let mut proven = false;
+                for _ in 0..60 {
+                    let mut shifted = Cp.clone();
+                    for i in 0..m {
+                        shifted[(i, i)] += delta;
+                    }
+                    if is_psd(&shifted, &zero) {
+                        Cp = shifted;
+                        proven = true;
+                        break;
+                    }
+                    delta = 2.0 * delta + 1e-16 * scale;
+                }
+                if !proven {
+                    return Err(repair_failed("C' ⪰ 0"));
+                }
+            }
+            Some((sigma, Cp, gp))
+        }
+    };
+    let S = sector.as_ref().map(|(sigma, _, _)| {
+        let S = sector_matrix(sigma);
+        [[S[(0, 0)], S[(0, 1)]], [S[(1, 0)], S[(1, 1)]]]
+    });
     let margin = |C: &DMatrix<f64>| {
         BallMatrix::from_fn(N, N, |x, y| {
             let mut d = Dot::new();
             d.add(Ball::exact(C[(x, y)]));
+            if let (Some(S), Some((_, Cp, _))) = (&S, &sector) {
+                // − (S ⊗ C')[(a,p),(b,q)] = − S_ab C'_pq (level 1: x = a m + p).
+                d.add_prod(
+                    Ball::exact(-S[x / m][y / m]),
+                    Ball::exact(Cp[(x % m, y % m)]),
+                );
+            }
             for t in 0..nb {
                 let w = WD.at(y, t);
                 d.add_prod(
@@ -856,7 +1264,6 @@ fn repair(
             }
         }
     }
-    let trace_solver = Q.trace();
     let mut eta = 0.0;
     for _ in 0..60 {
         // e_γ = coef_γ(‖v‖^{2(r−1)} vᵀQv) − Σ_{α+β=γ} (T_αβ + G_αβ), as balls.
@@ -879,6 +1286,14 @@ fn repair(
                 d.add(Ball::exact(-G[(a, b)]));
             }
         }
+        if let Some((sigma, _, gp)) = &sector {
+            for (g, d) in coef.iter_mut().enumerate() {
+                let c = lay.sector_coefficient(sigma, g);
+                if c != 0.0 {
+                    d.add_exact_prod(-c, *gp);
+                }
+            }
+        }
         let mut Y = BallMatrix::exact(G);
         for (g, d) in coef.iter().enumerate() {
             let e = d.ball();
@@ -896,7 +1311,7 @@ fn repair(
             }
         }
         if is_psd(&Y.mid, &Y.rad) {
-            return Ok((Q.clone(), (Q.trace() - trace_solver).max(0.0)));
+            return Ok(());
         }
         let shift = psd_shift(&Y).ok_or_else(|| repair_failed("G + E"))?;
         let step = if eta == 0.0 { shift } else { shift.max(eta) };
@@ -919,6 +1334,51 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     #[test]
+    fn sector_multipliers_cover_the_plane_exactly() {
+        // The proof needs only: every v ≠ 0 has some sector with q_k(v) ≥ 0. Checked exactly
+        // (coefficients · 2¹² are integers, products in i128) on every integer direction of a
+        // fine grid — a missing or inverted sector leaves an arc of π/S ≥ π/64 uncovered,
+        // which holds many of them — and each q_k is positive inside its own sector's arc
+        // and negative just outside both of its ends.
+        for count in 2..=MAX_SECTORS {
+            let q: Vec<[i128; 3]> = sector_multipliers(count)
+                .unwrap()
+                .iter()
+                .map(|c| {
+                    c.map(|x| {
+                        let i = x * 4096.0;
+                        assert_eq!(i, i.round(), "not an integer times 2⁻¹²");
+                        i as i128
+                    })
+                })
+                .collect();
+            assert_eq!(q.len(), count as usize);
+            let eval = |c: &[i128; 3], x: i128, y: i128| c[0] * x * x + c[1] * x * y + c[2] * y * y;
+            for x in -300i128..=300 {
+                for y in -300i128..=300 {
+                    if (x, y) != (0, 0) {
+                        assert!(
+                            q.iter().any(|c| eval(c, x, y) >= 0),
+                            "{count} sectors miss ({x}, {y})"
+                        );
+                    }
+                }
+            }
+            for (k, c) in q.iter().enumerate() {
+                let t = |f: f64| std::f64::consts::PI * (k as f64 + f) / count as f64;
+                let at = |t: f64| ((1e6 * t.cos()) as i128, (1e6 * t.sin()) as i128);
+                let (xm, ym) = at(t(0.5));
+                assert!(eval(c, xm, ym) > 0, "{count}: sector {k} mid");
+                for outside in [t(-0.3), t(1.3)] {
+                    let (x, y) = at(outside);
+                    assert!(eval(c, x, y) < 0, "{count}: sector {k} outside");
+                }
+            }
+        }
+        assert!(sector_multipliers(1).is_err());
+    }
+
+    #[test]
     fn zero_groups_sum_to_exactly_zero() {
         // Every entry ends a multiple of the group's grid g, so the sum is checked exactly in
         // integers (i128 multiples of g), not in floating point.
@@ -931,6 +1391,7 @@ mod tests {
                 let before = x.clone();
                 let group: Vec<usize> = (0..len).collect();
                 exact_zero_sum(&mut x, &group);
+                assert!(sums_to_zero(&x));
                 let bound = before.iter().fold(0.0f64, |m, v| m.max(v.abs()));
                 let g = x
                     .iter()

@@ -33,8 +33,8 @@
 //! rule's proven trace within the tolerance (`gap_closed`): the optimum is then proven to
 //! that relative accuracy, not just "no violation found", and (3) does not stop on "no
 //! violation found" while the proven bracket is open until a wider search — 2000 random
-//! admissible points (hit-and-run) and four times as many random starting directions — has
-//! also found none.
+//! admissible points (hit-and-run), four times as many random starting directions and, for
+//! `n ≤ 3`, 64 directions spread evenly over the half circle or sphere — has also found none.
 //! (4) In-out separation (Ben-Ameur & Neto): cuts taken at the relaxation's optimum
 //! oscillate in the tail; the search also runs at the point `α` of the way from a feasible
 //! point (the certified rule, else nmCI) to the optimum, whose cuts are deeper; when it finds
@@ -194,6 +194,8 @@ pub struct CutsResult {
     pub certified_trace: Option<f64>,
     /// The certified rule's level on each block, when computed.
     pub certified_levels: Option<Vec<u32>>,
+    /// The certified rule's number of sectors on each block (0: none), when computed.
+    pub certified_sectors: Option<Vec<u32>>,
     /// Whether the loop stopped because `lower_bound` reached `certified_trace` within the
     /// tolerance: the optimum is then proven to that relative accuracy, and the certified rule
     /// attains it to that accuracy.
@@ -244,7 +246,7 @@ pub fn optimal_fusion_cuts(
     let certified = if settings.certify
         && certification_blocks(problem, None).iter().all(|b| {
             b.len() <= certify_settings.max_block_dim
-                && CertifySettings::cone_size(b.len(), certify_settings.level_for(b.len()))
+                && CertifySettings::cone_size(b.len(), certify_settings.family_for(b.len()).level())
                     <= certify_settings.max_cone
         }) {
         match certified_fusion(problem, &certify_settings) {
@@ -306,6 +308,7 @@ pub fn optimal_fusion_cuts(
         stop,
         certified_trace,
         certified_levels: certified.as_ref().map(|c| c.levels.clone()),
+        certified_sectors: certified.as_ref().map(|c| c.sectors.clone()),
         gap_closed: stop == CutsStop::GapClosed,
         dual_objective: opt.dual_objective,
         lower_bound,
@@ -388,8 +391,10 @@ pub fn optimal_fusion_cuts(
             for v in random_starts(problem, &opt.fused, settings, iterations as u64, threshold)? {
                 extra.extend(search(&opt.fused, v)?);
             }
-            for _ in 0..OPEN_BRACKET_STARTS * settings.restarts {
-                let v = DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0)).normalize();
+            let random = (0..OPEN_BRACKET_STARTS * settings.restarts)
+                .map(|_| DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0)).normalize())
+                .collect::<Vec<_>>();
+            for v in direction_grid(n).into_iter().chain(random) {
                 if let Some(f) = search(&opt.fused, v)? {
                     if f.0 > threshold {
                         extra.push(f);
@@ -565,6 +570,35 @@ fn random_starts(
         .map(|&(_, i)| top_eigen(&violation_matrix(problem, fused, &drawn.cross[i])).1)
         .collect())
 }
+
+/// [`GRID_DIRECTIONS`] directions spread evenly over the half circle (`n = 2`) or the half
+/// sphere (`n = 3`, a Fibonacci lattice); none for larger `n`. Extra starting directions of the
+/// worst-case search when the bracket is open: random ones can all miss a narrow violation
+/// (a 2-D case left open by 1.8e-6 in `examples/certify_levels.rs` until these were added).
+fn direction_grid(n: usize) -> Vec<DVector<f64>> {
+    let count = GRID_DIRECTIONS;
+    match n {
+        2 => (0..count)
+            .map(|k| {
+                let t = std::f64::consts::PI * k as f64 / count as f64;
+                DVector::from_vec(vec![t.cos(), t.sin()])
+            })
+            .collect(),
+        3 => (0..count)
+            .map(|k| {
+                // z in (0, 1]: the upper half sphere (−v gives the same constraint).
+                let z = (k as f64 + 0.5) / count as f64;
+                let r = (1.0 - z * z).sqrt();
+                let t = k as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
+                DVector::from_vec(vec![r * t.cos(), r * t.sin(), z])
+            })
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// The number of directions of [`direction_grid`].
+const GRID_DIRECTIONS: usize = 64;
 
 /// Extra random starting directions (times `restarts`) of the worst-case search when the
 /// local search finds no violation but the proven bracket is open.

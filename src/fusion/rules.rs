@@ -139,17 +139,20 @@ pub enum RequestOption {
     TimeLimit,
     /// `level`.
     Level,
+    /// `sectors`.
+    Sectors,
 }
 
 impl RequestOption {
     /// Every option, in the order the request check reports them.
-    pub const ALL: [RequestOption; 6] = [
+    pub const ALL: [RequestOption; 7] = [
         RequestOption::Samples,
         RequestOption::MaxTrials,
         RequestOption::Sampler,
         RequestOption::Seed,
         RequestOption::TimeLimit,
         RequestOption::Level,
+        RequestOption::Sectors,
     ];
 
     /// The request field's name.
@@ -161,6 +164,7 @@ impl RequestOption {
             RequestOption::Seed => "seed",
             RequestOption::TimeLimit => "time_limit",
             RequestOption::Level => "level",
+            RequestOption::Sectors => "sectors",
         }
     }
 }
@@ -301,7 +305,11 @@ pub const RULES: [RuleInfo; 8] = [
         guarantee: Guarantee::Conservative,
         colour: "#000000",
         criteria: Criteria::TraceOnly,
-        options: &[RequestOption::TimeLimit, RequestOption::Level],
+        options: &[
+            RequestOption::TimeLimit,
+            RequestOption::Level,
+            RequestOption::Sectors,
+        ],
         nway: false,
         explorer: true,
         limits: Limits {
@@ -317,7 +325,7 @@ pub const RULES: [RuleInfo; 8] = [
         guarantee: Guarantee::Relaxation,
         colour: "#2a9d3f",
         criteria: Criteria::TraceOnly,
-        // Every option: its sampler's, its seed, the time limit and the bracket's level.
+        // Every option: its sampler's, its seed, the time limit and the bracket's certificate.
         options: &RequestOption::ALL,
         nway: false,
         explorer: true,
@@ -339,6 +347,7 @@ pub const RULES: [RuleInfo; 8] = [
             RequestOption::Seed,
             RequestOption::TimeLimit,
             RequestOption::Level,
+            RequestOption::Sectors,
         ],
         nway: false,
         explorer: false,

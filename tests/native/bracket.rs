@@ -179,6 +179,50 @@ fn higher_levels_never_looser_and_close_two_state_anti_diagonal_brackets() {
 }
 
 #[test]
+fn sectors_close_the_two_state_brackets_level_five_left_open() {
+    // Four 2-D problems of examples/certify_levels.rs (seeded draws; matrices copied with
+    // full precision) that stayed open before the sector certificates and the cuts' direction
+    // grid: the default certificate (32 sectors, halved where the solve ends AlmostSolved with
+    // a large repair) and the default cutting planes close every bracket to 1e-6 through the
+    // JSON contract, both ends proven (lower ≤ upper without tolerance).
+    let cases = [
+        // anti-diagonal #16: level 5 left 5.8e-6
+        r#""pa": [[4.551011646145656,-0.2593470851976769],[-0.2593470851976769,4.188041913508107]], "pb": [[0.8439844713770488,0.5319713062229059],[0.5319713062229059,0.7616863103687439]], "pab_unknown": [[false,true],[true,false]]"#,
+        // one zero #39: level 5 left 1.1e-5, 16 sectors 2.3e-6
+        r#""pa": [[1.2743591299103185,0.3651927726416604],[0.3651927726416604,2.866360407062699]], "pb": [[2.5947510062206103,-0.46570503968248456],[-0.46570503968248456,2.9521002847634823]], "pab_unknown": [[true,false],[true,true]]"#,
+        // random 0.6 #21: the random worst-case searches missed a violation of 1.3e-5
+        r#""pa": [[2.370633399156417,0.12875171633534477],[0.12875171633534477,0.6882283654317273]], "pb": [[1.3259450651166855,-0.49608249618682304],[-0.49608249618682304,1.2117192653901783]], "pab_unknown": [[true,true],[true,false]]"#,
+        // random 0.6 #49: 32 sectors end AlmostSolved with a repair of 5.9e-5
+        r#""pa": [[2.7126775108459764,-0.5537484405196829],[-0.5537484405196829,4.06328518534738]], "pb": [[1.711861159729383,0.43927540732290704],[0.43927540732290704,2.2426610937705247]], "pab_unknown": [[true,true],[false,false]]"#,
+    ];
+    for (k, case) in cases.iter().enumerate() {
+        let r = fuse_json(&format!(r#"{{{case}, "method": "sdp_cuts"}}"#)).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&r).unwrap();
+        let (lower, upper) = (
+            v["lower_bound"].as_f64().unwrap(),
+            v["upper_bound"].as_f64().unwrap(),
+        );
+        assert!(lower <= upper, "case {k}: {lower} > {upper}");
+        assert!(
+            v["gap_relative"].as_f64().unwrap() <= CLOSED_RTOL,
+            "case {k}: {r}"
+        );
+        assert_eq!(v["upper_bound_rule"], "certified", "case {k}");
+        let sectors = v["sectors"][0].as_u64().unwrap();
+        assert!(sectors >= 16, "case {k}: {sectors} sectors");
+    }
+    // Level 1 alone leaves the first one open by far more: the sectors did the closing.
+    let level_one = fuse_json(&format!(
+        r#"{{{}, "method": "sdp_cuts", "level": 1}}"#,
+        cases[0]
+    ))
+    .unwrap();
+    let v: serde_json::Value = serde_json::from_str(&level_one).unwrap();
+    assert!(v["gap_relative"].as_f64().unwrap() > 1e-3, "{level_one}");
+    assert_eq!(v["sectors"][0], 0);
+}
+
+#[test]
 fn certified_is_never_looser_in_trace_but_not_below_ci_in_every_direction() {
     // The certified rule dominates CI and nmCI in trace only: on some problems its P̄ is
     // larger than CI's along a direction (so "never looser" is a statement about traces).

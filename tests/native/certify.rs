@@ -144,6 +144,44 @@ fn certified_whatever_the_solver_accuracy() {
 }
 
 #[test]
+fn sector_certificates_proven_whatever_the_solver_accuracy() {
+    // Two states, the sector family at several counts and a loose solve: the repair (C' ⪰ 0,
+    // C − S ⊗ C' − W Wᵀ ⪰ 0, the per-sector residual with its g' q_k term) makes each proof
+    // exact, so the bound is conservative on fresh samples and never below the cutting
+    // planes' proven lower bound (no tolerance in that comparison).
+    let mut r = rng(13);
+    for (k, sectors) in [2u32, 5, 16, 32, 64].into_iter().enumerate() {
+        let p = random_problem(
+            2,
+            CrossPattern::from_fn(2, |i, j| i != j || k % 2 == 0 && i == 0),
+            &mut r,
+        );
+        let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+        for tolerance in [1e-3, 1e-10] {
+            let cert = certified_fusion(
+                &p,
+                &CertifySettings {
+                    sectors: Some(sectors),
+                    tolerance,
+                    ..CertifySettings::default()
+                },
+            )
+            .unwrap();
+            let upper = trace_upper_bound(&cert.fused.P);
+            assert!(
+                cuts.lower_bound <= upper,
+                "{sectors} sectors, tol {tolerance}"
+            );
+            let margin = fresh_margin(&p, &cert.fused);
+            assert!(
+                margin >= -1e-12 * upper,
+                "{sectors} sectors: margin {margin}"
+            );
+        }
+    }
+}
+
+#[test]
 fn the_sampled_sdp_gain_certified() {
     // For the SDP's own gain, the tightest certified bound lies above the SDP's (relaxed)
     // trace and is conservative.

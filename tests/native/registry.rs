@@ -78,6 +78,7 @@ fn the_options_a_rule_lists_are_the_ones_a_request_may_set() {
         RequestOption::Seed => json!(3),
         RequestOption::TimeLimit => json!(60.0),
         RequestOption::Level => json!(1),
+        RequestOption::Sectors => json!(8),
     };
     for rule in &RULES {
         for option in RequestOption::ALL {

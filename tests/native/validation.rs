@@ -103,7 +103,7 @@ fn run(json: &str) -> Result<String, String> {
 fn request_errors() {
     let ok = r#""pa": [[1, 0], [0, 1]], "pb": [[2, 0], [0, 2]]"#;
     assert!(run(&format!(r#"{{{ok}, "method": "ci"}}"#)).is_ok());
-    let cases: [(&str, &str, Option<&str>); 24] = [
+    let cases: [(&str, &str, Option<&str>); 27] = [
         (r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "extra": 1}"#,
             "unknown field `extra`", Some("extra")),
         (r#"{"pa": [[1]], "pb": [[1]]}"#, "missing field `method`", Some("method")),
@@ -145,6 +145,12 @@ fn request_errors() {
             "`level` must be in 1..=6 (got 7)", Some("level")),
         (&format!(r#"{{{ok}, "method": "certified", "level": 0}}"#),
             "`level` must be in 1..=6 (got 0)", Some("level")),
+        (&format!(r#"{{{ok}, "method": "certified", "sectors": 1}}"#),
+            "`sectors` must be in 2..=64 (got 1)", Some("sectors")),
+        (&format!(r#"{{{ok}, "method": "sdp_cuts", "sectors": 65}}"#),
+            "`sectors` must be in 2..=64 (got 65)", Some("sectors")),
+        (&format!(r#"{{{ok}, "method": "ci", "sectors": 16}}"#),
+            "`sectors` applies to methods", Some("sectors")),
         (r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,2]], "pab_unknown": [[true,true,true,true],[true,true,true,true],[true,true,true,true],[true,true,true,false]], "method": "certified", "level": 4}"#,
             "the level-4 certificate of a 4-state block needs a PSD cone of 300 rows, above the limit of 90 (max_cone)", None),
         (r#"{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]], "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]], "method": "certified", "level": 3, "time_limit": 0.001}"#,
