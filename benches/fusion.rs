@@ -8,7 +8,8 @@
 //! Issue 5: `sample/hit_and_run/14x1000` (≥ 1000 samples/s), `sdp_cuts/paper` (the paper's
 //! example by cutting planes) and `sdp_cuts/random6` (a random 6-D problem, each entry of
 //! `P_ab` unknown with probability 0.6: no independent blocks); the certified rule per level
-//! `certified/<level>/paper_one_zero`, `certified/<level>/random3`, `certified/1/random4`.
+//! `certified/<level>/paper_one_zero`, `certified/<level>/random3`, `certified/1/random4`, and
+//! on sectors `certified/sectors<count>/paper_one_zero`.
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
@@ -193,7 +194,8 @@ criterion_group! {
 }
 /// The certified rule per level: the paper's example with only `P_ab[2,1]` known to be zero
 /// (nmCI = CI = 3.088; certified 2.000, proven optimal), a random non-separable 3-D problem
-/// (`P_ab` entries unknown with probability 0.6) and a random 4-D one (level 1).
+/// (`P_ab` entries unknown with probability 0.6) and a random 4-D one (level 1); the 2-D
+/// example also with the sector certificates.
 fn certified_benches(c: &mut Bench) {
     let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
     let one_zero = FusionProblem::from_covariances(
@@ -209,6 +211,16 @@ fn certified_benches(c: &mut Bench) {
     for l in 1..=5 {
         c.bench_function(&format!("certified/{l}/paper_one_zero"), |b| {
             b.iter(|| certified_fusion(black_box(&one_zero), &level(l)).unwrap())
+        });
+    }
+    // Two states: level 1 on each of 16 or 32 (the default) sectors of directions.
+    for count in [16, 32] {
+        let settings = CertifySettings {
+            sectors: Some(count),
+            ..CertifySettings::default()
+        };
+        c.bench_function(&format!("certified/sectors{count}/paper_one_zero"), |b| {
+            b.iter(|| certified_fusion(black_box(&one_zero), &settings).unwrap())
         });
     }
     let mut rng = ChaCha8Rng::seed_from_u64(3);

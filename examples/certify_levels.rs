@@ -1,12 +1,14 @@
 //! The README's "how tight" table: the proven bracket `[lower, upper]` around the robust
-//! optimum, per state dimension, pattern class and certificate level, over random problems
-//! (fixed seeds): median and worst relative gap, fraction closed (`gap ≤ 10⁻⁶ · upper`),
-//! median and worst time of the certificate.
+//! optimum, per state dimension, pattern class and certificate (a level, or for two states a
+//! number of sectors), over random problems (fixed seeds): median and worst relative gap,
+//! fraction closed (`gap ≤ 10⁻⁶ · upper`), median and worst time of the certificate, and how
+//! many blocks the certified rule certified with a lower family (its fallback when a solve
+//! fails, or ends `AlmostSolved` with a large repair and the lower family's bound is smaller).
 //!
 //! The lower end is the cutting planes' proven Lagrangian bound (`sdp_cuts` with the default
-//! certified level as its guide, and a tolerance of `10⁻¹⁰`); the upper end at level `r`
-//! is the smaller of nmCI's proven trace and the level-`r` certified rule's. Both are
-//! rigorous, so the gap is too.
+//! certificate as its guide, and a tolerance of `10⁻¹⁰`); the upper end for a certificate is
+//! the smaller of nmCI's proven trace and that certified rule's. Both are rigorous, so the gap
+//! is too.
 //!
 //! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--tolerance 1e-10] [--verbose]`
 //!
@@ -205,7 +207,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     notes.push(format!("{failed} problems redrawn: sdp_cuts failed"));
                 }
                 if lowered[k] > 0 {
-                    notes.push(format!("{} solved at a lower level", lowered[k]));
+                    notes.push(format!("{} by a lower family (fallback)", lowered[k]));
                 }
                 println!(
                     "| {n} | {class} | {} | {:.1e} | {:.1e} | {closed}/{count} | {:.0} ms | {:.0} ms | {} |",

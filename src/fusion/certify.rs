@@ -79,9 +79,10 @@
 //! proof gives `vᵀ K J Kᵀ v ≤ vᵀ Q v` there, hence everywhere: **`Q ⪰ K J Kᵀ`**. This is the
 //! S-procedure with the sector's defining product as multiplier (a Positivstellensatz
 //! certificate on each semialgebraic piece, as in Putinar's); `C′_k = 0`, `g′_k = 0` is the
-//! level-1 certificate, so sectors are never looser than level 1, and the bound approaches
-//! the exact per-direction dual as sectors shrink (up to solver tolerance; not monotone in
-//! `S` in floating point, measured in the README). The program: `min tr Q` with `S` copies of
+//! level-1 certificate, so sectors are never looser than level 1 (up to solver tolerance);
+//! finer sectors let the certificate follow the direction more closely, but no monotonicity
+//! in `S` and no convergence to the robust optimum is claimed (the README's sweep measures
+//! how far they close the brackets). The program: `min tr Q` with `S` copies of
 //! the level-1 cone (size `2n² + 1 = 9` each), `S` cones of size `2n = 4` for the `C′_k`,
 //! and `g′ ≥ 0`. The multipliers' coefficients are integers below `2¹⁴` times `2⁻¹²`,
 //! exact floats, so the repair below treats `S_k ⊗ C′_k` exactly.

@@ -123,7 +123,8 @@ fn scalar_case_in_closed_form_at_every_level_and_tolerance() {
 #[test]
 fn higher_levels_never_looser_and_close_two_state_anti_diagonal_brackets() {
     // Only the anti-diagonal of P_ab unknown, 2 states: the quadratic certificate (level 1)
-    // leaves brackets open; level 5 closes them (examples/certify_levels.rs measures more).
+    // leaves brackets open; level 5 closes these (examples/certify_levels.rs measures more;
+    // the default for two states is the sector certificate, tested below).
     let mut r = rng(2000);
     let mut open_at_one = 0;
     for k in 0..4 {
