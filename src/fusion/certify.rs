@@ -1120,7 +1120,7 @@ fn repair(
     problem: &FusionProblem,
     lay: &Layout,
     K_a: &DMatrix<f64>,
-    mut C: DMatrix<f64>,
+    C: DMatrix<f64>,
     Q: &mut DMatrix<f64>,
     G: &DMatrix<f64>,
     sector: Option<SectorPart>,
@@ -1157,29 +1157,10 @@ fn repair(
     // cross entry, and C enters only through C − S ⊗ C', proven next).
     let sector = match sector {
         None => None,
-        Some(SectorPart { sigma, mut Cp, gp }) => {
+        Some(SectorPart { sigma, Cp, gp }) => {
             let zero = DMatrix::zeros(m, m);
-            if !is_psd(&Cp, &zero) {
-                let exact = BallMatrix::exact(&Cp);
-                let mut delta = psd_shift(&exact).ok_or_else(|| repair_failed("C' ⪰ 0"))?;
-                let scale = Cp.amax().max(f64::MIN_POSITIVE);
-                let mut proven = false;
-                for _ in 0..60 {
-                    let mut shifted = Cp.clone();
-                    for i in 0..m {
-                        shifted[(i, i)] += delta;
-                    }
-                    if is_psd(&shifted, &zero) {
-                        Cp = shifted;
-                        proven = true;
-                        break;
-                    }
-                    delta = 2.0 * delta + 1e-16 * scale;
-                }
-                if !proven {
-                    return Err(repair_failed("C' ⪰ 0"));
-                }
-            }
+            let first = BallMatrix::exact(&Cp);
+            let Cp = shift_until_proven(Cp, &first, "C' ⪰ 0", |shifted| is_psd(shifted, &zero))?;
             Some((sigma, Cp, gp))
         }
     };
@@ -1212,27 +1193,10 @@ fn repair(
         })
     };
     let first = margin(&C).symmetrized();
-    if !is_psd(&first.mid, &first.rad) {
-        let mut delta = psd_shift(&first).ok_or_else(|| repair_failed("C − W D Wᵀ"))?;
-        let scale = C.amax().max(f64::MIN_POSITIVE);
-        let mut proven = false;
-        for _ in 0..60 {
-            let mut Cd = C.clone();
-            for i in 0..N {
-                Cd[(i, i)] += delta;
-            }
-            let b = margin(&Cd).symmetrized();
-            if is_psd(&b.mid, &b.rad) {
-                C = Cd;
-                proven = true;
-                break;
-            }
-            delta = 2.0 * delta + 1e-16 * scale;
-        }
-        if !proven {
-            return Err(repair_failed("C − W D Wᵀ"));
-        }
-    }
+    let C = shift_until_proven(C, &first, "C − W D Wᵀ", |shifted| {
+        let b = margin(shifted).symmetrized();
+        is_psd(&b.mid, &b.rad)
+    })?;
     // T_αβ = ⟨J₀, C_αβ⟩ as balls.
     let J0 = |p: usize, q: usize| match (p < n, q < n) {
         (true, true) => problem.P_a[(p, q)],
@@ -1323,6 +1287,34 @@ fn repair(
         eta += step;
     }
     Err(repair_failed("G + E"))
+}
+
+/// `M` itself when `first` (the enclosure of what must be PSD, formed from `M`) is proven
+/// PSD, else `M + δI` with the smallest `δ` of a doubling sequence (from `psd_shift(first)`)
+/// for which `proves` succeeds; `NotProven { what }` when none of 60 does.
+#[allow(non_snake_case)]
+fn shift_until_proven(
+    M: DMatrix<f64>,
+    first: &BallMatrix,
+    what: &str,
+    proves: impl Fn(&DMatrix<f64>) -> bool,
+) -> Result<DMatrix<f64>, SolveError> {
+    if is_psd(&first.mid, &first.rad) {
+        return Ok(M);
+    }
+    let mut delta = psd_shift(first).ok_or_else(|| repair_failed(what))?;
+    let scale = M.amax().max(f64::MIN_POSITIVE);
+    for _ in 0..60 {
+        let mut shifted = M.clone();
+        for i in 0..shifted.nrows() {
+            shifted[(i, i)] += delta;
+        }
+        if proves(&shifted) {
+            return Ok(shifted);
+        }
+        delta = 2.0 * delta + 1e-16 * scale;
+    }
+    Err(repair_failed(what))
 }
 
 fn repair_failed(what: &str) -> SolveError {

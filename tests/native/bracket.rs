@@ -180,6 +180,48 @@ fn higher_levels_never_looser_and_close_two_state_anti_diagonal_brackets() {
 }
 
 #[test]
+fn sectors_never_looser_than_level_one_up_to_solver_tolerance() {
+    // Zero multipliers (C'_k = 0, g'_k = 0) turn the level-1 certificate into a sector one,
+    // so the sector program's optimum is never above level 1's; the computed bounds agree
+    // with that up to the solver's tolerance (10⁻⁷ relative here).
+    let mut r = rng(71);
+    for k in 0..12 {
+        let pattern = match k % 3 {
+            0 => CrossPattern::from_fn(2, |i, j| i != j),
+            1 => CrossPattern::from_fn(2, |i, j| (i, j) != (1, 0)),
+            _ => CrossPattern::from_fn(2, |i, j| i == 0 || j == 0),
+        };
+        let p = random_problem(2, pattern, &mut r);
+        let one = certified_fusion(
+            &p,
+            &CertifySettings {
+                level: Some(1),
+                ..Default::default()
+            },
+        )
+        .unwrap()
+        .fused
+        .trace();
+        for sectors in [4, 32] {
+            let t = certified_fusion(
+                &p,
+                &CertifySettings {
+                    sectors: Some(sectors),
+                    ..Default::default()
+                },
+            )
+            .unwrap()
+            .fused
+            .trace();
+            assert!(
+                t <= one * (1.0 + 1e-7),
+                "k={k}, {sectors} sectors: {t} > level 1 {one}"
+            );
+        }
+    }
+}
+
+#[test]
 fn sectors_close_the_two_state_brackets_level_five_left_open() {
     // Four 2-D problems of examples/certify_levels.rs (seeded draws; matrices copied with
     // full precision) that stayed open before the sector certificates and the cuts' direction
