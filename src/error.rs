@@ -318,3 +318,9 @@ pub enum ReportError {
         message: String,
     },
 }
+
+/// A chart could not be drawn ([`crate::Chart`]): the plotting library's or the canvas'
+/// message.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("cannot draw the chart: {0}")]
+pub struct DrawError(pub String);

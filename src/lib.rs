@@ -38,6 +38,7 @@
 #![deny(missing_docs)]
 
 mod api;
+mod chart;
 mod error;
 mod explore;
 mod fig2;
@@ -52,7 +53,12 @@ pub use api::{
     fuse, fuse_json, CovarianceSummary, FuseRequest, FuseResponse, NwayEstimate, NwayPair,
     MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
 };
-pub use error::{request_field, InputError, ReportError, RequestError, SampleError, SolveError};
+#[cfg(not(target_arch = "wasm32"))]
+pub use chart::charts_svg;
+pub use chart::{draw as draw_chart, fig2_charts, study_charts, Axis, Band, Chart, Line};
+pub use error::{
+    request_field, DrawError, InputError, ReportError, RequestError, SampleError, SolveError,
+};
 pub use explore::{explore, CoinStats, Exploration, ExploreRequest, Gap, RuleReport};
 #[cfg(not(target_arch = "wasm32"))]
 pub use fig2::write_fig2;

@@ -10,12 +10,20 @@ use crate::error::RequestError;
 use crate::sim::{LiveStudy, StudyConfig};
 use crate::{ExploreRequest, Fig2Config, Fig2Record};
 
+mod canvas;
+
 /// A request object, parsed exactly as the CLI parses JSON: through a `serde_json::Value`,
 /// because serde-wasm-bindgen alone skips unknown fields instead of rejecting them.
 fn parse<T: DeserializeOwned>(request: JsValue) -> Result<T, RequestError> {
     let value: serde_json::Value = serde_wasm_bindgen::from_value(request)
         .map_err(|e| RequestError::Malformed(e.to_string()))?;
     serde_json::from_value(value).map_err(|e| RequestError::Malformed(e.to_string()))
+}
+
+/// An object this module gave out (a chart, fig. 2's rows), read back as it is: NaN stays NaN
+/// (the JSON route of [`parse`] has no NaN).
+fn parse_own<T: DeserializeOwned>(value: JsValue) -> Result<T, JsError> {
+    serde_wasm_bindgen::from_value(value).map_err(|e| JsError::new(&e.to_string()))
 }
 
 /// A request's error as a thrown JS `Error` whose `field` names the request field at fault
@@ -122,6 +130,17 @@ impl Study {
         Ok(self.inner.advance(steps)?)
     }
 
+    /// The charts so far, `{nees, rmse, omega, coin}` ([`crate::study_charts`]; `coin` only
+    /// with COIN), for [`draw_chart`].
+    pub fn charts(&self) -> Result<JsValue, JsError> {
+        let object = js_sys::Object::new();
+        for (name, chart) in self.inner.charts() {
+            js_sys::Reflect::set(&object, &name.into(), &to_js(&chart)?)
+                .map_err(|_| JsError::new("cannot attach a chart"))?;
+        }
+        Ok(object.into())
+    }
+
     /// The current snapshot ([`crate::sim::StudyView`]); the series cross as `Float64Array`s
     /// `nees`, `rmse`, `two_sigma` (`5 × series_len`), `omega` (`(2 + blocks) × series_len`)
     /// and `coin` (`5 × coin_len`).
@@ -194,6 +213,44 @@ pub fn fig2_summary(config: JsValue, runs: JsValue) -> Result<JsValue, JsError> 
     let config: Fig2Config = parse(config)?;
     let runs: Vec<Vec<Fig2Record>> = parse(runs)?;
     to_js(&crate::fig2_summary(&config, &runs))
+}
+
+/// Draws a chart ([`crate::Chart`], as `Study.charts()` and [`fig2_charts`] give it) onto
+/// `canvas`, `width` × `height` CSS pixels, with the code that writes the CLI's SVG files
+/// ([`crate::draw_chart`]); returns the number of points drawn per line. Throws when the
+/// object is not a chart or the canvas cannot be drawn on.
+#[wasm_bindgen]
+pub fn draw_chart(
+    canvas: web_sys::HtmlCanvasElement,
+    chart: JsValue,
+    width: u32,
+    height: u32,
+) -> Result<Vec<u32>, JsError> {
+    use plotters::prelude::IntoDrawingArea;
+    // Below this the axes' label areas no longer fit.
+    const MIN: (u32, u32) = (200, 120);
+    if width < MIN.0 || height < MIN.1 || width > 8192 || height > 8192 {
+        return Err(JsError::new(&format!(
+            "a chart needs {}…8192 × {}…8192 CSS pixels (got {width} × {height})",
+            MIN.0, MIN.1
+        )));
+    }
+    let chart: crate::Chart = parse_own(chart)?;
+    let backend = canvas::CanvasBackend::new(&canvas, width, height)
+        .map_err(|e| JsError::new(&e.to_string()))?;
+    let area = backend.into_drawing_area();
+    crate::draw_chart(&chart, &area)
+        .and_then(|()| area.present())
+        .map_err(|e| JsError::new(&format!("cannot draw the chart: {e}")))?;
+    Ok(chart.drawn_points().into_iter().map(|n| n as u32).collect())
+}
+
+/// Fig. 2's two charts ([`crate::fig2_charts`]) from the rows of [`fig2_summary`] and the
+/// runs they summarise.
+#[wasm_bindgen]
+pub fn fig2_charts(rows: JsValue, runs: usize) -> Result<JsValue, JsError> {
+    let rows: Vec<crate::Fig2Row> = parse_own(rows)?;
+    to_js(&crate::fig2_charts(&rows, runs))
 }
 
 /// The crate version.

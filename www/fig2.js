@@ -1,6 +1,8 @@
 // The "Fig. 2" tab: the paper's sample-size study (wasm `fig2_run`, one run at a time in a
-// Web Worker), redrawn as the runs come in as a table and two band charts.
-import { bandChart } from "./chart.js";
+// Web Worker), redrawn as the runs come in as a table and the two charts of `nmci fig2`'s
+// fig2.svg (wasm `fig2_charts`, drawn by `draw_chart`).
+import { drawChart } from "./charts.js";
+import { fig2_charts } from "./pkg/nmci.js";
 import { readWholeNumbers, workerTab } from "./worker-tab.js";
 
 const $ = (s) => document.querySelector(s);
@@ -39,14 +41,9 @@ function render(rows, runsDone, elapsedMs) {
     if (r.eig_opt[1] < -1e-6) tr.classList.add("warn");
     body.append(tr);
   }
-  const sizes = rows.map((r) => r.samples);
-  const pick = (key, i) => rows.map((r) => (r[key][i] === null ? NaN : r[key][i]));
-  const band = (key, label, color) => ({ label, color, median: pick(key, 0), min: pick(key, 1), max: pick(key, 2) });
-  bandChart($("#fig2-dev"), { sizes, yLog: true, yLabel: "‖P_nmCI − P_opt‖₂", series: [band("dev", "sampled SDP vs nmCI", "#9467bd")] });
-  bandChart($("#fig2-eig"), {
-    sizes, zero: true, yLabel: "λ_min",
-    series: [band("eig_opt", "sampled SDP", "#9467bd"), band("eig_nmci", "nmCI", "#d62728")],
-  });
+  const [dev, eig] = fig2_charts(rows, runsDone);
+  drawChart($("#fig2-dev"), dev);
+  drawChart($("#fig2-eig"), eig);
 }
 
 workerTab({

@@ -1,6 +1,6 @@
 // The tracking study off the main thread: the wasm `Study` advanced a chunk of steps at a
-// time; after each chunk the current view (headline numbers and run-averaged series as
-// Float64Arrays) goes back to the page. A "stop" message is seen between chunks.
+// time; after each chunk the current view (headline numbers) and the charts (`Study.charts`,
+// drawn on the page by the wasm `draw_chart`) go back to the page. A "stop" message is seen between chunks.
 import { Study, panic_for_test } from "./pkg/nmci.js";
 import { ready, crashMessage } from "./worker-init.js";
 
@@ -41,7 +41,7 @@ self.onmessage = async (event) => {
       }
       view.elapsed_ms = performance.now() - t0;
       view.run_ms = runTimes.slice();
-      self.postMessage({ type: "view", view }, [view.nees.buffer, view.rmse.buffer, view.two_sigma.buffer, view.omega.buffer, view.coin.buffer]);
+      self.postMessage({ type: "view", view, charts: study.charts() }, [view.nees.buffer, view.rmse.buffer, view.two_sigma.buffer, view.omega.buffer, view.coin.buffer]);
       // Yield so that a "stop" message can arrive.
       await new Promise((resolve) => setTimeout(resolve, 0));
     }

@@ -1,16 +1,15 @@
 // The "Tracking study" tab: runs the paper's 16-agent study in a Web Worker (wasm `Study`)
-// and redraws the headline table and three charts after every chunk of steps. The network is
+// and redraws the headline table and the four charts (drawn by the wasm module, as `nmci track`
+// draws its SVG files) after every chunk of steps. The network is
 // picked (paper fit, the figure's reading, custom links) and drawn by the wasm module.
-import { lineChart } from "./chart.js";
+import { drawChart } from "./charts.js";
 import { readWholeNumbers, workerTab } from "./worker-tab.js";
 import init, { study_estimators, study_network, study_networks } from "./pkg/nmci.js";
-import { RULE } from "./rules.js"; // loads the wasm module first
 
 const $ = (s) => document.querySelector(s);
-// The estimators in the series' order, with their labels and colours, and whether the charts
-// draw them (naive fusion is off their scale): from the wasm module (`sim::Estimator`).
-const ESTIMATORS = study_estimators().map((e, index) => ({ ...e, index }));
-const CHARTED = ESTIMATORS.filter((e) => e.charted);
+// The estimators in the series' order, with their labels: from the wasm module
+// (`sim::Estimator`).
+const ESTIMATORS = study_estimators();
 
 // Tabs.
 function showTab(name) {
@@ -93,9 +92,7 @@ function readConfig() {
 
 const fmt = (v) => (!Number.isFinite(v) ? "—" : Math.abs(v) >= 1e5 ? v.toExponential(2) : v.toFixed(3));
 
-function render(view) {
-  const n = view.series_len;
-  const row = (arr, s) => arr.subarray(s * n, (s + 1) * n);
+function render(view, charts) {
   // Work: the runs' steps, then (with COIN) one step per estimator (5) of the exact COIN.
   const coinWork = view.coin_enabled ? ESTIMATORS.length * view.steps : 0;
   const total = view.runs * view.steps + coinWork;
@@ -131,31 +128,12 @@ function render(view) {
     `nmCI vs CI: RMSE ${gain(view.report.nmci.rmse_mean, view.report.ci.rmse_mean)}, 2σ ${gain(view.report.nmci.two_sigma_mean, view.report.ci.two_sigma_mean)}. ` +
     `Steady ω (7←11): CI ${fmt(w.ci)}; nmCI ${w.nmci.map((v) => v.toFixed(2)).join(", ")} (G1x … G4y); ICI ${fmt(w.ici)}.` +
     (view.report.nmci.coin_mean !== undefined ? ` Mean COIN: CI ${fmt(view.report.ci.coin_mean)}, nmCI ${fmt(view.report.nmci.coin_mean)}, ICI ${fmt(view.report.ici.coin_mean)} (closer to 1 = less conservative).` : "");
-  const [lo, hi] = view.report.nees_bounds;
-  lineChart($("#study-nees"), {
-    dt: view.dt, steps: view.steps, band: [lo, hi], yLabel: "NEES",
-    yRange: [0, Math.max(2 * hi, 10)],
-    series: CHARTED.map((e) => ({ label: e.label, color: e.colour, values: row(view.nees, e.index) })),
-  });
-  lineChart($("#study-rmse"), {
-    dt: view.dt, steps: view.steps, yLabel: "m",
-    series: CHARTED.flatMap((e) => [
-      { label: `${e.short_label} RMSE`, color: e.colour, values: row(view.rmse, e.index) },
-      { label: "2σ", color: e.colour, dash: true, values: row(view.two_sigma, e.index) },
-    ]),
-  });
-  const omega = [{ label: RULE.ci.label, color: RULE.ci.colour, values: row(view.omega, 0) }];
-  for (let b = 0; b < view.blocks; b++) {
-    const shade = Math.round((200 * b) / Math.max(view.blocks - 1, 1));
-    omega.push({ label: `G${Math.floor(b / 2) + 1}${b % 2 ? "y" : "x"}`, color: `rgb(214, ${shade}, ${Math.round(shade / 2)})`, dash: b % 2 === 1, values: row(view.omega, b + 1) });
+  const canvases = { nees: "#study-nees", rmse: "#study-rmse", omega: "#study-omega-plot", coin: "#study-coin-plot" };
+  for (const [name, id] of Object.entries(canvases)) {
+    const canvas = $(id);
+    canvas.hidden = !charts[name];
+    if (charts[name]) drawChart(canvas, charts[name]);
   }
-  omega.push({ label: RULE.ici.label, color: RULE.ici.colour, values: row(view.omega, view.blocks + 1) });
-  lineChart($("#study-omega-plot"), { dt: view.dt, steps: view.steps, yRange: [-0.05, 1.05], yLabel: "ω", series: omega });
-  const c = view.coin_len;
-  lineChart($("#study-coin-plot"), {
-    dt: view.dt, steps: view.steps, yLabel: "COIN", yRange: [0.5, 1.1], band: [0.5, 1],
-    series: c ? CHARTED.map((e) => ({ label: e.label, color: e.colour, values: view.coin.subarray(e.index * c, (e.index + 1) * c) })) : [],
-  });
 }
 
 const tab = workerTab({
@@ -163,7 +141,7 @@ const tab = workerTab({
   label: "study",
   url: new URL("./study-worker.js", import.meta.url),
   readConfig,
-  onProgress: (msg) => render(msg.view),
+  onProgress: (msg) => render(msg.view, msg.charts),
 });
 for (const key of ["runs", "steps", "seed"]) {
   $(`#study-${key}`).addEventListener("keydown", (e) => { if (e.key === "Enter" && !tab.running()) tab.start(); });

@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use super::{
     estimators, summarize, ErrorPropagation, Model, RunState, RunTrace, SimError, Storage,
-    StudyConfig, StudyReport,
+    StudyConfig, StudyReport, StudySummary,
 };
 
 /// The runs of a study, run one after the other and advanced in chunks of steps. The numbers
@@ -135,26 +135,39 @@ impl LiveStudy {
         Ok(self.finished())
     }
 
-    /// The current snapshot.
-    pub fn view(&self) -> StudyView {
+    /// The summary of the runs so far (the run in progress included) and how many runs it
+    /// averages, with every estimator's COIN up to the step all of them reached.
+    fn summary(&self) -> (StudySummary, usize) {
         let mut traces = self.done.clone();
         if let Some(run) = &self.current {
             traces.push(run.trace().clone());
         }
         let mut summary = summarize(&traces, self.model.dim());
-        // Every estimator's series up to the step all of them reached.
         let coin_len = self.coin.iter().map(|(_, s)| s.len()).min().unwrap_or(0);
         let coin: Vec<Vec<f64>> = self
             .coin
             .iter()
             .map(|(_, s)| s[..coin_len].to_vec())
             .collect();
-        let coin_flat = coin.concat();
         if !coin.is_empty() {
             summary.attach_coin(coin);
         }
+        (summary, traces.len())
+    }
+
+    /// The study's charts so far ([`crate::study_charts`]: what `nmci track` writes as SVG).
+    pub fn charts(&self) -> Vec<(&'static str, crate::Chart)> {
+        let (summary, runs) = self.summary();
+        crate::study_charts(&self.config, &summary, runs)
+    }
+
+    /// The current snapshot.
+    pub fn view(&self) -> StudyView {
+        let (summary, runs) = self.summary();
+        let coin_len = summary.coin_series.first().map_or(0, Vec::len);
+        let coin_flat = summary.coin_series.concat();
         let mut report = StudyReport::new(&self.config, &summary);
-        report.runs = traces.len();
+        report.runs = runs;
         let series_len = summary.nees_series.first().map_or(0, Vec::len);
         let flat = |series: &[Vec<f64>]| series.concat();
         let mut omega = summary.omega_ci_series.clone();

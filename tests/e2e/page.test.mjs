@@ -57,6 +57,18 @@ async function settle() {
 const text = (sel) => page.locator(sel).innerText();
 const num = async (sel) => Number((await text(sel)).trim());
 /** The region's ellipses drawn: closed subpaths of the region layer's one path. */
+/** `#rrggbb` → [r, g, b]. */
+const hexRgb = (hex) => [1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16));
+/** The page's registry entry of a rule (the wasm `rules()`, as www/rules.js reads it). */
+const ruleOf = (name) => page.evaluate(async (n) => (await import("./rules.js")).RULE[n], name);
+/** How many pixels of the canvas `sel` are exactly the colour `[r, g, b]` (opaque). */
+const pixelsOf = (sel, [r, g, b]) =>
+  page.locator(sel).evaluate((c, [r, g, b]) => {
+    const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+    let n = 0;
+    for (let i = 0; i < d.length; i += 4) if (d[i] === r && d[i + 1] === g && d[i + 2] === b && d[i + 3] === 255) n++;
+    return n;
+  }, [r, g, b]);
 const regionEllipses = async () => ((await page.locator("#layer-region path").getAttribute("d")) ?? "").split("M").length - 1;
 const cell = (key, i, j) => page.locator(`#grid-${key} input[aria-label="${key === "pa" ? "P_a" : "P_b"}[${i},${j}]"]`);
 
@@ -459,10 +471,16 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
   assert.ok(twoSigma("nmci") < twoSigma("ci"));
   assert.ok(rmse("central") < rmse("nmci"));
   assert.match(await text("#study-omega"), /nmCI vs CI: RMSE -\d+%/);
-  // Four charts, each with its series drawn over the whole run.
+  const ci = await page.evaluate(async () => (await import("./pkg/nmci.js")).study_estimators().find((e) => e.name === "ci"));
+  const CI_RGB = hexRgb(ci.colour);
+  // Four charts drawn by the wasm module on canvases (src/chart.rs, the code of `nmci track`'s
+  // SVG files): every line over the whole run, and CI's colour on the canvas.
   for (const id of ["#study-nees", "#study-rmse", "#study-omega-plot", "#study-coin-plot"]) {
-    const lengths = await page.locator(`${id} path[data-label]`).evaluateAll((ps) => ps.map((p) => p.getAttribute("d").split("L").length));
+    const lengths = (await page.getAttribute(id, "data-points")).split(",").map(Number);
     assert.ok(lengths.length >= 3 && lengths.every((n) => n === 80), `${id}: ${lengths}`);
+    const labels = JSON.parse(await page.getAttribute(id, "data-labels"));
+    assert.ok(labels.some((l) => l !== null && l.startsWith(ci.short_label)), `${id}: no CI line in ${labels}`);
+    assert.ok((await pixelsOf(id, CI_RGB)) > 50, `${id}: CI's colour not drawn`);
   }
   await page.screenshot({ path: join(out, "study.png"), fullPage: true });
 });
@@ -557,9 +575,12 @@ test("the fig. 2 tab runs the sample-size study: non-conservative at N = 1, nmCI
   assert.ok(Number(rows[2][4]) <= 1.00001, `N = 100: max COIN ${rows[2][4]}`);
   assert.ok(rows.every((r) => r[5] === "1.00000"), JSON.stringify(rows));
   assert.ok(rows.every((r) => Number(r[3]) >= -1e-9 && r[6] === "0"), JSON.stringify(rows));
-  assert.equal(await page.locator("#fig2-dev path[data-label]").count(), 1);
-  assert.equal(await page.locator("#fig2-eig path[data-label]").count(), 2);
-  assert.equal(await page.locator("#fig2-eig circle").count(), 6);
+  const NMCI_RGB = hexRgb((await ruleOf("nmci")).colour);
+  // The charts of fig2.svg (wasm `fig2_charts` + `draw_chart`): the deviation's median over
+  // the three sizes; the zero line, then the SDP's and nmCI's medians; nmCI's colour drawn.
+  assert.equal(await page.getAttribute("#fig2-dev", "data-points"), "3");
+  assert.equal(await page.getAttribute("#fig2-eig", "data-points"), "2,3,3");
+  assert.ok((await pixelsOf("#fig2-eig", NMCI_RGB)) > 20, "nmCI's colour not drawn");
   await page.screenshot({ path: join(out, "fig2.png"), fullPage: true });
   await page.click("#tab-explorer");
 });

@@ -11,6 +11,7 @@ mod golden;
 
 mod bracket;
 mod certify;
+mod charts;
 mod ci;
 mod cli;
 mod cuts;

@@ -1,0 +1,31 @@
+// The study's and fig. 2's charts: drawn by the wasm module (`draw_chart`, src/chart.rs)
+// onto canvases through web-sys — the code that writes the SVG files of `nmci track` and
+// `nmci fig2`. This module only sizes the canvas and keeps the last chart for a redraw when
+// the window is resized.
+import { draw_chart } from "./pkg/nmci.js";
+import "./rules.js"; // loads the wasm module first
+
+const last = new Map(); // canvas → the chart drawn last
+
+/** Draws `chart` (an object from the wasm module) onto `canvas` at its CSS size (560 × 300
+ * while the canvas is hidden); records on the canvas, for tests, the points drawn per line
+ * (`data-points`) and the lines' legend labels (`data-labels`). */
+export function drawChart(canvas, chart) {
+  last.set(canvas, chart);
+  const width = Math.round(canvas.clientWidth) || 560;
+  const height = Math.round(canvas.clientHeight) || 300;
+  const points = draw_chart(canvas, chart, width, height);
+  canvas.dataset.points = Array.from(points).join(",");
+  canvas.dataset.labels = JSON.stringify(chart.lines.map((l) => l.label ?? null));
+  return points;
+}
+
+let pending = false;
+addEventListener("resize", () => {
+  if (pending) return;
+  pending = true;
+  requestAnimationFrame(() => {
+    pending = false;
+    for (const [canvas, chart] of last) if (canvas.clientWidth) drawChart(canvas, chart);
+  });
+});
