@@ -1,4 +1,4 @@
-//! The cutting planes guided by the certified rule vs not (numbers in the README): two random non-separable problems per dimension (seed 55, each entry of
+//! The cutting planes guided by the certified rule vs not (numbers in docs/methods.md): two random non-separable problems per dimension (seed 55, each entry of
 //! `P_ab` unknown with probability 0.6).
 //!
 //! `cargo run --release --example cuts_probe -- 3 4 5 6`

@@ -1,5 +1,5 @@
 """Python benchmark (scripts/python.sh bench): nmci from Python against what a Python user would
-write instead. Prints a Markdown table (median of repeated runs, this machine) for the README.
+write instead. Prints a Markdown table (median of repeated runs, this machine) for docs/python.md.
 
 - CI at n = 112 (two random SPD covariances, fixed seed): ``nmci.ci`` against scipy's bounded
   scalar minimiser on ``tr((ω P_a⁻¹ + (1 − ω) P_b⁻¹)⁻¹)`` (inverses computed once) and against a

@@ -106,7 +106,7 @@ pub struct NwayPair {
     pub pab_unknown: Vec<Vec<bool>>,
 }
 
-/// A fusion request (see the README for the JSON form): two estimates (`pa`, `pb`, …) or,
+/// A fusion request (see docs/contract.md for the JSON form): two estimates (`pa`, `pb`, …) or,
 /// for N-way CI / nmCI, `estimates` and `patterns`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -38,6 +38,10 @@
 #![deny(missing_docs)]
 
 mod api;
+/// The README's Rust example, run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeExample;
 mod chart;
 mod error;
 mod explore;

@@ -90,7 +90,7 @@ __all__ = [
 
 
 class Fused:
-    """A fused estimate: the contract's response (README, "JSON contract") with numpy arrays.
+    """A fused estimate: the contract's response (docs/contract.md) with numpy arrays.
 
     Every field of the response is an attribute (``None`` when the method does not report it);
     ``P``, ``Ka`` and ``Kb`` are the contract's ``p``, ``ka`` and ``kb``. ``r["field"]`` reads

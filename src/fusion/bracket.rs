@@ -78,7 +78,7 @@ pub const CLOSED_RTOL: f64 = 1e-6;
 
 /// The certified rule joins the `sdp` / `sdp_cuts` bracket's upper bound when every
 /// independent block has at most this many states (the level-1 program grows as
-/// `(2n² + 1)²`; timings in the README). Method `"certified"` itself goes to
+/// `(2n² + 1)²`; timings in docs/development.md). Method `"certified"` itself goes to
 /// [`CertifySettings::max_block_dim`](super::certify::CertifySettings::max_block_dim).
 pub const BRACKET_CERTIFY_MAX_BLOCK: usize = 4;
 

@@ -81,7 +81,7 @@
 //! certificate on each semialgebraic piece, as in Putinar's); `C′_k = 0`, `g′_k = 0` is the
 //! level-1 certificate, so sectors are never looser than level 1 (up to solver tolerance);
 //! finer sectors let the certificate follow the direction more closely, but no monotonicity
-//! in `S` and no convergence to the robust optimum is claimed (the README's sweep measures
+//! in `S` and no convergence to the robust optimum is claimed (the sweep in docs/methods.md measures
 //! how far they close the brackets). The program: `min tr Q` with `S` copies of
 //! the level-1 cone (size `2n² + 1 = 9` each), `S` cones of size `2n = 4` for the `C′_k`,
 //! and `g′ ≥ 0`. The multipliers' coefficients are integers below `2¹⁴` times `2⁻¹²`,
@@ -233,7 +233,7 @@ impl CertifySettings {
     }
 
     /// The level used for a block of `dim` states: the setting, or by default the level
-    /// chosen from the measured gap-and-time curves (README, `examples/certify_levels.rs`):
+    /// chosen from the measured gap-and-time curves (docs/methods.md, `examples/certify_levels.rs`):
     /// 5 for blocks of at most 2 states (level 4 left a few measured brackets open by up to
     /// `10⁻⁴`), 2 for 3 states (the highest level below a second), 1 above.
     pub fn level_for(&self, dim: usize) -> u32 {
@@ -263,7 +263,7 @@ pub const MAX_LEVEL: u32 = 6;
 pub const MAX_SECTORS: u32 = 64;
 
 /// The default number of sectors of a two-state block, chosen from the measured
-/// gap-and-time curves (README, `examples/certify_levels.rs`).
+/// gap-and-time curves (docs/methods.md, `examples/certify_levels.rs`).
 pub const DEFAULT_SECTORS: u32 = 32;
 
 /// A block solved only `AlmostSolved` whose repair added more than this fraction of its trace

@@ -47,7 +47,7 @@
 //! `constraints` counts the final program, `constraints_generated` the whole run.
 //!
 //! `converged: false` reports an iteration or time limit (`stop` says which); a solver
-//! failure is returned as an error. Measurements: README (`examples/cuts_probe.rs`).
+//! failure is returned as an error. Measurements: docs/methods.md (`examples/cuts_probe.rs`).
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::SupportedConeT;

@@ -221,7 +221,7 @@ pub struct RuleInfo {
 /// the CLI, the page and Python), checked before any matrix is built; a larger request is
 /// refused with an error naming the field and the limit. The library's functions take any
 /// size (their settings' `time_limit` bounds the solvers). The limits keep every accepted
-/// request to seconds and at most a few hundred MB on a small machine (README, "Limits",
+/// request to seconds and at most a few hundred MB on a small machine (docs/contract.md, "Limits",
 /// has the measurements they come from).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct Limits {
@@ -352,7 +352,7 @@ pub const RULES: [RuleInfo; 8] = [
         nway: false,
         explorer: false,
         limits: Limits {
-            // The README's cuts table reaches 6-state blocks; an 8-state one did not
+            // The cuts table of docs/methods.md reaches 6-state blocks; an 8-state one did not
             // finish in 120 s.
             max_dim: 12,
             max_block: 6,

@@ -351,7 +351,7 @@ test("interaction cost: each of 40 edits is recomputed once, to the CLI's number
   assert.equal(stats.runs - runs0, 40, "one recompute per edit");
   assert.equal(stats.count, 40);
   assert.ok(stats.timings.every((t) => Number.isFinite(t) && t > 0), JSON.stringify(stats.timings));
-  // The cost itself is a measurement (written for the README), not an assertion.
+  // The cost itself is a measurement (written for docs/development.md), not an assertion.
   await writeFile(join(out, "interaction.json"), JSON.stringify({ ...stats, what: "edit → all rules + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone" }, null, 2));
   console.log(`interaction cost: median ${stats.median.toFixed(1)} ms over ${stats.count} edits (wasm explore ${stats.compute_median.toFixed(1)} ms)`);
 });

@@ -335,15 +335,26 @@ fn sweep_writes_the_ranking_the_best_configuration_and_its_drawing() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// The README's `nmci fuse` examples, run as written: every `"key": value` the README shows
-/// (values elided as `…` or `[...]` are skipped) equals the response's to 1e-12 relative, and
-/// the error example prints its line and exits 1. Also the paper-example figures quoted in
-/// prose (CI `tr P = 3.088`, `ω = 0.556`).
+/// The `nmci fuse` examples of the README and docs/contract.md, run as written: every
+/// `"key": value` they show (values elided as `…` or `[...]` are skipped) equals the
+/// response's to 1e-12 relative, and the error example prints its line and exits 1.
 #[test]
 fn the_readme_cli_examples_print_what_the_readme_shows() {
-    let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
-    let lines: Vec<&str> = readme.lines().collect();
+    for (file, examples) in [("README.md", 1), ("docs/contract.md", 3)] {
+        let text =
+            std::fs::read_to_string(format!("{}/{file}", env!("CARGO_MANIFEST_DIR"))).unwrap();
+        assert_eq!(
+            cli_examples_checked(file, &text),
+            examples,
+            "{file}'s nmci fuse examples"
+        );
+    }
+}
+
+/// Runs the `$ echo '…' | nmci fuse` examples of `text` and checks what they show; returns
+/// how many it checked.
+fn cli_examples_checked(file: &str, text: &str) -> usize {
+    let lines: Vec<&str> = text.lines().collect();
     let mut checked = 0;
     for (k, line) in lines.iter().enumerate() {
         let Some(rest) = line.strip_prefix("$ echo '") else {
@@ -380,7 +391,7 @@ fn the_readme_cli_examples_print_what_the_readme_shows() {
             };
             assert!(
                 same(&expected, &response[key]),
-                "README line {}: {key} = {expected}, the CLI gives {}",
+                "{file} line {}: {key} = {expected}, the CLI gives {}",
                 k + 2,
                 response[key]
             );
@@ -388,13 +399,19 @@ fn the_readme_cli_examples_print_what_the_readme_shows() {
         }
         assert!(
             pairs >= 5,
-            "README line {}: only {pairs} values read",
+            "{file} line {}: only {pairs} values read",
             k + 2
         );
         checked += 1;
     }
-    assert_eq!(checked, 3, "the README's three nmci fuse examples");
-    // The prose figures of the paper's example.
+    checked
+}
+
+/// The prose figures of the paper's example (the README's and docs/contract.md's).
+#[test]
+fn the_paper_example_prose_figures_hold() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
     let (code, out, _) = nmci(
         &["fuse"],
         r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, false], [false, true]], "method": "ci"}"#,
@@ -404,6 +421,19 @@ fn the_readme_cli_examples_print_what_the_readme_shows() {
     assert!(readme.contains("`tr P = 3.088` (`ω = 0.556`)"));
     assert_eq!(format!("{:.3}", v["trace"].as_f64().unwrap()), "3.088");
     assert_eq!(format!("{:.3}", v["omega"][0].as_f64().unwrap()), "0.556");
+    // The README's CLI example in prose: one known zero, the certified trace against CI's.
+    let (code, out, _) = nmci(
+        &["fuse"],
+        r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, true], [false, true]], "method": "certified"}"#,
+    );
+    assert_eq!(code, 0);
+    let cert: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let shown = format!(
+        "certified rule's bound has\ntrace {:.8}, proven for every admissible `P_ab` (CI's is {:.3})",
+        cert["trace"].as_f64().unwrap(),
+        v["trace"].as_f64().unwrap()
+    );
+    assert!(readme.contains(&shown), "the README should say: {shown}");
 }
 
 /// Equal JSON values, numbers to 1e-12 relative.

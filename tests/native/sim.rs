@@ -709,7 +709,7 @@ fn steady(values: impl Iterator<Item = f64>) -> f64 {
 
 #[test]
 fn the_documented_weights_and_two_sigma_of_both_networks() {
-    // docs/reproduction.md and the README quote these (400 steps; the covariance-only
+    // docs/reproduction.md and docs/study.md quote these (400 steps; the covariance-only
     // recursion is every Monte Carlo run's, bit for bit, so they hold for every run).
     for (name, config, omega_ci, far, reduction) in [
         (

@@ -154,7 +154,7 @@ fn exact_error_covariance_whitens_the_simulated_errors_of_a_chained_network() {
 /// (its covariance is its error covariance), CI and nmCI never exceed 1 (conservative, as
 /// proven) and naive fusion exceeds it from the first exchange on. Which of CI and nmCI is
 /// closer to 1 changes over time: over these 40 steps nmCI's mean COIN is lower, 0.86 vs
-/// 0.97 (asserted: the README quotes it); over the full 400 steps it is higher, 0.909 vs
+/// 0.97 (asserted: docs/study.md quotes it); over the full 400 steps it is higher, 0.909 vs
 /// 0.894 (`docs/figures/track/summary.json`).
 #[test]
 fn coin_of_the_paper_study() {
