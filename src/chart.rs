@@ -5,7 +5,7 @@
 //! web-sys (`crate::wasm::draw_chart`, the backend in `src/wasm/canvas.rs`). The page's charts
 //! and the files in `docs/figures` are therefore the same drawing of the same numbers.
 //!
-//! Layout (in the backend's pixels): the title, a legend row (wrapped to the width), then
+//! Layout (in the backend's pixels): the title and the legend, each wrapped to the width, then
 //! the plot with its axes. Non-finite values break a line (and are left out of a band); on a
 //! log axis values `≤ 0` are left out too. A point left alone between two gaps is drawn as a
 //! dot, so every visible value shows.
@@ -186,11 +186,34 @@ pub fn draw<DB: DrawingBackend>(
     let (width, _) = area.dim_in_pixel();
     let title_style = ("sans-serif", TITLE).into_font().color(&BLACK);
     let text_style = ("sans-serif", TEXT).into_font().color(&BLACK);
-    area.draw(&Text::new(chart.title.clone(), (8, 4), title_style))?;
+    // The title, wrapped at spaces to the width.
+    let mut title_lines: Vec<String> = Vec::new();
+    for word in chart.title.split(' ') {
+        match title_lines.last_mut() {
+            Some(line)
+                if area
+                    .estimate_text_size(&format!("{line} {word}"), &title_style)?
+                    .0
+                    <= width.saturating_sub(16) =>
+            {
+                line.push(' ');
+                line.push_str(word);
+            }
+            _ => title_lines.push(word.to_string()),
+        }
+    }
+    let title_height = TITLE as i32 + 4;
+    for (k, line) in title_lines.iter().enumerate() {
+        area.draw(&Text::new(
+            line.clone(),
+            (8, 4 + title_height * k as i32),
+            title_style.clone(),
+        ))?;
+    }
     // The legend: entries laid out left to right, wrapped to the width.
     let legend = chart.legend();
     let row_height = TEXT as i32 + 6;
-    let top = TITLE as i32 + 10;
+    let top = title_height * title_lines.len() as i32 + 6;
     let (mut x, mut y) = (8_i32, top);
     let mut placed = Vec::with_capacity(legend.len());
     for &(label, colour, dashed, filled) in &legend {

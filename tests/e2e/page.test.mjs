@@ -622,3 +622,31 @@ test("the N-way tab fuses three estimates: nmCI per block, CI one weight set; ba
   assert.equal(await text("#nway-row-nmci .trace"), "2.000");
   await page.click("#tab-explorer");
 });
+
+test("every tab fits a 1400 px and a phone-width window: no page-wide horizontal scroll, wide tables scroll in their own box", async () => {
+  for (const [width, height] of [[1400, 900], [390, 844]]) {
+    await page.setViewportSize({ width, height });
+    for (const tab of ["explorer", "study", "fig2", "nway"]) {
+      await page.click(`#tab-${tab}`);
+      await page.waitForTimeout(200); // a resize redraws the charts in the next frame
+      const [scroll, client] = await page.evaluate(() => [document.documentElement.scrollWidth, document.documentElement.clientWidth]);
+      assert.ok(scroll <= client, `${tab} at ${width} px: the page scrolls sideways (${scroll} > ${client})`);
+      // Whatever sticks out of the window is inside a box that scrolls itself.
+      const loose = await page.evaluate(() => {
+        const W = document.documentElement.clientWidth;
+        const boxed = (e) => { for (let p = e.parentElement; p; p = p.parentElement) if (getComputedStyle(p).overflowX !== "visible") return true; return false; };
+        return [...document.querySelectorAll("body *")].filter((e) => e.offsetParent && e.getBoundingClientRect().right > W + 1 && !boxed(e)).map((e) => `${e.tagName}#${e.id}`);
+      });
+      assert.deepEqual(loose, [], `${tab} at ${width} px`);
+      // The charts are drawn at the canvas' width.
+      for (const canvas of await page.locator(`#${tab} canvas.chart`).all()) {
+        if (!(await canvas.isVisible()) || !(await canvas.getAttribute("data-points"))) continue;
+        const [w, cssW] = await canvas.evaluate((c) => [c.width / devicePixelRatio, c.clientWidth]);
+        assert.ok(Math.abs(w - cssW) <= 1, `${tab} at ${width} px: a chart drawn ${w} px wide in a ${cssW} px box`);
+      }
+      await page.screenshot({ path: join(out, `fit-${width}-${tab}.png`), fullPage: true });
+    }
+  }
+  await page.setViewportSize({ width: 1400, height: 900 });
+  await page.click("#tab-explorer");
+});
