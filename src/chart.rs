@@ -340,8 +340,8 @@ fn tick(v: f64, log: bool) -> String {
     }
 }
 
-/// The study's charts, by name (`nees`, `rmse`, `omega`, and `coin` when the summary has
-/// COIN series), from a study's configuration and (possibly partial) summary. The time axis
+/// The study's charts, by name (`nees`, `rmse`, `omega`, and [`coin_chart`] when the summary
+/// has COIN series), from a study's configuration and (possibly partial) summary. The time axis
 /// covers the configured steps, so a study in progress fills it from the left.
 pub fn study_charts(
     config: &StudyConfig,
@@ -355,34 +355,12 @@ pub fn study_charts(
         log: false,
         range: Some((0.0, t_max)),
     };
-    let at_steps = |values: &[f64]| -> Vec<(f64, f64)> {
-        values
-            .iter()
-            .enumerate()
-            .map(|(k, &v)| ((k + 1) as f64 * dt, v))
-            .collect()
-    };
-    // The estimators drawn ([`Estimator::charted`]): naive fusion's NEES and COIN grow by
-    // orders of magnitude, so it is left off (the CSV files and the table have it).
+    let at_steps = |values: &[f64]| at_steps(dt, values);
+    // The estimators drawn ([`Estimator::charted`]).
     let shown: Vec<(usize, Estimator)> = crate::sim::estimators()
         .enumerate()
         .filter(|(_, e)| e.charted())
         .collect();
-    let per_estimator = |series: &[Vec<f64>]| -> Vec<Line> {
-        shown
-            .iter()
-            .filter_map(|&(s, e)| {
-                Some(Line {
-                    label: Some(e.label()),
-                    colour: e.colour().into(),
-                    width: 2,
-                    dashed: false,
-                    dots: false,
-                    points: at_steps(series.get(s)?),
-                })
-            })
-            .collect()
-    };
     let (lo, hi) = summary.nees_bounds;
     let mut charts = vec![
         (
@@ -408,7 +386,7 @@ pub fn study_charts(
                     lower: vec![lo, lo],
                     upper: vec![hi, hi],
                 }],
-                lines: per_estimator(&summary.nees_series),
+                lines: estimator_lines(dt, &summary.nees_series),
             },
         ),
         (
@@ -503,33 +481,68 @@ pub fn study_charts(
         },
     ));
     if !summary.coin_series.is_empty() {
-        let lines = per_estimator(&summary.coin_series);
-        charts.push((
-            "coin",
-            Chart {
-                title: format!(
-                    "exact COIN of agent {} (≤ 1: conservative; naive fusion is off the scale)",
-                    config.agent
-                ),
-                x: time(),
-                y: Axis {
-                    label: "COIN".into(),
-                    log: false,
-                    range: Some((0.0, 1.1)),
-                },
-                bands: vec![Band {
-                    label: Some("conservative".into()),
-                    colour: "#2a9d3f".into(),
-                    opacity: 0.1,
-                    x: vec![0.0, t_max],
-                    lower: vec![0.0, 0.0],
-                    upper: vec![1.0, 1.0],
-                }],
-                lines,
-            },
-        ));
+        charts.push(("coin", coin_chart(config, &summary.coin_series)));
     }
     charts
+}
+
+/// The study's COIN chart (`coin.svg`) from every estimator's exact COIN series (in
+/// [`crate::sim::estimators`] order; naive fusion is left off, as on the other charts).
+pub fn coin_chart(config: &StudyConfig, coin_series: &[Vec<f64>]) -> Chart {
+    let dt = config.scenario.dt;
+    let t_max = config.steps as f64 * dt;
+    Chart {
+        title: format!(
+            "exact COIN of agent {} (≤ 1: conservative; naive fusion is off the scale)",
+            config.agent
+        ),
+        x: Axis {
+            label: "time [s]".into(),
+            log: false,
+            range: Some((0.0, t_max)),
+        },
+        y: Axis {
+            label: "COIN".into(),
+            log: false,
+            range: Some((0.0, 1.1)),
+        },
+        bands: vec![Band {
+            label: Some("conservative".into()),
+            colour: "#2a9d3f".into(),
+            opacity: 0.1,
+            x: vec![0.0, t_max],
+            lower: vec![0.0, 0.0],
+            upper: vec![1.0, 1.0],
+        }],
+        lines: estimator_lines(dt, coin_series),
+    }
+}
+
+/// One line per charted estimator ([`Estimator::charted`]: naive fusion's NEES and COIN grow
+/// by orders of magnitude, so it is left off; the CSV files and the table have it), its
+/// `series` at the steps' times.
+fn estimator_lines(dt: f64, series: &[Vec<f64>]) -> Vec<Line> {
+    crate::sim::estimators()
+        .zip(series)
+        .filter(|(e, _)| e.charted())
+        .map(|(e, values)| Line {
+            label: Some(e.label()),
+            colour: e.colour().into(),
+            width: 2,
+            dashed: false,
+            dots: false,
+            points: at_steps(dt, values),
+        })
+        .collect()
+}
+
+/// `values[k]` at time `(k + 1)·dt`.
+fn at_steps(dt: f64, values: &[f64]) -> Vec<(f64, f64)> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| ((k + 1) as f64 * dt, v))
+        .collect()
 }
 
 /// Fig. 2's two charts from its summary rows over `runs` runs: `‖P_nmCI − P_opt‖₂` against

@@ -59,7 +59,9 @@ pub use api::{
 };
 #[cfg(not(target_arch = "wasm32"))]
 pub use chart::charts_svg;
-pub use chart::{draw as draw_chart, fig2_charts, study_charts, Axis, Band, Chart, Line};
+pub use chart::{
+    coin_chart, draw as draw_chart, fig2_charts, study_charts, Axis, Band, Chart, Line,
+};
 pub use error::{
     request_field, DrawError, InputError, ReportError, RequestError, SampleError, SolveError,
 };

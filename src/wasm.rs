@@ -7,7 +7,7 @@ use wasm_bindgen::prelude::*;
 
 use crate::api::FuseRequest;
 use crate::error::RequestError;
-use crate::sim::{LiveStudy, StudyConfig};
+use crate::sim::{LiveCoin, LiveStudy, StudyConfig};
 use crate::{ExploreRequest, Fig2Config, Fig2Record};
 
 mod canvas;
@@ -159,6 +159,50 @@ impl Study {
                 .map_err(|_| JsError::new("cannot attach a series to the view"))?;
         }
         Ok(object)
+    }
+}
+
+/// The exact COIN of a study on its own, advanced a few estimator-steps at a time: what the
+/// page runs in a second Web Worker beside the runs ([`crate::sim::LiveCoin`]).
+#[wasm_bindgen]
+pub struct StudyCoin {
+    inner: LiveCoin,
+}
+
+#[wasm_bindgen]
+impl StudyCoin {
+    /// From a study configuration object (the keys of `configs/paper.toml`; `coin` is not
+    /// consulted); throws on an invalid configuration.
+    #[wasm_bindgen(constructor)]
+    pub fn new(config: JsValue) -> Result<StudyCoin, JsError> {
+        let config: StudyConfig = parse(config)?;
+        Ok(StudyCoin {
+            inner: LiveCoin::new(config)?,
+        })
+    }
+
+    /// Advances by up to `units` estimator-steps; returns whether it is finished.
+    pub fn advance(&mut self, units: usize) -> Result<bool, JsError> {
+        Ok(self.inner.advance(units)?)
+    }
+
+    /// The current snapshot ([`crate::sim::CoinView`]); `coin` (`5 × coin_len`) crosses as a
+    /// `Float64Array`.
+    pub fn view(&self) -> Result<JsValue, JsError> {
+        let view = self.inner.view();
+        let object = to_js(&view)?;
+        js_sys::Reflect::set(
+            &object,
+            &"coin".into(),
+            &js_sys::Float64Array::from(view.coin.as_slice()),
+        )
+        .map_err(|_| JsError::new("cannot attach the series to the view"))?;
+        Ok(object)
+    }
+
+    /// The COIN chart so far ([`crate::coin_chart`]), for [`draw_chart`].
+    pub fn chart(&self) -> Result<JsValue, JsError> {
+        to_js(&self.inner.chart())
     }
 }
 

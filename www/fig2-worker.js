@@ -2,7 +2,7 @@
 // as `nmci fig2`), the summary rows (`fig2_summary`) posted back at most every 100 ms and at
 // the end. A "stop" message is seen between runs.
 import { fig2_run, fig2_summary } from "./pkg/nmci.js";
-import { ready, crashMessage } from "./worker-init.js";
+import { ready, reportFailure } from "./worker-init.js";
 
 let stopped = false;
 
@@ -36,8 +36,6 @@ self.onmessage = async (event) => {
     if (posted < runs.length) post();
     self.postMessage({ type: stopped ? "stopped" : "done" });
   } catch (err) {
-    const crash = crashMessage(err);
-    self.postMessage({ type: crash ? "crashed" : "error", error: crash ?? String(err && err.message ? err.message : err) });
-    if (crash) self.close();
+    reportFailure(err);
   }
 };

@@ -2,7 +2,7 @@
 // time; after each chunk the current view (headline numbers) and the charts (`Study.charts`,
 // drawn on the page by the wasm `draw_chart`) go back to the page. A "stop" message is seen between chunks.
 import { Study, panic_for_test } from "./pkg/nmci.js";
-import { ready, crashMessage } from "./worker-init.js";
+import { ready, reportFailure as fail } from "./worker-init.js";
 
 let stopped = false;
 const CHUNK = 20; // steps per message: about 0.1–0.2 s of work
@@ -51,12 +51,3 @@ self.onmessage = async (event) => {
   }
   study.free();
 };
-
-/** Reports `err`; after a crash the worker closes (the page replaces it). Returns whether it
- * was a crash. */
-function fail(err) {
-  const crash = crashMessage(err);
-  self.postMessage({ type: crash ? "crashed" : "error", error: crash ?? String(err && err.message ? err.message : err) });
-  if (crash) self.close();
-  return crash !== null;
-}

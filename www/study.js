@@ -1,6 +1,7 @@
 // The "Tracking study" tab: runs the paper's 16-agent study in a Web Worker (wasm `Study`)
-// and redraws the headline table and the four charts (drawn by the wasm module, as `nmci track`
-// draws its SVG files) after every chunk of steps. The network is
+// and its exact COIN in a second one (wasm `StudyCoin`), side by side, and redraws the
+// headline table and the four charts (drawn by the wasm module, as `nmci track` draws its SVG
+// files) as their chunks come in. The network is
 // picked (paper fit, the figure's reading, custom links) and drawn by the wasm module.
 import { drawChart } from "./charts.js";
 import { readWholeNumbers, workerTab } from "./worker-tab.js";
@@ -92,32 +93,48 @@ function readConfig() {
 
 const fmt = (v) => (!Number.isFinite(v) ? "—" : Math.abs(v) >= 1e5 ? v.toExponential(2) : v.toFixed(3));
 
-function render(view, charts) {
-  // Work: the runs' steps, then (with COIN) one step per estimator (5) of the exact COIN.
-  const coinWork = view.coin_enabled ? ESTIMATORS.length * view.steps : 0;
-  const total = view.runs * view.steps + coinWork;
+// The latest messages of this start: the runs' worker's view and charts, and (with COIN) the
+// COIN worker's view and chart; each message redraws what it changed.
+let runs = null;
+let coin = null;
+let coinOn = false;
+
+function render() {
+  if (!runs) return;
+  const view = runs.view;
+  const c = coin?.view;
+  // Work: every run's steps and, side by side in the second worker, the exact COIN: one step
+  // per estimator (5).
+  const coinTotal = coinOn ? ESTIMATORS.length * view.steps : 0;
+  const coinDone = c ? ESTIMATORS.length * c.coin_len : 0;
   const runsDone = view.runs_done >= view.runs;
-  const done = view.finished ? total : runsDone ? view.runs * view.steps + ESTIMATORS.length * view.coin_len : view.runs_done * view.steps + view.step;
-  $("#study-bar").style.width = `${(100 * done) / total}%`;
+  const runWork = runsDone ? view.runs * view.steps : view.runs_done * view.steps + view.step;
+  const total = view.runs * view.steps + coinTotal;
+  $("#study-bar").style.width = `${(100 * (runWork + coinDone)) / total}%`;
   const runSeconds = view.run_ms.length ? ` · ${(view.run_ms.reduce((a, b) => a + b, 0) / view.run_ms.length / 1000).toFixed(2)} s per run` : "";
-  const elapsed = `${(view.elapsed_ms / 1000).toFixed(1)} s`;
-  $("#study-progress").textContent = view.finished
-    ? `done: ${view.runs} run${view.runs === 1 ? "" : "s"} × ${view.steps} steps${view.coin_enabled ? " and the exact COIN" : ""} in ${elapsed}${runSeconds}`
-    : runsDone
-      ? `runs done${runSeconds}; exact COIN: step ${view.coin_len} of ${view.steps} · ${elapsed}`
-      : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps} · ${elapsed}${runSeconds}`;
+  const coinFinished = !coinOn || (c && c.finished);
+  const elapsed = `${(Math.max(view.elapsed_ms, c ? c.elapsed_ms : 0) / 1000).toFixed(1)} s`;
+  const coinText = coinOn ? (coinFinished ? "; exact COIN done" : `; exact COIN: step ${c ? c.coin_len : 0} of ${view.steps}`) : "";
+  $("#study-progress").textContent =
+    runsDone && coinFinished
+      ? `done: ${view.runs} run${view.runs === 1 ? "" : "s"} × ${view.steps} steps${coinOn ? " and the exact COIN" : ""} in ${elapsed}${runSeconds}`
+      : runsDone
+        ? `runs done${runSeconds}${coinText} · ${elapsed}`
+        : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps}${coinText} · ${elapsed}${runSeconds}`;
+  const coinOf = Object.fromEntries((c ? c.estimators : []).map((e) => [e.name, e]));
   const body = $("#study-table tbody");
   body.replaceChildren();
   for (const { name, label } of ESTIMATORS) {
     const e = view.report[name];
+    const k = coinOf[name] ?? {};
     const tr = document.createElement("tr");
     tr.dataset.estimator = name;
-    const coin = (v) => (v === undefined || v === null ? (view.coin_enabled && !view.finished ? "…" : "—") : fmt(v));
-    if (e.coin_max > 1 + 1e-9) tr.classList.add("warn");
-    const cells = [label, fmt(e.rmse_mean), fmt(e.two_sigma_mean), fmt(e.nees_mean), `${(100 * e.nees_frac_above_upper).toFixed(0)}%`, coin(e.coin_mean), coin(e.coin_max)];
-    for (const c of cells) {
+    const shown = (v) => (v === undefined || v === null ? (coinOn && !coinFinished ? "…" : "—") : fmt(v));
+    if (k.coin_max > 1 + 1e-9) tr.classList.add("warn");
+    const cells = [label, fmt(e.rmse_mean), fmt(e.two_sigma_mean), fmt(e.nees_mean), `${(100 * e.nees_frac_above_upper).toFixed(0)}%`, shown(k.coin_mean), shown(k.coin_max)];
+    for (const text of cells) {
       const td = document.createElement("td");
-      td.textContent = c;
+      td.textContent = text;
       tr.append(td);
     }
     body.append(tr);
@@ -127,21 +144,41 @@ function render(view, charts) {
   $("#study-omega").textContent =
     `nmCI vs CI: RMSE ${gain(view.report.nmci.rmse_mean, view.report.ci.rmse_mean)}, 2σ ${gain(view.report.nmci.two_sigma_mean, view.report.ci.two_sigma_mean)}. ` +
     `Steady ω (7←11): CI ${fmt(w.ci)}; nmCI ${w.nmci.map((v) => v.toFixed(2)).join(", ")} (G1x … G4y); ICI ${fmt(w.ici)}.` +
-    (view.report.nmci.coin_mean !== undefined ? ` Mean COIN: CI ${fmt(view.report.ci.coin_mean)}, nmCI ${fmt(view.report.nmci.coin_mean)}, ICI ${fmt(view.report.ici.coin_mean)} (closer to 1 = less conservative).` : "");
+    (coinOf.nmci?.coin_mean !== undefined ? ` Mean COIN: CI ${fmt(coinOf.ci.coin_mean)}, nmCI ${fmt(coinOf.nmci.coin_mean)}, ICI ${fmt(coinOf.ici.coin_mean)} (closer to 1 = less conservative).` : "");
+}
+
+/** Draws the charts a message brought (`null` hides a chart). */
+function drawCharts(charts) {
   const canvases = { nees: "#study-nees", rmse: "#study-rmse", omega: "#study-omega-plot", coin: "#study-coin-plot" };
-  for (const [name, id] of Object.entries(canvases)) {
-    const canvas = $(id);
-    canvas.hidden = !charts[name];
-    if (charts[name]) drawChart(canvas, charts[name]);
+  for (const [name, chart] of Object.entries(charts)) {
+    const canvas = $(canvases[name]);
+    canvas.hidden = !chart;
+    if (chart) drawChart(canvas, chart);
   }
 }
 
 const tab = workerTab({
   name: "study",
   label: "study",
-  url: new URL("./study-worker.js", import.meta.url),
+  // The runs, and beside them (on the second core) the exact COIN, which does not depend on
+  // them.
+  urls: [new URL("./study-worker.js", import.meta.url), new URL("./study-coin-worker.js", import.meta.url)],
   readConfig,
-  onProgress: (msg) => render(msg.view, msg.charts),
+  split: (config) => {
+    runs = coin = null;
+    coinOn = config.coin;
+    return [{ ...config, coin: false }, coinOn ? config : null];
+  },
+  onProgress: (msg) => {
+    if (msg.type === "coin") {
+      coin = msg;
+      drawCharts({ coin: msg.chart });
+    } else {
+      runs = msg;
+      drawCharts(coinOn ? msg.charts : { ...msg.charts, coin: null });
+    }
+    render();
+  },
 });
 for (const key of ["runs", "steps", "seed"]) {
   $(`#study-${key}`).addEventListener("keydown", (e) => { if (e.key === "Enter" && !tab.running()) tab.start(); });

@@ -15,3 +15,12 @@ export function crashMessage(err) {
   const what = (self.nmciPanic ?? err.message).replace(/\s+/g, " ").trim();
   return `the computation crashed (${what})`;
 }
+
+/** Reports `err` to the page ("error", or "crashed" for a trap, after which the worker closes
+ * and the page replaces it). Returns whether it was a crash. */
+export function reportFailure(err) {
+  const crash = crashMessage(err);
+  self.postMessage({ type: crash ? "crashed" : "error", error: crash ?? String(err && err.message ? err.message : err) });
+  if (crash) self.close();
+  return crash !== null;
+}

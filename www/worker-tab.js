@@ -1,8 +1,9 @@
-// What the tabs that run a study in a Web Worker (Tracking study, Fig. 2) share: reading
-// whole-number fields with inline errors, and the worker's wiring — start and stop buttons,
-// progress messages, errors, and `document.body.dataset[name]` ("running", "done",
-// "stopped", "error") for tests. A worker that crashed (a panic in wasm, www/worker-init.js)
-// or failed is dropped; the next start makes a fresh one.
+// What the tabs that run a study in Web Workers (Tracking study: the runs and the exact COIN
+// side by side; Fig. 2) share: reading whole-number fields with inline errors, and the
+// workers' wiring — start and stop buttons, progress messages, errors, and
+// `document.body.dataset[name]` ("running", "done", "stopped", "error") for tests. Workers
+// that crashed (a panic in wasm, www/worker-init.js) or failed are dropped; the next start
+// makes fresh ones.
 const $ = (s) => document.querySelector(s);
 
 /** `{key: value}` from the inputs `#${prefix}-${key}`, each a whole number in [min, max];
@@ -24,14 +25,19 @@ export function readWholeNumbers(prefix, fields) {
 }
 
 /**
- * Wires `#${name}-start`, `#${name}-stop` and `#err-${name}` to a module worker at `url`.
- * `readConfig()` gives the start message's config (or throws, shown inline); every message
- * other than "error", "done" and "stopped" goes to `onProgress(msg)`. Returns
- * `{ start, running }`.
+ * Wires `#${name}-start`, `#${name}-stop` and `#err-${name}` to module workers, one per URL in
+ * `urls` (or the one `url`). `readConfig()` gives the start's config (or throws, shown
+ * inline); `split(config)` the config for each worker (`null`: that worker sits this one
+ * out; by default the one worker gets the config). The tab is done when every started worker
+ * said "done" (or "stopped"); an error or a crash in any of them ends the run for all (the
+ * workers are dropped; the next start makes fresh ones). Every other message goes to
+ * `onProgress(msg, index)`. Returns `{ start, running }`.
  */
-export function workerTab({ name, label, url, readConfig, onProgress }) {
-  let worker = null;
+export function workerTab({ name, label, url, urls = [url], readConfig, split = (config) => [config], onProgress }) {
+  const workers = urls.map(() => null);
   let running = false;
+  let pending = 0; // started workers that have not finished
+  let stopped = false;
   const error = $(`#err-${name}`);
   const setRunning = (on) => {
     running = on;
@@ -42,55 +48,65 @@ export function workerTab({ name, label, url, readConfig, onProgress }) {
     setRunning(false);
     document.body.dataset[name] = state;
   };
-  function drop() {
-    worker?.terminate();
-    worker = null;
+  function dropAll() {
+    workers.forEach((w, i) => {
+      w?.terminate();
+      workers[i] = null;
+    });
   }
-  function ensureWorker() {
-    if (!worker) {
-      worker = new Worker(url, { type: "module" });
+  function ensureWorker(i) {
+    if (!workers[i]) {
+      const worker = new Worker(urls[i], { type: "module" });
       worker.onmessage = (event) => {
+        if (workers[i] !== worker) return; // a dropped worker's last words
         const msg = event.data;
         if (msg.type === "error" || msg.type === "crashed") {
           error.textContent = msg.type === "crashed" ? `${msg.error}; a fresh worker takes the next run` : msg.error;
-          if (msg.type === "crashed") drop();
+          dropAll();
           finish("error");
         } else if (msg.type === "done" || msg.type === "stopped") {
-          finish(msg.type);
+          stopped ||= msg.type === "stopped";
+          if (--pending === 0) finish(stopped ? "stopped" : "done");
         } else {
-          onProgress(msg);
+          onProgress(msg, i);
         }
       };
       worker.onerror = (event) => {
+        if (workers[i] !== worker) return;
         error.textContent = `the ${label} worker failed: ${event.message || "unknown error"}`;
-        drop();
+        dropAll();
         finish("error");
       };
+      workers[i] = worker;
     }
+    return workers[i];
+  }
+  function launch(messages) {
+    document.body.dataset[name] = "running";
+    setRunning(true);
+    stopped = false;
+    pending = 0;
+    messages.forEach((message, i) => {
+      if (message === null) return;
+      ensureWorker(i).postMessage(message);
+      pending++;
+    });
   }
   function start() {
     error.textContent = "";
-    let config;
+    let configs;
     try {
-      config = readConfig();
+      configs = split(readConfig());
     } catch (err) {
       error.textContent = err.message;
       return;
     }
-    ensureWorker();
-    document.body.dataset[name] = "running";
-    setRunning(true);
-    worker.postMessage({ type: "start", config });
+    launch(configs.map((config) => (config === null ? null : { type: "start", config })));
   }
   $(`#${name}-start`).addEventListener("click", start);
-  $(`#${name}-stop`).addEventListener("click", () => worker && worker.postMessage({ type: "stop" }));
-  /** Test-only (the end-to-end test): makes the worker panic with `message`. */
-  const panicForTest = (message) => {
-    ensureWorker();
-    document.body.dataset[name] = "running";
-    setRunning(true);
-    worker.postMessage({ type: "panic", message });
-  };
+  $(`#${name}-stop`).addEventListener("click", () => workers.forEach((w) => w?.postMessage({ type: "stop" })));
+  /** Test-only (the end-to-end test): makes the first worker panic with `message`. */
+  const panicForTest = (message) => launch([{ type: "panic", message }]);
   (window.nmciTabs ??= {})[name] = { panicForTest };
   return { start, running: () => running };
 }

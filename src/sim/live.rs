@@ -16,9 +16,123 @@ pub struct LiveStudy {
     model: Model,
     done: Vec<RunTrace>,
     current: Option<RunState>,
-    /// With `config.coin`: each estimator's exact error propagation and its COIN so far,
-    /// advanced after the runs (the paper's numbers come first).
+    /// With `config.coin`: the exact COIN, advanced after the runs (the paper's numbers come
+    /// first; a page runs [`LiveCoin`] beside the runs instead).
+    coin: Option<LiveCoin>,
+}
+
+/// Every estimator's exact COIN for the headline agent ([`ErrorPropagation`]), advanced one
+/// estimator-step at a time (the estimator furthest behind first): what [`LiveStudy`] runs
+/// after its runs, and what a page runs on its own (a second Web Worker) beside the runs — it
+/// does not depend on them. The series are [`super::coin_series`]'s, bit for bit.
+pub struct LiveCoin {
+    config: StudyConfig,
+    model: Model,
     coin: Vec<(ErrorPropagation, Vec<f64>)>,
+}
+
+/// A snapshot of a [`LiveCoin`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CoinView {
+    /// Steps per run.
+    pub steps: usize,
+    /// Steps every estimator's COIN has reached.
+    pub coin_len: usize,
+    /// Whether every estimator reached `steps`.
+    pub finished: bool,
+    /// Per estimator (in [`estimators`] order): its name, and the mean and largest COIN over
+    /// the steps so far (as in `summary.json`; absent before the first step).
+    pub estimators: Vec<CoinReport>,
+    /// Exact COIN per step, `5 × coin_len` row-major.
+    #[serde(skip)]
+    pub coin: Vec<f64>,
+}
+
+/// One estimator's COIN so far.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CoinReport {
+    /// The estimator's name (`central`, then the rules').
+    pub name: &'static str,
+    /// Mean over the steps so far.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coin_mean: Option<f64>,
+    /// Largest over the steps so far.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coin_max: Option<f64>,
+}
+
+impl LiveCoin {
+    /// Validates the configuration and builds the model and one propagation per estimator
+    /// (`config.coin` is not consulted: this is the COIN).
+    pub fn new(config: StudyConfig) -> Result<Self, SimError> {
+        config.validate()?;
+        let model = Model::new(&config.scenario)?;
+        let coin = estimators()
+            .map(|e| (ErrorPropagation::new(&model, e), Vec::new()))
+            .collect();
+        Ok(Self {
+            config,
+            model,
+            coin,
+        })
+    }
+
+    /// Whether every estimator reached the configured steps.
+    pub fn finished(&self) -> bool {
+        self.coin
+            .iter()
+            .all(|(p, _)| p.steps_done() >= self.config.steps)
+    }
+
+    /// Advances by up to `units` estimator-steps; returns whether it is finished.
+    pub fn advance(&mut self, units: usize) -> Result<bool, SimError> {
+        let agent = self.config.agent - 1;
+        for _ in 0..units {
+            if self.finished() {
+                break;
+            }
+            let behind = self.coin.iter_mut().min_by_key(|(p, _)| p.steps_done());
+            if let Some((propagation, series)) = behind {
+                propagation.step(&self.model)?;
+                let filter = if propagation.is_central() { 0 } else { agent };
+                series.push(propagation.coin(filter));
+            }
+        }
+        Ok(self.finished())
+    }
+
+    /// Every estimator's series up to the step all of them reached.
+    pub fn series(&self) -> Vec<Vec<f64>> {
+        let len = self.coin.iter().map(|(_, s)| s.len()).min().unwrap_or(0);
+        self.coin.iter().map(|(_, s)| s[..len].to_vec()).collect()
+    }
+
+    /// The current snapshot.
+    pub fn view(&self) -> CoinView {
+        let series = self.series();
+        CoinView {
+            steps: self.config.steps,
+            coin_len: series.first().map_or(0, Vec::len),
+            finished: self.finished(),
+            estimators: estimators()
+                .zip(&series)
+                .map(|(e, s)| {
+                    let (coin_mean, coin_max) = super::coin_stats(s).unzip();
+                    CoinReport {
+                        name: e.name(),
+                        coin_mean,
+                        coin_max,
+                    }
+                })
+                .collect(),
+            coin: series.concat(),
+        }
+    }
+
+    /// The COIN chart so far ([`crate::chart::coin_chart`], as `coin.svg`).
+    pub fn chart(&self) -> crate::Chart {
+        crate::chart::coin_chart(&self.config, &self.series())
+    }
 }
 
 /// A snapshot of a [`LiveStudy`]: progress, the headline numbers over the runs so far (a run in
@@ -71,13 +185,10 @@ impl LiveStudy {
     pub fn new(config: StudyConfig) -> Result<Self, SimError> {
         config.validate()?;
         let model = Model::new(&config.scenario)?;
-        let coin = if config.coin {
-            estimators()
-                .map(|e| (ErrorPropagation::new(&model, e), Vec::new()))
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let coin = config
+            .coin
+            .then(|| LiveCoin::new(config.clone()))
+            .transpose()?;
         Ok(Self {
             config,
             model,
@@ -93,9 +204,7 @@ impl LiveStudy {
     }
 
     fn coin_finished(&self) -> bool {
-        self.coin
-            .iter()
-            .all(|(p, _)| p.steps_done() >= self.config.steps)
+        self.coin.as_ref().is_none_or(LiveCoin::finished)
     }
 
     /// Advances by up to `steps` units of work: a time step of the run in progress (across run
@@ -107,12 +216,8 @@ impl LiveStudy {
                 break;
             }
             if self.done.len() >= self.config.runs {
-                let agent = self.config.agent - 1;
-                let behind = self.coin.iter_mut().min_by_key(|(p, _)| p.steps_done());
-                if let Some((propagation, series)) = behind {
-                    propagation.step(&self.model)?;
-                    let filter = if propagation.is_central() { 0 } else { agent };
-                    series.push(propagation.coin(filter));
+                if let Some(coin) = &mut self.coin {
+                    coin.advance(1)?;
                 }
                 continue;
             }
@@ -143,14 +248,8 @@ impl LiveStudy {
             traces.push(run.trace().clone());
         }
         let mut summary = summarize(&traces, self.model.dim());
-        let coin_len = self.coin.iter().map(|(_, s)| s.len()).min().unwrap_or(0);
-        let coin: Vec<Vec<f64>> = self
-            .coin
-            .iter()
-            .map(|(_, s)| s[..coin_len].to_vec())
-            .collect();
-        if !coin.is_empty() {
-            summary.attach_coin(coin);
+        if let Some(coin) = &self.coin {
+            summary.attach_coin(coin.series());
         }
         (summary, traces.len())
     }

@@ -26,7 +26,7 @@ mod sweep;
 
 pub use coin::{coin_series, ErrorPropagation};
 pub use draw::network_svg;
-pub use live::{LiveStudy, StudyView};
+pub use live::{CoinReport, CoinView, LiveCoin, LiveStudy, StudyView};
 pub use model::Model;
 #[cfg(not(target_arch = "wasm32"))]
 pub use report::{write_study, write_sweep};
@@ -504,14 +504,23 @@ impl StudySummary {
     /// may be shorter than the runs) and their mean and maximum to the estimators' numbers.
     pub fn attach_coin(&mut self, coin: Vec<Vec<f64>>) {
         for ((_, e), series) in self.estimators.iter_mut().zip(&coin) {
-            if series.is_empty() {
-                continue;
+            if let Some((mean, max)) = coin_stats(series) {
+                (e.coin_mean, e.coin_max) = (Some(mean), Some(max));
             }
-            e.coin_mean = Some(series.iter().sum::<f64>() / series.len() as f64);
-            e.coin_max = Some(series.iter().copied().fold(f64::NEG_INFINITY, f64::max));
         }
         self.coin_series = coin;
     }
+}
+
+/// The mean and the largest value of one estimator's COIN series (`None` when empty): the
+/// `coin_mean` and `coin_max` of `summary.json` and of the page's table.
+pub(crate) fn coin_stats(series: &[f64]) -> Option<(f64, f64)> {
+    (!series.is_empty()).then(|| {
+        (
+            series.iter().sum::<f64>() / series.len() as f64,
+            series.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        )
+    })
 }
 
 /// Averages run traces into the study's numbers (`dof` = state dimension). Traces may be of

@@ -448,11 +448,20 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
   await page.fill("#study-runs", "2");
   await page.fill("#study-steps", "80");
   await page.fill("#study-seed", "4");
+  // Every progress line shown, to see what happened side by side.
+  await page.evaluate(() => {
+    window.studyProgress = [];
+    new MutationObserver(() => window.studyProgress.push(document.querySelector("#study-progress").textContent)).observe(document.querySelector("#study-progress"), { childList: true, characterData: true, subtree: true });
+  });
   await page.click("#study-start");
   // Live: a view arrives before the end (progress text shows a step of the first run).
   await page.waitForFunction(() => /run 1 of 2, step \d+/.test(document.querySelector("#study-progress").textContent), null, { timeout: 60_000 });
   await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 120_000 });
   assert.match(await text("#study-progress"), /^done: 2 runs × 80 steps/);
+  // The exact COIN runs in its own worker beside the runs, not after them: it had steps done
+  // while a run was still in progress.
+  const progress = await page.evaluate(() => window.studyProgress);
+  assert.ok(progress.some((p) => /^run \d of 2, step \d+ of 80; exact COIN: step [1-9]\d* of 80/.test(p)), progress.join("\n"));
   const rows = await page.evaluate(() => Object.fromEntries([...document.querySelectorAll("#study-table tbody tr")].map((tr) => [tr.dataset.estimator, [...tr.children].map((td) => td.textContent)])));
   assert.deepEqual(Object.keys(rows), ["central", "ci", "nmci", "naive", "ici"]);
   assert.match(rows.naive[0], /not guaranteed conservative/);

@@ -215,6 +215,55 @@ fn golden_of(view: &StudyView, config: &StudyConfig) -> golden::GoldenStudy {
     }
 }
 
+/// The exact COIN on its own (the page's second worker): the batch study's COIN series bit for
+/// bit, whatever the chunking, with `summary.json`'s mean and largest value and `coin.svg`'s
+/// chart.
+#[test]
+fn live_coin_alone_equals_the_studys_coin() {
+    let config = tiny_config();
+    let (summary, report) = run_study(&config).unwrap();
+    let mut coin = nmci::sim::LiveCoin::new(config.clone()).unwrap();
+    assert_eq!(coin.view().coin_len, 0);
+    let mut chunks = 0;
+    while !coin.advance(7).unwrap() {
+        chunks += 1;
+        let v = coin.view();
+        assert_eq!(v.coin.len(), 5 * v.coin_len);
+        assert!(!v.finished);
+    }
+    assert_eq!(chunks, (5 * config.steps).div_ceil(7) - 1);
+    let view = coin.view();
+    assert!(view.finished && view.coin_len == config.steps);
+    assert_eq!(view.coin, summary.coin_series.concat());
+    let by_name = |name: &str| {
+        view.estimators
+            .iter()
+            .find(|e| e.name == name)
+            .unwrap()
+            .clone()
+    };
+    for (name, e) in [
+        ("central", &report.central),
+        ("ci", &report.ci),
+        ("nmci", &report.nmci),
+        ("naive", &report.naive),
+        ("ici", &report.ici),
+    ] {
+        let c = by_name(name);
+        assert_eq!(
+            (c.coin_mean, c.coin_max),
+            (e.coin_mean, e.coin_max),
+            "{name}"
+        );
+    }
+    assert_eq!(
+        coin.chart(),
+        nmci::coin_chart(&config, &summary.coin_series)
+    );
+    let charts = nmci::study_charts(&config, &summary, config.runs);
+    assert_eq!(charts.last().unwrap(), &("coin", coin.chart()));
+}
+
 #[test]
 fn live_study_equals_the_batch_study_and_the_golden_file() {
     let config = tiny_config();
