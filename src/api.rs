@@ -22,12 +22,12 @@ use crate::fusion::ici::inverse_covariance_intersection;
 use crate::fusion::known::naive_fusion;
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::nway::{
-    covariance_intersection_nway, non_monolithic_ci_nway, Estimate, NwayResult, PairPattern,
+    covariance_intersection_nway, non_monolithic_ci_nway, NwayResult, PairPattern,
 };
 use crate::fusion::rules::{methods_phrase, Criteria, Guarantee, Method, RequestOption};
 use crate::fusion::sample::{AutoChoice, SamplerKind, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion, SdpSettings};
-use crate::fusion::{Criterion, Fused, FusionProblem};
+use crate::fusion::{Criterion, Estimate, Fused, FusionProblem};
 use crate::linalg::{matrix_from_rows, matrix_to_rows};
 use crate::structure::{independent_blocks, CrossPattern};
 

@@ -90,7 +90,7 @@ pub use fusion::ici::{inverse_covariance_intersection, IciResult};
 pub use fusion::known::{known_correlation_fusion, naive_fusion};
 pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::nway::{
-    covariance_intersection_nway, non_monolithic_ci_nway, Estimate, NwayResult, PairPattern,
+    covariance_intersection_nway, non_monolithic_ci_nway, NwayResult, PairPattern,
 };
 pub use fusion::rules::{
     rules, Criteria, Guarantee, Limits, Method, RequestOption, RuleInfo, RULES,
@@ -102,6 +102,6 @@ pub use fusion::sample::{
 pub use fusion::sdp::{
     optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings, SdpStatus,
 };
-pub use fusion::{validate_covariance, Criterion, Fused, FusionProblem};
+pub use fusion::{validate_covariance, Criterion, Estimate, Fused, FusionProblem};
 pub use linalg::{logdet_spd, min_eigenvalue};
 pub use structure::{independent_blocks, CrossPattern};

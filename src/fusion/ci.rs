@@ -24,7 +24,7 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
-use super::{covariance_twins, scatter_block, Criterion, Fused, FusionProblem, Gaussian};
+use super::{covariance_twins, scatter_block, Criterion, Estimate, Fused, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::{
     cholesky, min_eigenvalue, solve_lower_in_place, solve_lower_rows, symmetrize,
@@ -224,7 +224,7 @@ impl Pencil {
 
     /// Overwrites `a` with the fusion of `a` and `b` at `ω` (exact at the endpoints); `shared`
     /// is the fused covariance when a twin block already computed it.
-    fn fuse_into(&self, a: &mut Gaussian, b: &Gaussian, omega: f64, shared: Option<&DMatrix<f64>>) {
+    fn fuse_into(&self, a: &mut Estimate, b: &Estimate, omega: f64, shared: Option<&DMatrix<f64>>) {
         if omega == 1.0 {
             return;
         }
@@ -493,8 +493,8 @@ pub fn covariance_intersection_independent(
 /// equal an earlier block's in both estimates ([`covariance_twins`]) share its pencil and fused
 /// covariance.
 pub(crate) fn ci_in_place(
-    a: &mut [Gaussian],
-    b: &[Gaussian],
+    a: &mut [Estimate],
+    b: &[Estimate],
     criterion: Criterion,
 ) -> Result<f64, InputError> {
     let twins = covariance_twins(a, b);
@@ -529,8 +529,8 @@ pub(crate) fn ci_in_place(
 /// endpoint (one agent knows strictly more about that part of the state), so nmCI in block
 /// storage is mostly factorizations. Twin blocks ([`covariance_twins`]) share the work.
 pub(crate) fn nmci_in_place(
-    a: &mut [Gaussian],
-    b: &[Gaussian],
+    a: &mut [Estimate],
+    b: &[Estimate],
     criterion: Criterion,
 ) -> Result<Vec<f64>, InputError> {
     let twins = covariance_twins(a, b);
@@ -560,8 +560,8 @@ pub(crate) fn nmci_in_place(
 
 /// CI of one block in place (`a ← CI(a, b)`): `ω`, and the pencil when `ω` is interior.
 fn ci_block_in_place(
-    a: &mut Gaussian,
-    b: &Gaussian,
+    a: &mut Estimate,
+    b: &Estimate,
     criterion: Criterion,
 ) -> Result<(f64, Option<Pencil>), InputError> {
     let half = HalfPencil::new(&a.P, &b.P)?;
@@ -604,13 +604,13 @@ mod tests {
         &A * A.transpose() + DMatrix::identity(n, n) * shift
     }
 
-    fn gaussian(n: usize, seed: &mut u64, shift: f64) -> Gaussian {
+    fn gaussian(n: usize, seed: &mut u64, shift: f64) -> Estimate {
         let P = spd(n, seed, shift);
         let x = spd(n, seed, 0.0).column(0).into_owned();
-        Gaussian { x, P }
+        Estimate { x, P }
     }
 
-    fn problem(a: &Gaussian, b: &Gaussian) -> FusionProblem {
+    fn problem(a: &Estimate, b: &Estimate) -> FusionProblem {
         FusionProblem::new_trusted(
             a.x.clone(),
             a.P.clone(),
@@ -626,7 +626,7 @@ mod tests {
 
     /// Blocks: interior optimum, `b` much better (ω = 0), `a` much better (ω = 1), a twin of
     /// block 0 (same covariances, other means) and identical estimates (a tie).
-    fn blocks(criterion_seed: u64) -> (Vec<Gaussian>, Vec<Gaussian>) {
+    fn blocks(criterion_seed: u64) -> (Vec<Estimate>, Vec<Estimate>) {
         let mut seed = criterion_seed;
         let n = 5;
         let (a0, b0) = (gaussian(n, &mut seed, 0.5), gaussian(n, &mut seed, 0.5));
@@ -729,7 +729,7 @@ mod tests {
                     let pencil = Pencil::new(&(&a * c), &(&b * c)).unwrap();
                     let w = optimal_omega(&[&pencil], criterion);
                     // The in-place rule decides the endpoints its own way: the same ω.
-                    let g = |P: &DMatrix<f64>| Gaussian {
+                    let g = |P: &DMatrix<f64>| Estimate {
                         x: DVector::zeros(P.nrows()),
                         P: P * c,
                     };
@@ -754,7 +754,7 @@ mod tests {
         for k in -8..=8 {
             for n in 1..=5 {
                 let P = spd(n, &mut seed, 0.1) * 10f64.powi(k);
-                let g = Gaussian {
+                let g = Estimate {
                     x: DVector::zeros(n),
                     P: P.clone(),
                 };
@@ -799,11 +799,11 @@ mod tests {
         for criterion in [Criterion::Trace, Criterion::Logdet] {
             for k in [1, 2] {
                 let mut seed = 40 + k as u64;
-                let twin_a = Gaussian {
+                let twin_a = Estimate {
                     x: gaussian(5, &mut seed, 1.0).x,
                     P: a0[k].P.clone(),
                 };
-                let twin_b = Gaussian {
+                let twin_b = Estimate {
                     x: gaussian(5, &mut seed, 1.0).x,
                     P: b0[k].P.clone(),
                 };

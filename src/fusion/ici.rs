@@ -27,7 +27,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::ci::Pencil;
-use super::{covariance_twins, Criterion, Fused, FusionProblem, Gaussian};
+use super::{covariance_twins, Criterion, Estimate, Fused, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::symmetrize_in_place;
 
@@ -190,8 +190,8 @@ pub fn inverse_covariance_intersection(
 /// earlier block's in both estimates share its pencil, bound and gains. Returns `ω`.
 #[allow(non_snake_case)]
 pub(crate) fn ici_in_place(
-    a: &mut [Gaussian],
-    b: &[Gaussian],
+    a: &mut [Estimate],
+    b: &[Estimate],
     criterion: Criterion,
 ) -> Result<f64, InputError> {
     let twins = covariance_twins(a, b);
@@ -244,7 +244,7 @@ pub(crate) fn ici_in_place(
                 .zip(u_a.iter().zip(u_b.iter()))
                 .map(|(s, (ua, ub))| s * ua + (1.0 - s) * ub),
         );
-        a[k] = Gaussian {
+        a[k] = Estimate {
             x: &pencil.basis * coords,
             P: P.clone(),
         };

@@ -8,7 +8,7 @@
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use super::{covariance_twins, Fused, FusionProblem, Gaussian};
+use super::{covariance_twins, Estimate, Fused, FusionProblem};
 use crate::linalg::{solve_lower_in_place, solve_lower_rows, symmetrize, symmetrize_in_place};
 
 /// The optimal fusion when the cross-covariance is known to be `P_ab`.
@@ -68,7 +68,7 @@ pub fn naive_fusion(problem: &FusionProblem) -> Fused {
 /// gains. Twin blocks ([`covariance_twins`]) share the factorization and the covariance. A
 /// block whose `S` is numerically singular falls back to [`naive_fusion`] (pseudo-inverse).
 #[allow(non_snake_case)]
-pub(crate) fn naive_in_place(a: &mut [Gaussian], b: &[Gaussian]) {
+pub(crate) fn naive_in_place(a: &mut [Estimate], b: &[Estimate]) {
     let twins = covariance_twins(a, b);
     let mut factors: Vec<Option<DMatrix<f64>>> = Vec::with_capacity(a.len());
     for k in 0..a.len() {
@@ -128,21 +128,21 @@ mod tests {
         let P_b = DMatrix::from_row_slice(3, 3, &[2.0, -0.3, 0.1, -0.3, 5.0, 1.0, 0.1, 1.0, 1.5]);
         let mean = |v: [f64; 3]| DVector::from_row_slice(&v);
         let a = vec![
-            Gaussian {
+            Estimate {
                 x: mean([1.0, 2.0, 3.0]),
                 P: P_a.clone(),
             },
-            Gaussian {
+            Estimate {
                 x: mean([-1.0, 0.5, 0.0]),
                 P: P_a.clone(),
             },
         ];
         let b = vec![
-            Gaussian {
+            Estimate {
                 x: mean([0.0, 1.0, -2.0]),
                 P: P_b.clone(),
             },
-            Gaussian {
+            Estimate {
                 x: mean([2.0, 2.0, 2.0]),
                 P: P_b.clone(),
             },
@@ -151,7 +151,7 @@ mod tests {
         // wrong combination would not fall back to `naive_fusion` unnoticed).
         let a = [
             a,
-            vec![Gaussian {
+            vec![Estimate {
                 x: mean([0.5, 0.5, 0.5]),
                 P: &P_b * 10.0,
             }],
@@ -159,7 +159,7 @@ mod tests {
         .concat();
         let b = [
             b,
-            vec![Gaussian {
+            vec![Estimate {
                 x: mean([1.0, -1.0, 0.0]),
                 P: P_b.clone(),
             }],

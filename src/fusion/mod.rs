@@ -240,14 +240,30 @@ impl FusionProblem {
     }
 }
 
-/// A Gaussian estimate `(x, P)`: one block of a block-stored filter state.
+/// An estimate `(x, P)`: a mean and its error covariance — the one estimate type of the crate:
+/// an input of N-way fusion ([`Estimate::new`] validates it), and a block of the tracking
+/// study's block-stored filter states.
 #[allow(non_snake_case)]
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Gaussian {
+pub struct Estimate {
     /// Mean.
     pub x: DVector<f64>,
-    /// Covariance.
+    /// Error covariance (symmetric positive definite).
     pub P: DMatrix<f64>,
+}
+
+#[allow(non_snake_case)]
+impl Estimate {
+    /// Validates `P` (square, finite, symmetric, positive definite) and `x` (its size, finite);
+    /// `name` labels errors (e.g. `estimates[2]`).
+    pub fn new(name: &str, x: DVector<f64>, P: DMatrix<f64>) -> Result<Self, InputError> {
+        validate_covariance(&format!("{name}.p"), &P)?;
+        validate_vector(&format!("{name}.x"), &x, P.nrows())?;
+        Ok(Self {
+            x,
+            P: symmetrize(&P),
+        })
+    }
 }
 
 /// For each block of two block-stored estimates, the first earlier block whose covariances are
@@ -255,7 +271,7 @@ pub(crate) struct Gaussian {
 /// depend on the data, so a symmetric model gives bitwise-equal blocks (the study's x and y
 /// blocks of one group: same dynamics, same isotropic noises); twins have the same CI pencil,
 /// the same `ω` and the same fused covariance, and only their means differ.
-pub(crate) fn covariance_twins(a: &[Gaussian], b: &[Gaussian]) -> Vec<Option<usize>> {
+pub(crate) fn covariance_twins(a: &[Estimate], b: &[Estimate]) -> Vec<Option<usize>> {
     (0..a.len())
         .map(|k| {
             (0..k).find(|&t| {

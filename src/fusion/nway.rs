@@ -31,34 +31,10 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::ci::covariance_intersection;
-use super::{scatter_block, validate_covariance, validate_vector, Criterion, FusionProblem};
+use super::{scatter_block, Criterion, Estimate, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::{cholesky, symmetrize};
 use crate::structure::{connected_components, CrossPattern};
-
-/// One estimate `(x, P)` of an N-way fusion, validated like the two-estimate inputs.
-#[allow(non_snake_case)]
-#[derive(Debug, Clone, PartialEq)]
-pub struct Estimate {
-    /// Mean.
-    pub x: DVector<f64>,
-    /// Error covariance (symmetric positive definite).
-    pub P: DMatrix<f64>,
-}
-
-#[allow(non_snake_case)]
-impl Estimate {
-    /// Validates `P` (square, finite, symmetric, positive definite) and `x` (its size, finite);
-    /// `name` labels errors (e.g. `estimates[2]`).
-    pub fn new(name: &str, x: DVector<f64>, P: DMatrix<f64>) -> Result<Self, InputError> {
-        validate_covariance(&format!("{name}.p"), &P)?;
-        validate_vector(&format!("{name}.x"), &x, P.nrows())?;
-        Ok(Self {
-            x,
-            P: symmetrize(&P),
-        })
-    }
-}
 
 /// The pattern of the cross-covariance `P_ij` of estimates `i < j` (pairs not listed are
 /// fully unknown).

@@ -47,7 +47,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::model::Model;
-use super::study::{exchange, fuse, Estimate, Partition};
+use super::study::{exchange, fuse, BlockEstimate, Partition};
 use super::{Estimator, Rule, SimError, Storage};
 use crate::error::InputError;
 use crate::fusion::check::conservativeness_index;
@@ -61,7 +61,7 @@ pub struct ErrorPropagation {
     rule: Option<Rule>,
     neighbours: Vec<Vec<usize>>,
     /// The filters' covariances (means stay at zero: nothing here depends on them).
-    filters: Vec<Estimate>,
+    filters: Vec<BlockEstimate>,
     /// Per model block, the joint covariance of all filters' errors (empty for a twin block).
     joint: Vec<DMatrix<f64>>,
     /// Per model block, an earlier block whose recursion is the same (equal transition, process
@@ -77,7 +77,7 @@ impl ErrorPropagation {
     pub fn new(model: &Model, estimator: Estimator) -> Self {
         let rule = estimator.rule();
         let part = Partition::new(model, Storage::Blocks);
-        let filters: Vec<Estimate> = match rule {
+        let filters: Vec<BlockEstimate> = match rule {
             None => vec![part.prior(model)],
             Some(_) => (0..model.scenario.agents())
                 .map(|_| part.prior(model))
@@ -254,7 +254,7 @@ impl ErrorPropagation {
             &mut self.filters,
             &mut sent,
             &self.neighbours,
-            |a, b, mine: &mut Estimate, theirs: &Estimate| {
+            |a, b, mine: &mut BlockEstimate, theirs: &BlockEstimate| {
                 let coef = &mut coefficients[a];
                 let before: Vec<DMatrix<f64>> = mine.iter().map(|g| g.P.clone()).collect();
                 let omega = fuse(model, Storage::Blocks, rule, mine, theirs)?;

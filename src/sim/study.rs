@@ -21,7 +21,7 @@ use crate::fusion::ici::{ici_in_place, inverse_covariance_intersection};
 use crate::fusion::known::{naive_fusion, naive_in_place};
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::rules::{Guarantee, Method};
-use crate::fusion::{Criterion, FusionProblem, Gaussian};
+use crate::fusion::{Criterion, Estimate, FusionProblem};
 use crate::linalg::symmetrize_in_place;
 
 /// The decentralized fusion rules of the study.
@@ -131,8 +131,9 @@ pub enum Storage {
     Dense,
 }
 
-/// An estimate in storage blocks.
-pub(super) type Estimate = Vec<Gaussian>;
+/// A filter state stored in blocks: one [`Estimate`] per storage block (not a type of its
+/// own).
+pub(super) type BlockEstimate = Vec<Estimate>;
 
 /// One scalar measurement in block coordinates: `(block, local sparse row, noise variance)`.
 pub(super) type LocalMeasurement = (usize, Vec<(usize, f64)>, f64);
@@ -219,10 +220,10 @@ impl Partition {
         }
     }
 
-    pub(super) fn prior(&self, model: &Model) -> Estimate {
+    pub(super) fn prior(&self, model: &Model) -> BlockEstimate {
         self.blocks
             .iter()
-            .map(|b| Gaussian {
+            .map(|b| Estimate {
                 x: DVector::zeros(b.len()),
                 P: DMatrix::from_fn(b.len(), b.len(), |i, j| model.P0[(b[i], b[j])]),
             })
@@ -231,7 +232,7 @@ impl Partition {
 
     /// The mean 2σ of the position coordinates: `2·√(mean of P_ii)` over every target's `x`
     /// and `y` (blocks in order, positions in order within a block). Depends on `P` only.
-    pub(super) fn two_sigma(&self, e: &Estimate) -> f64 {
+    pub(super) fn two_sigma(&self, e: &BlockEstimate) -> f64 {
         let mut var = 0.0;
         let mut count = 0usize;
         for (k, g) in e.iter().enumerate() {
@@ -244,7 +245,7 @@ impl Partition {
     }
 
     /// `x ← F x`, `P ← F P Fᵀ + Q` block by block, with the sparse rows of `F`.
-    pub(super) fn predict(&self, e: &mut Estimate) {
+    pub(super) fn predict(&self, e: &mut BlockEstimate) {
         for (k, g) in e.iter_mut().enumerate() {
             let F = &self.F[k];
             let n = g.x.len();
@@ -278,9 +279,9 @@ impl Partition {
     /// (`(I − K hᵀ) P = P − K (P h)ᵀ`, then `Y (I − h Kᵀ) = Y − (Y h) Kᵀ`): O(n²) instead of
     /// two dense products. Returns the gain `K` (the exact COIN propagation applies it to the
     /// joint error covariance).
-    pub(super) fn update(&self, e: &mut Estimate, a: usize, m: usize, z: f64) -> DVector<f64> {
+    pub(super) fn update(&self, e: &mut BlockEstimate, a: usize, m: usize, z: f64) -> DVector<f64> {
         let (b, row, r) = &self.measurements[a][m];
-        let Gaussian { x, P } = &mut e[*b];
+        let Estimate { x, P } = &mut e[*b];
         let sparse_dot = |v: &DMatrix<f64>, col: usize| -> f64 {
             row.iter().map(|&(i, c)| c * v[(col, i)]).sum()
         };
@@ -332,8 +333,8 @@ pub(super) fn fuse(
     model: &Model,
     storage: Storage,
     rule: Rule,
-    a: &mut Estimate,
-    b: &Estimate,
+    a: &mut BlockEstimate,
+    b: &BlockEstimate,
 ) -> Result<Vec<f64>, SimError> {
     match storage {
         Storage::Blocks => Ok(match rule {
@@ -368,7 +369,7 @@ pub(super) fn fuse(
                     (ici.fused, vec![ici.omega])
                 }
             };
-            a[0] = Gaussian {
+            a[0] = Estimate {
                 x: fused.x,
                 P: fused.P,
             };
@@ -487,13 +488,13 @@ pub struct RunState {
     truth: DVector<f64>,
     /// Cholesky factor `[[l11, 0], [l21, l22]]` of one axis' process noise.
     noise_factor: (f64, f64, f64),
-    central: Estimate,
+    central: BlockEstimate,
     /// The rules simulated (all of [`RULES`] unless built by [`RunState::with_rules`]).
     rules: Vec<Rule>,
     /// `agents[rule][agent]`, rules as in `rules`.
-    agents: Vec<Vec<Estimate>>,
+    agents: Vec<Vec<BlockEstimate>>,
     /// What the agents sent this step (a reused buffer).
-    sent: Vec<Estimate>,
+    sent: Vec<BlockEstimate>,
     trace: RunTrace,
     done: usize,
 }
@@ -523,7 +524,7 @@ impl RunState {
         let l21 = q * dt.powi(2) / 2.0 / l11;
         let l22 = (q * dt - l21 * l21).sqrt();
         let central = part.prior(model);
-        let agents: Vec<Vec<Estimate>> = rules
+        let agents: Vec<Vec<BlockEstimate>> = rules
             .iter()
             .map(|_| (0..sc.agents()).map(|_| part.prior(model)).collect())
             .collect();

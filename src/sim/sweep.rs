@@ -55,7 +55,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::model::Model;
-use super::study::{exchange, fuse, Estimate, Partition};
+use super::study::{exchange, fuse, BlockEstimate, Partition};
 use super::{Rule, Scenario, SimError, Storage, StudyConfig};
 
 /// The paper's steady-state CI ω of agent 7 fusing agent 11.
@@ -237,8 +237,8 @@ pub struct CovarianceRun {
     part: Partition,
     rule: Rule,
     neighbours: Vec<Vec<usize>>,
-    agents: Vec<Estimate>,
-    sent: Vec<Estimate>,
+    agents: Vec<BlockEstimate>,
+    sent: Vec<BlockEstimate>,
 }
 
 impl CovarianceRun {
