@@ -240,48 +240,68 @@ impl Pencil {
 /// Relative size below which a derivative at an endpoint counts as zero (a tie): then the
 /// endpoint is optimal to within rounding, and taking it exactly keeps `ω` reproducible
 /// between mathematically equal computations (identical estimates give `g ≡ 0`, whose sign is
-/// rounding noise).
-const ENDPOINT_TIE: f64 = 1e-9;
+/// rounding noise). CI's and ICI's (shared through [`minimise_convex`]).
+pub(super) const ENDPOINT_TIE: f64 = 1e-9;
 
-/// First and second derivative at `ω` of the criterion summed over several pencils (the
-/// blocks of a block-diagonal problem share one `ω` in monolithic CI), and the size of the
-/// terms the first derivative sums (its rounding scale).
-fn derivatives(pencils: &[&Pencil], criterion: Criterion, omega: f64) -> (f64, f64, f64) {
+/// The pencils of the blocks that share one `ω`, each with its multiplicity: the blocks of a
+/// block-diagonal problem each count in the criterion, and blocks with equal covariances in
+/// both estimates ([`covariance_twins`]) share one pencil counted as often as they occur. CI
+/// and ICI take their blocks in this one form.
+pub(super) type Weighted<'a> = [(&'a Pencil, f64)];
+
+/// First and second derivative at `ω` of the criterion summed over `pencils` (with their
+/// multiplicities), and the size of the terms the first derivative sums (its rounding scale).
+fn derivatives(pencils: &Weighted, criterion: Criterion, omega: f64) -> (f64, f64, f64) {
     let (mut d1, mut d2, mut size) = (0.0, 0.0, 0.0);
-    for pencil in pencils {
+    for &(pencil, count) in pencils {
+        let (mut p1, mut p2, mut psize) = (0.0, 0.0, 0.0);
         for (c, s) in pencil.weights.iter().zip(&pencil.slopes) {
             let d = 1.0 + omega * s;
             match criterion {
                 Criterion::Trace => {
-                    d1 -= c * s / (d * d);
-                    d2 += 2.0 * c * s * s / (d * d * d);
-                    size += c * (1.0 + s.abs()) / (d * d);
+                    p1 -= c * s / (d * d);
+                    p2 += 2.0 * c * s * s / (d * d * d);
+                    psize += c * (1.0 + s.abs()) / (d * d);
                 }
                 Criterion::Logdet => {
-                    d1 -= s / d;
-                    d2 += s * s / (d * d);
-                    size += (1.0 + s.abs()) / d;
+                    p1 -= s / d;
+                    p2 += s * s / (d * d);
+                    psize += (1.0 + s.abs()) / d;
                 }
             }
         }
+        d1 += count * p1;
+        d2 += count * p2;
+        size += count * psize;
     }
     (d1, d2, size)
 }
 
-/// The minimiser over `[0, 1]` of the (convex) criterion summed over `pencils`. An endpoint is
-/// returned exactly when the derivative there does not point inwards (ties within
+/// The minimiser over `[0, 1]` of CI's (convex) criterion summed over `pencils`. An endpoint
+/// is returned exactly when the derivative there does not point inwards (ties within
 /// [`ENDPOINT_TIE`] go to the endpoint, `ω = 0` first).
-fn optimal_omega(pencils: &[&Pencil], criterion: Criterion) -> f64 {
+fn optimal_omega(pencils: &Weighted, criterion: Criterion) -> f64 {
     solve_omega(pencils, criterion).0
 }
 
 /// [`optimal_omega`] and the number of derivative evaluations inside `(0, 1)` it took.
-fn solve_omega(pencils: &[&Pencil], criterion: Criterion) -> (f64, usize) {
-    let (g0, _, size0) = derivatives(pencils, criterion, 0.0);
+fn solve_omega(pencils: &Weighted, criterion: Criterion) -> (f64, usize) {
+    minimise_convex(|omega| derivatives(pencils, criterion, omega))
+}
+
+/// The one minimiser of a convex criterion of `ω` over `[0, 1]` (CI's and ICI's), given its
+/// derivative, second derivative and the size of the terms the derivative sums at `ω`:
+/// an endpoint, exactly, when the derivative there does not point inwards (within
+/// [`ENDPOINT_TIE`] of its size; `ω = 0` first); otherwise safeguarded Newton from `½` —
+/// bisection when a step leaves the bracket — until the derivative is zero to within `4ε` of
+/// its size (its sign then no longer says where the root is) or a step moves `ω` by less than
+/// `4ε` relative. Returns `ω` and the number of interior evaluations.
+pub(super) fn minimise_convex(derivatives: impl Fn(f64) -> (f64, f64, f64)) -> (f64, usize) {
+    let (g0, _, size0) = derivatives(0.0);
     if g0 >= -ENDPOINT_TIE * size0 {
         return (0.0, 0);
     }
-    let (g1, _, size1) = derivatives(pencils, criterion, 1.0);
+    let (g1, _, size1) = derivatives(1.0);
     if g1 <= ENDPOINT_TIE * size1 {
         return (1.0, 0);
     }
@@ -289,7 +309,7 @@ fn solve_omega(pencils: &[&Pencil], criterion: Criterion) -> (f64, usize) {
     let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
     let mut omega = 0.5;
     for step in 1..=200 {
-        let (g, h, size) = derivatives(pencils, criterion, omega);
+        let (g, h, size) = derivatives(omega);
         // Zero to within the rounding of its terms: the sign of g no longer tells which side
         // the root is on (bisecting further on noise took up to 50 steps).
         if g.abs() <= 4.0 * f64::EPSILON * size {
@@ -367,7 +387,7 @@ pub fn covariance_intersection(
     criterion: Criterion,
 ) -> Result<CiResult, InputError> {
     let pencil = Pencil::new(&problem.P_a, &problem.P_b)?;
-    let omega = optimal_omega(&[&pencil], criterion);
+    let omega = optimal_omega(&[(&pencil, 1.0)], criterion);
     let (P, K_a, K_b) = fuse_at(&pencil, &problem.P_a, &problem.P_b, omega);
     let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
     Ok(CiResult {
@@ -472,7 +492,7 @@ pub fn covariance_intersection_independent(
         .iter()
         .map(|s| Pencil::new(&s.P_a, &s.P_b))
         .collect::<Result<Vec<_>, _>>()?;
-    let refs: Vec<&Pencil> = pencils.iter().collect();
+    let refs: Vec<(&Pencil, f64)> = pencils.iter().map(|p| (p, 1.0)).collect();
     let omega = optimal_omega(&refs, criterion);
     let fused = blocks
         .iter()
@@ -484,6 +504,24 @@ pub fn covariance_intersection_independent(
         })
         .collect();
     Ok((fused, omega))
+}
+
+/// Each distinct pencil of block-stored estimates once, counted as often as its block occurs
+/// (`pencils[k]` is `None` for a twin of an earlier block, `twins` from [`covariance_twins`]):
+/// the one form in which CI and ICI sum their criterion over blocks.
+pub(super) fn weighted<'a>(
+    pencils: &'a [Option<Pencil>],
+    twins: &[Option<usize>],
+) -> Vec<(&'a Pencil, f64)> {
+    let mut counts = vec![0.0; pencils.len()];
+    for (k, twin) in twins.iter().enumerate() {
+        counts[twin.unwrap_or(k)] += 1.0;
+    }
+    pencils
+        .iter()
+        .zip(&counts)
+        .filter_map(|(p, &c)| p.as_ref().map(|p| (p, c)))
+        .collect()
 }
 
 /// Monolithic CI of block-stored estimates, in place: `a[k] ← CI(a[k], b[k])` with one common
@@ -506,10 +544,7 @@ pub(crate) fn ci_in_place(
         });
     }
     let source = |k: usize| twins[k].unwrap_or(k);
-    // Every block counts in the criterion, twins included.
-    let refs: Vec<&Pencil> = (0..a.len())
-        .filter_map(|k| pencils[source(k)].as_ref())
-        .collect();
+    let refs = weighted(&pencils, &twins);
     let omega = optimal_omega(&refs, criterion);
     for k in 0..a.len() {
         if let Some(pencil) = &pencils[source(k)] {
@@ -581,7 +616,7 @@ fn ci_block_in_place(
         return Ok((1.0, None));
     }
     let pencil = Pencil::from_half(half, &a.P)?;
-    let omega = optimal_omega(&[&pencil], criterion);
+    let omega = optimal_omega(&[(&pencil, 1.0)], criterion);
     pencil.fuse_into(a, b, omega, None);
     Ok((omega, Some(pencil)))
 }
@@ -691,8 +726,8 @@ mod tests {
             let n = 2 + pairs.len() % 4;
             let (a, b) = (spd(n, &mut seed, 0.1), spd(n, &mut seed, 0.1));
             let pencil = Pencil::new(&a, &b).unwrap();
-            let w = optimal_omega(&[&pencil], Criterion::Trace);
-            if w > 0.0 && w < 1.0 && optimal_omega(&[&pencil], Criterion::Logdet) > 0.0 {
+            let w = optimal_omega(&[(&pencil, 1.0)], Criterion::Trace);
+            if w > 0.0 && w < 1.0 && optimal_omega(&[(&pencil, 1.0)], Criterion::Logdet) > 0.0 {
                 pairs.push((a, b));
             }
         }
@@ -707,10 +742,10 @@ mod tests {
         for (a, b) in interior_pairs(40) {
             let pencil = Pencil::new(&a, &b).unwrap();
             for criterion in [Criterion::Trace, Criterion::Logdet] {
-                let (w, steps) = solve_omega(&[&pencil], criterion);
+                let (w, steps) = solve_omega(&[(&pencil, 1.0)], criterion);
                 if w > 0.0 && w < 1.0 {
                     // The derivative vanishes there (to rounding of its terms).
-                    let (g, _, size) = derivatives(&[&pencil], criterion, w);
+                    let (g, _, size) = derivatives(&[(&pencil, 1.0)], criterion, w);
                     assert!(g.abs() <= 1e-12 * size, "{criterion:?}: g = {g:e}");
                     most = most.max(steps);
                 }
@@ -727,7 +762,7 @@ mod tests {
             for criterion in [Criterion::Trace, Criterion::Logdet] {
                 let at = |c: f64| {
                     let pencil = Pencil::new(&(&a * c), &(&b * c)).unwrap();
-                    let w = optimal_omega(&[&pencil], criterion);
+                    let w = optimal_omega(&[(&pencil, 1.0)], criterion);
                     // The in-place rule decides the endpoints its own way: the same ω.
                     let g = |P: &DMatrix<f64>| Estimate {
                         x: DVector::zeros(P.nrows()),
