@@ -138,7 +138,7 @@ use super::bracket::{trace_upper_bound, young_bound, young_omega};
 use super::ci::covariance_intersection;
 use super::sdp::{solve_program, svec_index, Deadline, Kkt, SdpStatus};
 use super::verify::{is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
-use super::{scatter_block, Criterion, Fused, FusionProblem};
+use super::{per_block, Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::structure::independent_blocks;
 
@@ -474,7 +474,6 @@ fn certify(
     settings: &CertifySettings,
 ) -> Result<CertifiedResult, SolveError> {
     settings.validate()?;
-    let n = problem.dim();
     let blocks = certification_blocks(problem, gain);
     for block in &blocks {
         if block.len() > settings.max_block_dim {
@@ -494,14 +493,11 @@ fn certify(
             });
         }
     }
-    let mut K_a = DMatrix::zeros(n, n);
-    let mut P = DMatrix::zeros(n, n);
     let (mut status, mut iterations, mut repair) = (SdpStatus::Solved, 0, 0.0);
     let mut levels = Vec::with_capacity(blocks.len());
     let mut sectors = Vec::with_capacity(blocks.len());
     let mut ci_blocks = Vec::with_capacity(blocks.len());
-    for block in &blocks {
-        let sub = problem.restrict(block);
+    let fused = per_block(problem, &blocks, |block, sub| {
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
         // The requested family, or — where the solver breaks down numerically on it — the
@@ -576,13 +572,10 @@ fn certify(
         repair += solved.repair;
         levels.push(family.level());
         sectors.push(family.sectors());
-        scatter_block(&mut K_a, block, &solved.K_a);
-        scatter_block(&mut P, block, &solved.P);
-    }
-    let K_b = DMatrix::identity(n, n) - &K_a;
-    let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
+        Ok((solved.K_a, solved.P))
+    })?;
     Ok(CertifiedResult {
-        fused: Fused { x, P, K_a, K_b },
+        fused,
         status,
         iterations,
         repair,

@@ -281,6 +281,36 @@ pub(crate) fn covariance_twins(a: &[Estimate], b: &[Estimate]) -> Vec<Option<usi
         .collect()
 }
 
+/// The skeleton of every rule that solves each independent block on its own (nmCI, the
+/// sampled SDP, the certified rule): for each block, `solve(block, sub)` gets the block's
+/// states and the problem restricted to them (the problem itself when there is one block)
+/// and returns the block's `(K_a, P)`; these are scattered into the whole, then
+/// `K_b = I − K_a` and `x = K_a x_a + K_b x_b`. What else a rule reports per block (status,
+/// iterations, bounds, ω) it gathers in `solve`.
+#[allow(non_snake_case)]
+pub(crate) fn per_block<E>(
+    problem: &FusionProblem,
+    blocks: &[Vec<usize>],
+    mut solve: impl FnMut(&[usize], FusionProblem) -> Result<(DMatrix<f64>, DMatrix<f64>), E>,
+) -> Result<Fused, E> {
+    let n = problem.dim();
+    let mut K_a = DMatrix::zeros(n, n);
+    let mut P = DMatrix::zeros(n, n);
+    for block in blocks {
+        let sub = if blocks.len() == 1 {
+            problem.clone()
+        } else {
+            problem.restrict(block)
+        };
+        let (K_a_block, P_block) = solve(block, sub)?;
+        scatter_block(&mut K_a, block, &K_a_block);
+        scatter_block(&mut P, block, &P_block);
+    }
+    let K_b = DMatrix::identity(n, n) - &K_a;
+    let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
+    Ok(Fused { x, P, K_a, K_b })
+}
+
 /// Writes `part` into the rows and columns `block` of `whole` — the inverse of restricting
 /// a matrix to `block`: how per-block results (nmCI, the split SDP, the certified rule,
 /// N-way nmCI) are assembled.

@@ -6,10 +6,8 @@
 //! Each block is fused by exact CI; the bound and gains are block-diagonal in that
 //! partition. With a single block nmCI is CI.
 
-use nalgebra::{DMatrix, DVector};
-
 use super::ci::covariance_intersection;
-use super::{scatter_block, Criterion, Fused, FusionProblem};
+use super::{per_block, Criterion, Fused, FusionProblem};
 use crate::error::InputError;
 use crate::structure::independent_blocks;
 
@@ -41,26 +39,15 @@ pub fn non_monolithic_ci(
     problem: &FusionProblem,
     criterion: Criterion,
 ) -> Result<NmciResult, InputError> {
-    let n = problem.dim();
     let blocks = independent_blocks(&problem.P_a, &problem.P_b, &problem.cross_pattern);
-    let mut P = DMatrix::zeros(n, n);
-    let mut K_a = DMatrix::zeros(n, n);
-    let mut K_b = DMatrix::zeros(n, n);
-    let mut x = DVector::zeros(n);
     let mut omega = Vec::with_capacity(blocks.len());
-    for block in &blocks {
-        let sub = problem.restrict(block);
+    let fused = per_block(problem, &blocks, |_, sub| {
         let ci = covariance_intersection(&sub, criterion)?;
-        for (bi, &i) in block.iter().enumerate() {
-            x[i] = ci.fused.x[bi];
-        }
-        scatter_block(&mut P, block, &ci.fused.P);
-        scatter_block(&mut K_a, block, &ci.fused.K_a);
-        scatter_block(&mut K_b, block, &ci.fused.K_b);
         omega.push(ci.omega);
-    }
+        Ok::<_, InputError>((ci.fused.K_a, ci.fused.P))
+    })?;
     Ok(NmciResult {
-        fused: Fused { x, P, K_a, K_b },
+        fused,
         omega,
         blocks,
     })

@@ -50,7 +50,7 @@ use super::bracket::lower_bound;
 use super::certify::check_time_limit;
 use super::check::{conservativeness_margin, worst_margin};
 use super::sample::{sample_cross_covariances, AutoChoice, CrossSamples, SamplerSettings};
-use super::{scatter_block, Fused, FusionProblem};
+use super::{per_block, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::symmetrize;
 use crate::structure::independent_blocks;
@@ -293,23 +293,17 @@ pub(crate) fn solve_samples(
     } else {
         vec![(0..problem.dim()).collect()]
     };
-    let n = problem.dim();
-    let mut K_a = DMatrix::zeros(n, n);
-    let mut P_bar = DMatrix::zeros(n, n);
     let (mut status, mut iterations, mut rounds, mut lmis, mut dual_objective) =
         (SdpStatus::Solved, 0, 0, 0, 0.0);
     let mut lower = 0.0;
-    for block in &blocks {
-        let (sub, cross) = if blocks.len() == 1 {
-            (problem.clone(), samples.cross.clone())
+    let fused = per_block(problem, &blocks, |block, sub| {
+        let cross = if blocks.len() == 1 {
+            samples.cross.clone()
         } else {
             let restrict = |m: &DMatrix<f64>| {
                 DMatrix::from_fn(block.len(), block.len(), |i, j| m[(block[i], block[j])])
             };
-            (
-                problem.restrict(block),
-                samples.cross.iter().map(restrict).collect(),
-            )
+            samples.cross.iter().map(restrict).collect()
         };
         let solved = solve_block(&sub, &cross, &settings, deadline)?;
         if solved.status == SdpStatus::AlmostSolved {
@@ -320,17 +314,8 @@ pub(crate) fn solve_samples(
         lmis += solved.lmis;
         dual_objective += solved.dual_objective;
         lower += solved.lower_bound;
-        scatter_block(&mut K_a, block, &solved.fused.K_a);
-        scatter_block(&mut P_bar, block, &solved.fused.P);
-    }
-    let K_b = DMatrix::identity(n, n) - &K_a;
-    let x = &K_a * &problem.x_a + &K_b * &problem.x_b;
-    let fused = Fused {
-        x,
-        P: P_bar,
-        K_a,
-        K_b,
-    };
+        Ok::<_, SolveError>((solved.fused.K_a, solved.fused.P))
+    })?;
     let worst_sample_margin = worst_margin(problem, &fused, &samples.cross);
     Ok(SdpResult {
         fused,
