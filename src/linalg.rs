@@ -152,6 +152,21 @@ pub(crate) fn solve_lower_rows(L: &DMatrix<f64>, c: &mut [f64]) {
     }
 }
 
+/// A random SPD matrix `A Aᵀ + δI` from a small LCG (no RNG dependency in unit tests): the
+/// unit tests' problem generator.
+#[cfg(test)]
+#[allow(non_snake_case)]
+pub(crate) fn test_spd(n: usize, seed: &mut u64, shift: f64) -> DMatrix<f64> {
+    let mut next = || {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    };
+    let A = DMatrix::from_fn(n, n, |_, _| next());
+    &A * A.transpose() + DMatrix::identity(n, n) * shift
+}
+
 #[cfg(test)]
 #[allow(non_snake_case)]
 mod tests {

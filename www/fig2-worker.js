@@ -2,18 +2,10 @@
 // as `nmci fig2`), the summary rows (`fig2_summary`) posted back at most every 100 ms and at
 // the end. A "stop" message is seen between runs.
 import { fig2_run, fig2_summary } from "./pkg/nmci.js";
-import { ready, reportFailure } from "./worker-init.js";
+import { onRun, ready, reportFailure } from "./worker-init.js";
 
-let stopped = false;
 
-self.onmessage = async (event) => {
-  const { type, config } = event.data;
-  if (type === "stop") {
-    stopped = true;
-    return;
-  }
-  if (type !== "start") return;
-  stopped = false;
+onRun(async ({ config }, stopped) => {
   const t0 = performance.now();
   const runs = [];
   try {
@@ -28,14 +20,14 @@ self.onmessage = async (event) => {
       posted = runs.length;
       lastPost = performance.now();
     };
-    for (let r = 0; r < config.runs && !stopped; r++) {
+    for (let r = 0; r < config.runs && !stopped(); r++) {
       runs.push(fig2_run(config, r));
       if (performance.now() - lastPost >= 100) post();
       await new Promise((resolve) => setTimeout(resolve, 0));
     }
     if (posted < runs.length) post();
-    self.postMessage({ type: stopped ? "stopped" : "done" });
+    self.postMessage({ type: stopped() ? "stopped" : "done" });
   } catch (err) {
     reportFailure(err);
   }
-};
+});

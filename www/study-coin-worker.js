@@ -5,19 +5,11 @@
 // estimator, the series as a Float64Array) and its chart go back to the page. A "stop"
 // message is seen between chunks.
 import { StudyCoin } from "./pkg/nmci.js";
-import { ready, reportFailure as fail } from "./worker-init.js";
+import { onRun, ready, reportFailure as fail } from "./worker-init.js";
 
-let stopped = false;
 const CHUNK = 25; // estimator-steps per message: about 0.2 s of work
 
-self.onmessage = async (event) => {
-  const { type, config } = event.data;
-  if (type === "stop") {
-    stopped = true;
-    return;
-  }
-  if (type !== "start") return;
-  stopped = false;
+onRun(async ({ config }, stopped) => {
   let coin;
   try {
     await ready;
@@ -29,16 +21,16 @@ self.onmessage = async (event) => {
   const t0 = performance.now();
   try {
     let finished = false;
-    while (!finished && !stopped) {
+    while (!finished && !stopped()) {
       finished = coin.advance(CHUNK);
       const view = coin.view();
       view.elapsed_ms = performance.now() - t0;
       self.postMessage({ type: "coin", view, chart: coin.chart() }, [view.coin.buffer]);
       await new Promise((resolve) => setTimeout(resolve, 0));
     }
-    self.postMessage({ type: stopped ? "stopped" : "done" });
+    self.postMessage({ type: stopped() ? "stopped" : "done" });
   } catch (err) {
     if (fail(err)) return;
   }
   coin.free();
-};
+});

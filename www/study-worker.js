@@ -2,23 +2,15 @@
 // time; after each chunk the current view (headline numbers) and the charts (`Study.charts`,
 // drawn on the page by the wasm `draw_chart`) go back to the page. A "stop" message is seen between chunks.
 import { Study, panic_for_test } from "./pkg/nmci.js";
-import { ready, reportFailure as fail } from "./worker-init.js";
+import { onRun, ready, reportFailure as fail } from "./worker-init.js";
 
-let stopped = false;
 const CHUNK = 20; // steps per message: about 0.1–0.2 s of work
 
-self.onmessage = async (event) => {
-  const { type, config } = event.data;
-  if (type === "stop") {
-    stopped = true;
-    return;
-  }
-  if (type !== "start" && type !== "panic") return;
-  stopped = false;
+onRun(async ({ type, config, message }, stopped) => {
   let study;
   try {
     await ready;
-    if (type === "panic") panic_for_test(event.data.message); // the end-to-end test's forced panic
+    if (type === "panic") panic_for_test(message); // the end-to-end test's forced panic
     study = new Study(config);
   } catch (err) {
     fail(err);
@@ -30,7 +22,7 @@ self.onmessage = async (event) => {
   try {
     let finished = false;
     let runsDone = 0;
-    while (!finished && !stopped) {
+    while (!finished && !stopped()) {
       finished = study.advance(CHUNK);
       const view = study.view();
       if (view.runs_done > runsDone) {
@@ -45,9 +37,9 @@ self.onmessage = async (event) => {
       // Yield so that a "stop" message can arrive.
       await new Promise((resolve) => setTimeout(resolve, 0));
     }
-    self.postMessage({ type: stopped ? "stopped" : "done" });
+    self.postMessage({ type: stopped() ? "stopped" : "done" });
   } catch (err) {
     if (fail(err)) return; // the instance is unusable: no `free`
   }
   study.free();
-};
+}, ["panic"]);

@@ -24,3 +24,20 @@ export function reportFailure(err) {
   if (crash) self.close();
   return crash !== null;
 }
+
+/** The worker side of a tab's run (www/worker-tab.js): on a "start" message (or one of the
+ * `also` types) calls `run(message, stopped)`, where `stopped()` says whether a "stop"
+ * message has come since; the work checks it between chunks. */
+export function onRun(run, also = []) {
+  let stop = false;
+  self.onmessage = async (event) => {
+    const message = event.data;
+    if (message.type === "stop") {
+      stop = true;
+      return;
+    }
+    if (message.type !== "start" && !also.includes(message.type)) return;
+    stop = false;
+    await run(message, () => stop);
+  };
+}

@@ -627,17 +627,7 @@ mod tests {
     use super::*;
     use crate::structure::CrossPattern;
 
-    /// A random SPD matrix `A Aᵀ + δI` from a small LCG (no RNG dependency in unit tests).
-    fn spd(n: usize, seed: &mut u64, shift: f64) -> DMatrix<f64> {
-        let mut next = || {
-            *seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
-        let A = DMatrix::from_fn(n, n, |_, _| next());
-        &A * A.transpose() + DMatrix::identity(n, n) * shift
-    }
+    use crate::linalg::test_spd as spd;
 
     fn gaussian(n: usize, seed: &mut u64, shift: f64) -> Estimate {
         let P = spd(n, seed, shift);

@@ -210,17 +210,7 @@ pub(crate) fn ici_in_place(
 mod tests {
     use super::*;
 
-    /// A random SPD matrix `A Aᵀ + δI` from a small LCG.
-    fn spd(n: usize, seed: &mut u64, shift: f64) -> DMatrix<f64> {
-        let mut next = || {
-            *seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
-        let A = DMatrix::from_fn(n, n, |_, _| next());
-        &A * A.transpose() + DMatrix::identity(n, n) * shift
-    }
+    use crate::linalg::test_spd as spd;
 
     /// The criterion at `ω` from the fused covariance itself (not the pencil's sums).
     fn criterion_at(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>, omega: f64, c: Criterion) -> f64 {
