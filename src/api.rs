@@ -26,7 +26,7 @@ use crate::fusion::nway::{
 };
 use crate::fusion::rules::{methods_phrase, Criteria, Guarantee, Method, RequestOption};
 use crate::fusion::sample::{AutoChoice, SamplerKind, SamplerSettings};
-use crate::fusion::sdp::{optimal_fusion, SdpSettings};
+use crate::fusion::sdp::{optimal_fusion, SdpSettings, SdpStatus};
 use crate::fusion::{Criterion, Estimate, Fused, FusionProblem};
 use crate::linalg::{matrix_from_rows, matrix_to_rows};
 use crate::structure::{independent_blocks, CrossPattern};
@@ -206,7 +206,7 @@ pub struct FuseResponse {
     pub samples: Option<usize>,
     /// `sdp`, `sdp_cuts`: Clarabel's status, `Solved` or `AlmostSolved`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub status: Option<String>,
+    pub status: Option<SdpStatus>,
     /// `sdp`: interior-point iterations (all working-set rounds); `sdp_cuts`: outer iterations;
     /// N-way: Newton iterations (0 when two estimates went to the exact pairwise CI).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -685,7 +685,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             };
             let cuts = optimal_fusion_cuts(&problem, &settings)?;
             let mut r = response(Method::SdpCuts, Criterion::Trace, &cuts.fused);
-            r.status = Some(cuts.status.as_str().into());
+            r.status = Some(cuts.status);
             r.iterations = Some(cuts.iterations as u32);
             r.lmis = Some(cuts.constraints);
             r.violation = Some(cuts.violation);
@@ -780,7 +780,7 @@ pub(crate) fn certified_response(
 /// The response of a computed certificate.
 pub(crate) fn certificate_response(cert: &CertifiedResult) -> FuseResponse {
     let mut r = response(Method::Certified, Criterion::Trace, &cert.fused);
-    r.status = Some(cert.status.as_str().into());
+    r.status = Some(cert.status);
     r.iterations = Some(cert.iterations);
     r.blocks = Some(cert.blocks.clone());
     r.repair = Some(cert.repair);
@@ -850,7 +850,7 @@ pub(crate) fn sdp_response(
     let opt = optimal_fusion(problem, settings)?;
     let mut r = response(Method::Sdp, Criterion::Trace, &opt.fused);
     r.samples = Some(opt.samples);
-    r.status = Some(opt.status.as_str().into());
+    r.status = Some(opt.status);
     r.iterations = Some(opt.iterations);
     r.acceptance_rate = Some(opt.acceptance_rate);
     r.sampler_choice = opt.sampler_choice;

@@ -55,8 +55,9 @@ use crate::error::SolveError;
 use crate::linalg::symmetrize;
 use crate::structure::independent_blocks;
 
-/// How Clarabel ended a solve that produced a usable bound.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// How Clarabel ended a solve that produced a usable bound (in JSON: `"Solved"`,
+/// `"AlmostSolved"`, as Clarabel spells it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum SdpStatus {
     /// Solved to the requested tolerances.
     Solved,
