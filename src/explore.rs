@@ -2,64 +2,78 @@
 //! possible true fused covariances and each rule's conservativeness over it — one call, so the
 //! page (in a Web Worker) and the native tests compute exactly the same numbers.
 
+use std::collections::BTreeMap;
+
 use nalgebra::DMatrix;
+use serde::de::IgnoredAny;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{
-    certificate_response, check_blocks, check_count, check_rows, ci_response, ei_response,
-    ici_response, naive_response, nmci_response, problem_from_parts, sdp_response,
-    CovarianceSummary, FuseResponse, MAX_SAMPLES, MAX_TRIALS,
+    certificate_response, check_blocks, check_count, ci_response, ei_response, ici_response,
+    naive_response, nmci_response, sdp_response, unknown_field, CovarianceSummary, FuseResponse,
+    Options, PairInput, MAX_SAMPLES,
 };
 use crate::error::RequestError;
 use crate::fusion::bracket::{
     bracket_certificate, upper_bounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
-use crate::fusion::certify::CertifySettings;
+use crate::fusion::certify::Certificates;
 use crate::fusion::check::{fused_coins, worst_margin};
 use crate::fusion::known::known_correlation_fusion;
 use crate::fusion::rules::{Method, RULES};
-use crate::fusion::sample::{sample_cross_covariances, AutoChoice, SamplerKind, SamplerSettings};
-use crate::fusion::sdp::SdpSettings;
-use crate::fusion::Criterion;
+use crate::fusion::sample::{sample_cross_covariances, AutoChoice};
 use crate::fusion::{Fused, FusionProblem};
 
-/// What the explorer asks for.
+/// What the explorer asks for: the two estimates, the [`Options`] of `fuse` (the criterion of
+/// CI, nmCI and ICI; the SDP's `samples`, `seed`, `max_trials`, `sampler`; the certified
+/// rule's `level`, `sectors`; `time_limit`), with their defaults, and the region.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "ExploreRequestWire")]
 pub struct ExploreRequest {
-    /// `P_a`, nested rows.
-    pub pa: Vec<Vec<f64>>,
-    /// `P_b`, nested rows.
-    pub pb: Vec<Vec<f64>>,
-    /// `x_a` (default zeros).
-    #[serde(default)]
-    pub xa: Option<Vec<f64>>,
-    /// `x_b` (default zeros).
-    #[serde(default)]
-    pub xb: Option<Vec<f64>>,
-    /// Pattern of `P_ab` (`true` = may be non-zero; default all `true`).
-    #[serde(default)]
-    pub pab_unknown: Option<Vec<Vec<bool>>>,
-    /// Criterion of CI and nmCI (default `trace`; the SDP always minimises the trace).
-    #[serde(default)]
-    pub criterion: Option<Criterion>,
-    /// Samples of the optimal bound's SDP (default 200).
-    #[serde(default)]
-    pub samples: Option<usize>,
-    /// Seed of the SDP's samples (default 0); the region uses an independent stream.
-    #[serde(default)]
-    pub seed: Option<u64>,
-    /// Admissible cross-covariances drawn for the region and the margins (default 300; 0 = none).
-    #[serde(default)]
+    /// The two estimates.
+    #[serde(flatten)]
+    pub pair: PairInput,
+    /// The options, as `fuse` takes them.
+    #[serde(flatten)]
+    pub options: Options,
+    /// Admissible cross-covariances drawn for the region and the margins (default 300; 0 =
+    /// none), with the SDP's sampler and an independent stream of its seed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub region_samples: Option<usize>,
-    /// Rejection-sampler budget per sample set (default 200 000: interactive use).
+}
+
+/// The region's default size.
+const REGION_SAMPLES: usize = 300;
+
+/// [`ExploreRequest`] as read: its parts, then whatever none of them took.
+#[derive(Deserialize)]
+struct ExploreRequestWire {
+    #[serde(flatten)]
+    pair: PairInput,
+    #[serde(flatten)]
+    options: Options,
     #[serde(default)]
-    pub max_trials: Option<u64>,
-    /// The sampler of the SDP's samples and the region's: `rejection` (the paper's, default),
-    /// `hit_and_run` (any dimension) or `auto` (rejection where its acceptance is workable,
-    /// hit-and-run otherwise; the page's default).
-    #[serde(default)]
-    pub sampler: Option<SamplerKind>,
+    region_samples: Option<usize>,
+    #[serde(flatten)]
+    unknown: BTreeMap<String, IgnoredAny>,
+}
+
+impl TryFrom<ExploreRequestWire> for ExploreRequest {
+    type Error = String;
+
+    fn try_from(w: ExploreRequestWire) -> Result<Self, String> {
+        let every_field = ExploreRequest {
+            pair: PairInput::every_field(),
+            options: Options::every_field(),
+            region_samples: Some(1),
+        };
+        unknown_field(&w.unknown, &every_field)?;
+        Ok(ExploreRequest {
+            pair: w.pair,
+            options: w.options,
+            region_samples: w.region_samples,
+        })
+    }
 }
 
 /// Proven bounds on the robust optimum of `tr P̄` (`fusion::bracket`): the sampled SDP's
@@ -80,11 +94,10 @@ pub struct Gap {
     /// Whether `relative ≤ 10⁻⁶` ([`CLOSED_RTOL`]): the robust optimum is proven to that
     /// accuracy, and `upper_rule` attains it.
     pub closed: bool,
-    /// The certified rule's level on each block (when computed).
-    pub levels: Option<Vec<u32>>,
-    /// The certified rule's number of sectors on each block (0: one certificate for every
-    /// direction), with `levels`.
-    pub sectors: Option<Vec<u32>>,
+    /// The certified rule's certificate on each block (when computed; JSON `levels` and
+    /// `sectors`).
+    #[serde(flatten)]
+    pub certificates: Option<Certificates>,
 }
 
 /// The conservativeness index of one rule over the region's cross-covariances:
@@ -177,41 +190,20 @@ fn region_seed(seed: u64) -> u64 {
 #[allow(non_snake_case)]
 pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
     // The explorer solves the sampled SDP of every state: its limits apply.
-    let max = Method::Sdp.info().limits.max_dim;
-    for (field, rows) in [("pa", &request.pa), ("pb", &request.pb)] {
-        check_rows(field, rows, max, "the explorer")?;
-    }
-    let problem = problem_from_parts(
-        &request.pa,
-        &request.pb,
-        request.xa.as_deref(),
-        request.xb.as_deref(),
-        request.pab_unknown.as_deref(),
-    )?;
+    request
+        .pair
+        .check_sizes(Method::Sdp.info().limits.max_dim, "the explorer")?;
+    let problem = request.pair.problem()?;
     check_blocks(Method::Sdp, &problem)?;
-    let criterion = request.criterion.unwrap_or_default();
-    check_count("samples", request.samples, MAX_SAMPLES)?;
-    check_count("max_trials", request.max_trials, MAX_TRIALS)?;
-    if request.region_samples.is_some_and(|r| r > MAX_SAMPLES) {
-        check_count("region_samples", request.region_samples, MAX_SAMPLES)?;
-    }
-    let samples = request.samples.unwrap_or(200);
-    let max_trials = request.max_trials.unwrap_or(200_000);
-    let seed = request.seed.unwrap_or(0);
+    let plan = request.options.plan()?;
+    check_count(
+        "region_samples",
+        request.region_samples.filter(|&r| r > 0),
+        MAX_SAMPLES,
+    )?;
     let n = problem.dim();
-    let sampler = SamplerSettings {
-        kind: request.sampler.unwrap_or_default(),
-        ..SamplerSettings::rejection(max_trials)
-    };
-
-    let settings = SdpSettings {
-        samples,
-        seed,
-        sampler,
-        ..SdpSettings::default()
-    };
-    let certify = CertifySettings::default();
-    let certificate = bracket_certificate(&problem, &certify);
+    let criterion = plan.criterion;
+    let certificate = bracket_certificate(&problem, &plan.certify);
     let certified_P = match &certificate {
         Ok(Some(cert)) => Some(&cert.fused.P),
         _ => None,
@@ -235,8 +227,9 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
                 Err(e) => Err(e.to_string()),
             },
             // The page never shows the SDP's own-gain certificate: not computed here.
-            Method::Sdp => sdp_response(&problem, &settings, &certify, Some(uppers), false)
-                .map_err(|e| e.to_string()),
+            Method::Sdp => {
+                sdp_response(&problem, &plan, Some(uppers), false).map_err(|e| e.to_string())
+            }
             Method::SdpCuts => Err("the explorer does not run the cutting-plane SDP".into()),
         };
         computed.push((rule.method, outcome));
@@ -245,32 +238,27 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         (Method::Sdp, Ok((r, _))) => Some(r),
         _ => None,
     });
-    let gap = sdp.and_then(|s| {
-        Some(Gap {
-            lower: s.lower_bound?,
-            upper: s.upper_bound?,
-            upper_rule: s.upper_bound_rule?,
-            absolute: s.gap?,
-            relative: s.gap_relative?,
-            closed: s.gap_relative? <= CLOSED_RTOL,
-            levels: match &certificate {
-                Ok(Some(cert)) => Some(cert.levels.clone()),
-                _ => None,
-            },
-            sectors: match &certificate {
-                Ok(Some(cert)) => Some(cert.sectors.clone()),
-                _ => None,
-            },
-        })
+    let gap = sdp.and_then(|s| s.bracket()).map(|b| Gap {
+        lower: b.lower,
+        upper: b.upper,
+        upper_rule: b.upper_rule,
+        absolute: b.gap(),
+        relative: b.gap_relative(),
+        closed: b.closed(CLOSED_RTOL),
+        certificates: match &certificate {
+            Ok(Some(cert)) => Some(Certificates::of(cert)),
+            _ => None,
+        },
     });
 
-    let region_samples = request.region_samples.unwrap_or(300);
+    let region_samples = request.region_samples.unwrap_or(REGION_SAMPLES);
     let mut region = Vec::new();
     let (mut region_count, mut region_acceptance_rate, mut region_error) = (0, None, None);
     let mut region_sampler_choice = None;
     let mut drawn_cross = None;
     if region_samples > 0 {
-        match sample_cross_covariances(&problem, region_samples, region_seed(seed), sampler) {
+        let seed = region_seed(plan.sdp.seed);
+        match sample_cross_covariances(&problem, region_samples, seed, plan.sdp.sampler) {
             Ok(drawn) => {
                 region.reserve(drawn.len() * n * n);
                 for P_ab in &drawn.cross {

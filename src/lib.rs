@@ -54,7 +54,8 @@ mod structure;
 pub mod wasm;
 
 pub use api::{
-    fuse, fuse_json, CovarianceSummary, FuseRequest, FuseResponse, NwayEstimate, NwayPair,
+    fuse, fuse_json, CertifiedDetails, CovarianceSummary, CutsDetails, Details, FuseRequest,
+    FuseResponse, Gains, NwayEstimate, NwayPair, Options, PairInput, Plan, Rows, SdpDetails,
     MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
 };
 #[cfg(not(target_arch = "wasm32"))]
@@ -74,8 +75,8 @@ pub use fusion::bracket::{
     Bracket, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
 pub use fusion::certify::{
-    certified_fusion, certify_gain, CertifiedResult, CertifySettings, Family, DEFAULT_SECTORS,
-    MAX_BLOCK_DIM, MAX_LEVEL, MAX_SECTORS,
+    certified_fusion, certify_gain, Certificates, CertifiedResult, CertifySettings, Family,
+    DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_LEVEL, MAX_SECTORS,
 };
 pub use fusion::check::{
     conservativeness_index, conservativeness_margin, fused_coin, fused_coins,

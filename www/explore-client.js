@@ -10,12 +10,18 @@
 // end-to-end tests read them).
 const ABANDON_MS = 300;
 const MAX_FAILURES_IN_A_ROW = 3;
+// The page's rejection-sampler budget per sample set: a tenth of the library's default
+// (`SamplerSettings::default`, which `explore` would otherwise use as `fuse` does), so an edit
+// never waits seconds on a sampler; under `auto` the smaller budget also means hit-and-run
+// sooner.
+const INTERACTIVE_MAX_TRIALS = 200_000;
 
 /** The request of the wasm `explore` for an explorer state. */
 function request(s) {
   return {
     pa: s.pa, pb: s.pb, pab_unknown: s.pattern, criterion: s.criterion,
     samples: s.samples, seed: s.seed, region_samples: s.region, sampler: s.sampler,
+    max_trials: INTERACTIVE_MAX_TRIALS,
   };
 }
 

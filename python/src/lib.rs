@@ -157,32 +157,45 @@ fn array2<'py>(py: Python<'py>, rows: &[Vec<f64>]) -> PyResult<Bound<'py, PyArra
 
 /// A response as a dict with the contract's keys: the estimate, bound and gains (`x`, `p`,
 /// `ka`, `kb`, `gains`, `omega`, `weights`) as numpy arrays, the rest as in the JSON.
-fn response_dict<'py>(py: Python<'py>, mut r: FuseResponse) -> PyResult<Bound<'py, PyDict>> {
-    let x = std::mem::take(&mut r.x);
-    let p = std::mem::take(&mut r.p);
-    let (ka, kb, gains) = (r.ka.take(), r.kb.take(), r.gains.take());
-    let (omega, weights) = (r.omega.take(), r.weights.take());
-    let rest = serde_json::to_value(&r).map_err(|e| error(py, "InternalError", e.to_string()))?;
-    let dict = to_python(py, &rest)?.cast_into::<PyDict>()?;
-    dict.set_item("x", PyArray1::from_vec(py, x))?;
-    dict.set_item("p", array2(py, &p)?)?;
-    for (key, m) in [("ka", ka), ("kb", kb)] {
-        if let Some(m) = m {
-            dict.set_item(key, array2(py, &m)?)?;
+fn response_dict<'py>(py: Python<'py>, r: FuseResponse) -> PyResult<Bound<'py, PyDict>> {
+    let internal = |e: String| error(py, "InternalError", e);
+    let serde_json::Value::Object(mut map) =
+        serde_json::to_value(&r).map_err(|e| internal(e.to_string()))?
+    else {
+        return Err(internal("a response serialises to an object".into()));
+    };
+    let floats = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .map(|a| a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect())
+            .unwrap_or_default()
+    };
+    let rows = |v: &serde_json::Value| -> Vec<Vec<f64>> {
+        v.as_array()
+            .map(|a| a.iter().map(floats).collect())
+            .unwrap_or_default()
+    };
+    let mut arrays: Vec<(&str, Bound<'py, PyAny>)> = Vec::new();
+    for key in ["x", "omega"] {
+        if let Some(v) = map.remove(key) {
+            arrays.push((key, PyArray1::from_vec(py, floats(&v)).into_any()));
         }
     }
-    if let Some(gains) = gains {
-        let v: Vec<Vec<Vec<f64>>> = gains;
-        dict.set_item(
-            "gains",
-            PyArray3::from_vec3(py, &v).map_err(|e| error(py, "InternalError", e.to_string()))?,
-        )?;
+    for key in ["p", "ka", "kb", "weights"] {
+        if let Some(v) = map.remove(key) {
+            arrays.push((key, array2(py, &rows(&v))?.into_any()));
+        }
     }
-    if let Some(omega) = omega {
-        dict.set_item("omega", PyArray1::from_vec(py, omega))?;
+    if let Some(v) = map.remove("gains") {
+        let stack: Vec<Vec<Vec<f64>>> = v
+            .as_array()
+            .map(|a| a.iter().map(rows).collect())
+            .unwrap_or_default();
+        let gains = PyArray3::from_vec3(py, &stack).map_err(|e| internal(e.to_string()))?;
+        arrays.push(("gains", gains.into_any()));
     }
-    if let Some(weights) = weights {
-        dict.set_item("weights", array2(py, &weights)?)?;
+    let dict = to_python(py, &serde_json::Value::Object(map))?.cast_into::<PyDict>()?;
+    for (key, array) in arrays {
+        dict.set_item(key, array)?;
     }
     Ok(dict)
 }
@@ -218,14 +231,14 @@ fn fuse_arrays<'py>(
     let mut request: FuseRequest = serde_json::from_str(options)
         .map_err(|e| request_error(py, RequestError::Malformed(e.to_string())))?;
     if let Some(pa) = &pa {
-        request.pa = rows(pa);
+        request.pair.pa = rows(pa);
     }
     if let Some(pb) = &pb {
-        request.pb = rows(pb);
+        request.pair.pb = rows(pb);
     }
-    request.xa = xa.map(|v| v.as_array().to_vec());
-    request.xb = xb.map(|v| v.as_array().to_vec());
-    request.pab_unknown = pab_unknown.as_ref().map(bool_rows);
+    request.pair.xa = xa.map(|v| v.as_array().to_vec());
+    request.pair.xb = xb.map(|v| v.as_array().to_vec());
+    request.pair.pab_unknown = pab_unknown.as_ref().map(bool_rows);
     request.estimates = estimates.map(|list| {
         list.iter()
             .map(|(x, p)| nmci::NwayEstimate {
@@ -302,21 +315,25 @@ fn sample_cross_covariances<'py>(
             // serde's message lists the variants of `SamplerKind` itself.
             error(py, "RequestError", format!("invalid request: sampler: {e}"))
         })?;
-    // The request's problem builder: the same checks and messages as `fuse`.
-    let request: FuseRequest = serde_json::from_value(serde_json::json!({
-        "pa": rows(&pa),
-        "pb": rows(&pb),
-        "pab_unknown": pab_unknown.as_ref().map(bool_rows),
-        "method": "ci",
-    }))
-    .map_err(|e| request_error(py, RequestError::Malformed(e.to_string())))?;
-    let problem = request.problem().map_err(|e| request_error(py, e))?;
-    let defaults = nmci::SamplerSettings::default();
-    let settings = nmci::SamplerSettings {
-        kind,
-        max_trials: max_trials.unwrap_or(defaults.max_trials),
-        ..defaults
+    // The request's problem builder and options: the same checks, defaults and messages as
+    // `fuse`.
+    let pair = nmci::PairInput {
+        pab_unknown: pab_unknown.as_ref().map(bool_rows),
+        ..nmci::PairInput::new(rows(&pa), rows(&pb))
     };
+    let problem = pair
+        .problem()
+        .map_err(|e| request_error(py, RequestError::Input(e)))?;
+    let options = nmci::Options {
+        sampler: Some(kind),
+        max_trials,
+        ..Default::default()
+    };
+    let settings = options
+        .plan()
+        .map_err(|e| request_error(py, e))?
+        .sdp
+        .sampler;
     let samples = detached(py, move || {
         nmci::sample_cross_covariances(&problem, count, seed, settings)
     })?

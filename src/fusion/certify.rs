@@ -133,6 +133,7 @@ use std::collections::{BTreeMap, HashMap};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::SupportedConeT;
 use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
 
 use super::bracket::{trace_upper_bound, young_bound, young_omega};
 use super::ci::covariance_intersection;
@@ -365,6 +366,26 @@ pub(crate) fn check_time_limit(limit: Option<f64>) -> Result<(), SolveError> {
             "time_limit must be a positive number of seconds (got {t})"
         ))),
         _ => Ok(()),
+    }
+}
+
+/// The certified rule's certificate on each independent block.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Certificates {
+    /// The certificate level per block (JSON `levels`).
+    pub levels: Vec<u32>,
+    /// The number of sectors per block, 0 for one certificate for every direction (JSON
+    /// `sectors`).
+    pub sectors: Vec<u32>,
+}
+
+impl Certificates {
+    /// The certificates of a computed certified rule.
+    pub fn of(cert: &CertifiedResult) -> Self {
+        Certificates {
+            levels: cert.levels.clone(),
+            sectors: cert.sectors.clone(),
+        }
     }
 }
 

@@ -56,7 +56,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::bracket::trace_upper_bound;
-use super::certify::{certification_blocks, certified_fusion, check_time_limit, CertifySettings};
+use super::certify::{
+    certification_blocks, certified_fusion, check_time_limit, Certificates, CertifySettings,
+};
 use super::check::{conservativeness_margin, fused_error_covariance, worst_margin};
 use super::nmci::non_monolithic_ci;
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
@@ -192,10 +194,8 @@ pub struct CutsResult {
     /// The certified rule's `tr P̄` rounded up (a proven upper bound on the robust
     /// optimum), when computed.
     pub certified_trace: Option<f64>,
-    /// The certified rule's level on each block, when computed.
-    pub certified_levels: Option<Vec<u32>>,
-    /// The certified rule's number of sectors on each block (0: none), when computed.
-    pub certified_sectors: Option<Vec<u32>>,
+    /// The certified rule's certificate on each block, when computed.
+    pub certificates: Option<Certificates>,
     /// Whether the loop stopped because `lower_bound` reached `certified_trace` within the
     /// tolerance: the optimum is then proven to that relative accuracy, and the certified rule
     /// attains it to that accuracy.
@@ -307,8 +307,7 @@ pub fn optimal_fusion_cuts(
         converged: matches!(stop, CutsStop::Tolerance | CutsStop::GapClosed),
         stop,
         certified_trace,
-        certified_levels: certified.as_ref().map(|c| c.levels.clone()),
-        certified_sectors: certified.as_ref().map(|c| c.sectors.clone()),
+        certificates: certified.as_ref().map(Certificates::of),
         gap_closed: stop == CutsStop::GapClosed,
         dual_objective: opt.dual_objective,
         lower_bound,

@@ -96,11 +96,14 @@ fn sdp_cuts_through_the_json_contract() {
     let r = fuse(&request).unwrap();
     assert_eq!(r.method, Method::SdpCuts);
     assert!((r.trace - 2.0).abs() < 1e-6);
-    assert_eq!(r.converged, Some(true));
-    assert!(r.violation.unwrap() <= 1e-6);
-    assert!(r.lmis.unwrap() <= 20 && r.iterations.unwrap() >= 1);
-    assert!(r.lower_bound.unwrap() <= r.upper_bound.unwrap() + 1e-9);
-    assert!(r.gap.unwrap() <= 1e-6);
+    let Details::SdpCuts(d) = &r.details else {
+        panic!("{:?}", r.details)
+    };
+    assert!(d.converged);
+    assert!(d.violation <= 1e-6);
+    assert!(d.lmis <= 20 && d.iterations >= 1);
+    assert!(r.bracket().unwrap().lower <= r.upper_bound().unwrap() + 1e-9);
+    assert!(r.bracket().unwrap().gap() <= 1e-6);
     let json = serde_json::to_value(&r).unwrap();
     assert_eq!(json["method"], "sdp_cuts");
     // Sampling fields belong to "sdp".

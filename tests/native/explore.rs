@@ -202,7 +202,7 @@ fn every_rule_with_its_coin_over_the_region() {
         (Method::Ci, Guarantee::Conservative),
         (Method::Sdp, Guarantee::Relaxation),
     ] {
-        assert_eq!(a.response(m).unwrap().guarantee, g, "{m}");
+        assert_eq!(a.response(m).unwrap().guarantee(), g, "{m}");
     }
     assert!((a.response(Method::Naive).unwrap().trace - (0.75 + 0.8)).abs() < 1e-12);
     let coin = |m| a.rule(m).unwrap().coin.unwrap();
@@ -251,7 +251,7 @@ fn the_certified_rule_in_the_explorer() {
     assert_eq!(gap.upper_rule, Method::Certified);
     // The upper end is the certified trace rounded up: never below it, by at most rounding.
     assert!(gap.upper >= cert.trace && gap.upper <= cert.trace * (1.0 + 1e-14));
-    assert_eq!(Some(gap.upper), cert.upper_bound);
+    assert_eq!(Some(gap.upper), cert.upper_bound());
     // A 5-state block is beyond the explorer's limit: said, not silently skipped.
     let eye = "[[1,0,0,0,0],[0,1,0,0,0],[0,0,1,0,0],[0,0,0,1,0],[0,0,0,0,1]]";
     let a = explore(&request(&format!(

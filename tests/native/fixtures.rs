@@ -44,3 +44,41 @@ fn native_responses_of_every_method_match_the_fixture() {
         golden::same_response(&f["request"], &f["response"], &s["response"]).unwrap();
     }
 }
+
+/// The typed response (`FuseResponse`: common fields, `Gains`, the method's `Details`) and the
+/// flat JSON object are one-to-one on the response of every fixture request: JSON → typed →
+/// JSON gives the same object (the derived fields `guarantee`, `gap`, `gap_relative`
+/// recomputed equal), and the typed value has the details of its method.
+#[test]
+fn every_response_survives_the_typed_round_trip() {
+    let mut responses = Vec::new();
+    for request in golden::fixture_requests() {
+        let text = nmci::fuse_json(&request.to_string()).unwrap();
+        let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let typed: nmci::FuseResponse =
+            serde_json::from_value(json.clone()).unwrap_or_else(|e| panic!("{request}: {e}"));
+        assert_eq!(serde_json::to_value(&typed).unwrap(), json, "{request}");
+        let nway = request.get("estimates").is_some();
+        let kind_matches = match (&typed.details, typed.method) {
+            (nmci::Details::Nway { .. }, _) => nway,
+            (nmci::Details::Omega(_), nmci::Method::Ci | nmci::Method::Ici) => true,
+            (nmci::Details::Blocks { .. }, nmci::Method::Nmci) => true,
+            (nmci::Details::None, nmci::Method::Ei | nmci::Method::Naive) => true,
+            (nmci::Details::Sdp(_), nmci::Method::Sdp) => true,
+            (nmci::Details::SdpCuts(_), nmci::Method::SdpCuts) => true,
+            (nmci::Details::Certified(_), nmci::Method::Certified) => true,
+            _ => false,
+        };
+        assert!(kind_matches, "{request}: {:?}", typed.details);
+        responses.push((request, json));
+    }
+    // A response missing a field its method always has is refused, naming it.
+    let (_, sdp) = responses
+        .iter()
+        .find(|(r, _)| r["method"] == "sdp")
+        .unwrap();
+    let mut broken = sdp.clone();
+    broken.as_object_mut().unwrap().remove("lmis");
+    let err = serde_json::from_value::<nmci::FuseResponse>(broken).unwrap_err();
+    assert!(err.to_string().contains("missing field `lmis`"), "{err}");
+}

@@ -32,7 +32,7 @@ fn refused(req: &FuseRequest) -> (String, String) {
         other => panic!(
             "{:?} n = {}: expected a refusal, got {other:?}",
             req.method,
-            req.pa.len()
+            req.pair.pa.len()
         ),
     }
 }
@@ -53,13 +53,13 @@ fn one_state_past_each_rules_dimension_limit_is_refused_by_name() {
     }
     // Each input is checked, not only P_a: a long x_b, a wide pattern.
     let mut req = request(Method::Ci, 2);
-    req.xb = Some(vec![0.0; 1001]);
+    req.pair.xb = Some(vec![0.0; 1001]);
     assert_eq!(refused(&req).0, "xb");
     let mut req = request(Method::Sdp, 2);
-    req.pab_unknown = Some(vec![vec![true; 13]; 2]);
+    req.pair.pab_unknown = Some(vec![vec![true; 13]; 2]);
     assert_eq!(refused(&req).0, "pab_unknown");
     let mut req = request(Method::Ci, 2);
-    req.pb = identity_rows(1001);
+    req.pair.pb = identity_rows(1001);
     assert_eq!(refused(&req).0, "pb");
     let mut req = request(Method::Nmci, 0);
     req.estimates = Some(vec![
@@ -81,9 +81,9 @@ fn the_sdp_rules_accept_their_dimension_limit_in_small_blocks() {
     for method in [Method::Sdp, Method::SdpCuts, Method::Certified] {
         let n = method.info().limits.max_dim.min(12);
         let mut req = request(method, n);
-        req.pab_unknown = diagonal_pattern(n);
+        req.pair.pab_unknown = diagonal_pattern(n);
         if method == Method::Sdp {
-            req.samples = Some(20);
+            req.options.samples = Some(20);
         }
         let r = fuse(&req).unwrap_or_else(|e| panic!("{method}: {e}"));
         assert!(r.trace.is_finite());
@@ -111,10 +111,10 @@ fn one_state_past_a_block_limit_is_refused_naming_the_pattern() {
         // At the block limit the request is not refused by it (a time limit bounds the solve:
         // a time-limit error is fine here, a refusal is not).
         let mut req = request(method, max);
-        req.time_limit = Some(2.0);
+        req.options.time_limit = Some(2.0);
         if method == Method::Sdp {
-            req.samples = Some(20);
-            req.sampler = Some(SamplerKind::HitAndRun);
+            req.options.samples = Some(20);
+            req.options.sampler = Some(SamplerKind::HitAndRun);
         }
         match fuse(&req) {
             Ok(_) | Err(RequestError::Solve(SolveError::TimeLimit { .. })) => {}
@@ -127,7 +127,7 @@ fn one_state_past_a_block_limit_is_refused_naming_the_pattern() {
 #[test]
 fn counts_past_their_limits_are_refused_by_name() {
     let mut req = request(Method::Sdp, 2);
-    req.samples = Some(MAX_SAMPLES + 1);
+    req.options.samples = Some(MAX_SAMPLES + 1);
     let (field, message) = refused(&req);
     assert_eq!(field, "samples");
     assert!(
@@ -135,11 +135,11 @@ fn counts_past_their_limits_are_refused_by_name() {
         "{message}"
     );
     let mut req = request(Method::Sdp, 2);
-    req.max_trials = Some(MAX_TRIALS + 1);
+    req.options.max_trials = Some(MAX_TRIALS + 1);
     assert_eq!(refused(&req).0, "max_trials");
     let mut req = request(Method::Sdp, 2);
-    req.max_trials = Some(MAX_TRIALS);
-    req.samples = Some(5);
+    req.options.max_trials = Some(MAX_TRIALS);
+    req.options.samples = Some(5);
     assert!(fuse(&req).is_ok());
 
     let estimate = NwayEstimate {
@@ -147,8 +147,8 @@ fn counts_past_their_limits_are_refused_by_name() {
         p: identity_rows(2),
     };
     let mut req = request(Method::Ci, 0);
-    req.pa.clear();
-    req.pb.clear();
+    req.pair.pa.clear();
+    req.pair.pb.clear();
     req.estimates = Some(vec![estimate.clone(); MAX_ESTIMATES + 1]);
     let (field, message) = refused(&req);
     assert_eq!(field, "estimates");
@@ -192,33 +192,18 @@ fn a_request_text_past_the_byte_limit_is_refused_before_parsing() {
 #[test]
 fn the_explorer_has_the_sampled_sdps_limits() {
     let max = Method::Sdp.info().limits.max_dim;
-    let req = ExploreRequest {
-        pa: identity_rows(max + 1),
-        pb: identity_rows(max + 1),
-        xa: None,
-        xb: None,
-        pab_unknown: None,
-        criterion: None,
-        samples: None,
-        seed: None,
+    let mut req = ExploreRequest {
+        pair: PairInput::new(identity_rows(max + 1), identity_rows(max + 1)),
+        options: Options::default(),
         region_samples: Some(MAX_SAMPLES + 1),
-        max_trials: None,
-        sampler: None,
     };
     let field = |r: Result<Exploration, RequestError>| r.unwrap_err().field().unwrap();
     assert_eq!(field(explore(&req)), "pa");
-    let small = ExploreRequest {
-        pa: identity_rows(2),
-        pb: identity_rows(2),
-        ..req
-    };
-    assert_eq!(field(explore(&small)), "region_samples");
-    let samples = ExploreRequest {
-        region_samples: None,
-        samples: Some(MAX_SAMPLES + 1),
-        ..small
-    };
-    assert_eq!(field(explore(&samples)), "samples");
+    req.pair = PairInput::new(identity_rows(2), identity_rows(2));
+    assert_eq!(field(explore(&req)), "region_samples");
+    req.region_samples = None;
+    req.options.samples = Some(MAX_SAMPLES + 1);
+    assert_eq!(field(explore(&req)), "samples");
 }
 
 #[test]
@@ -227,8 +212,8 @@ fn time_limits_beyond_the_clock_are_no_limit() {
     for t in [1e19, 1e30, f64::MAX] {
         for method in [Method::Sdp, Method::SdpCuts, Method::Certified] {
             let mut req = request(method, 2);
-            req.pab_unknown = Some(vec![vec![true, false], vec![false, true]]);
-            req.time_limit = Some(t);
+            req.pair.pab_unknown = Some(vec![vec![true, false], vec![false, true]]);
+            req.options.time_limit = Some(t);
             let r = fuse(&req).unwrap_or_else(|e| panic!("{method} {t}: {e}"));
             assert!((r.trace - 2.0).abs() < 1e-6, "{method} {t}: {}", r.trace);
         }

@@ -208,15 +208,20 @@ fn json_two_estimates_equal_the_pairwise_request() {
             serde_json::from_str(&nway).unwrap(),
         );
         assert_eq!((&a.x, &a.p, a.trace), (&b.x, &b.p, b.trace), "{method}");
-        assert_eq!(b.gains.as_ref().unwrap()[0], *a.ka.as_ref().unwrap());
-        assert_eq!(b.gains.as_ref().unwrap()[1], *a.kb.as_ref().unwrap());
-        let omega = a.omega.unwrap();
-        let weights = b.weights.unwrap();
+        let (ka, kb) = a.pair_gains().unwrap();
+        let Gains::Nway(gains) = &b.gains else {
+            panic!("N-way gains")
+        };
+        assert_eq!((&gains[0], &gains[1]), (ka, kb));
+        let omega = a.omega().unwrap();
+        let Details::Nway { weights, .. } = &b.details else {
+            panic!("{:?}", b.details)
+        };
         assert_eq!(weights.len(), omega.len());
         for (w, o) in weights.iter().zip(&omega) {
             assert_eq!(w, &vec![*o, 1.0 - o]);
         }
-        assert!(b.ka.is_none() && b.kb.is_none() && b.omega.is_none());
+        assert!(b.pair_gains().is_none() && b.omega().is_none());
         assert!(!nway.contains("\"ka\""));
     }
 }
@@ -237,19 +242,22 @@ fn json_three_estimates() {
     };
     let ci: FuseResponse = serde_json::from_str(&fuse_json(&request("ci")).unwrap()).unwrap();
     let nm: FuseResponse = serde_json::from_str(&fuse_json(&request("nmci")).unwrap()).unwrap();
-    assert_eq!(ci.blocks.as_ref().unwrap().len(), 1);
-    assert_eq!(nm.blocks.as_ref().unwrap(), &vec![vec![0], vec![1]]);
+    assert_eq!(ci.blocks().unwrap().len(), 1);
+    assert_eq!(nm.blocks().unwrap(), &vec![vec![0], vec![1]]);
+    let weights = |r: &FuseResponse| match &r.details {
+        Details::Nway { weights, .. } => weights.clone(),
+        other => panic!("{other:?}"),
+    };
     // Per block, the best single estimate: x1 from estimate 0, x2 from estimate 1.
-    assert_eq!(
-        nm.weights.as_ref().unwrap(),
-        &vec![vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0]]
-    );
+    assert_eq!(weights(&nm), vec![vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0]]);
     assert!((nm.trace - 2.0).abs() < 1e-12 && ci.trace > nm.trace);
     for r in [&ci, &nm] {
-        for w in r.weights.as_ref().unwrap() {
+        for w in &weights(r) {
             assert!(w.iter().all(|v| *v >= 0.0) && (w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         }
-        let gains = r.gains.as_ref().unwrap();
+        let Gains::Nway(gains) = &r.gains else {
+            panic!("N-way gains")
+        };
         let xs = [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]];
         for (row, fused) in r.x.iter().enumerate() {
             let sum: f64 = gains.iter().map(|g| g[row][row]).sum();

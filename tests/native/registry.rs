@@ -154,17 +154,17 @@ fn fused_of(problem: &FusionProblem, rule: &RuleInfo, extra: serde_json::Value) 
     }
     let response: FuseResponse =
         serde_json::from_str(&fuse_json(&request.to_string()).unwrap()).unwrap();
-    assert_eq!(response.guarantee, rule.guarantee, "{}", rule.name);
+    assert_eq!(response.guarantee(), rule.guarantee, "{}", rule.name);
     if rule.guarantee == Guarantee::Relaxation {
         // What a relaxation carries instead of a guarantee: the proven bracket.
-        assert!(response.lower_bound.unwrap() <= response.upper_bound.unwrap());
+        assert!(response.bracket().unwrap().lower <= response.upper_bound().unwrap());
     }
     let m = |rows: &Vec<Vec<f64>>| DMatrix::from_fn(n, n, |i, j| rows[i][j]);
     Fused {
         x: nalgebra::DVector::from_vec(response.x.clone()),
         P: m(&response.p),
-        K_a: m(response.ka.as_ref().unwrap()),
-        K_b: m(response.kb.as_ref().unwrap()),
+        K_a: m(response.pair_gains().unwrap().0),
+        K_b: m(response.pair_gains().unwrap().1),
     }
 }
 

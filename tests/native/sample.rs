@@ -446,6 +446,9 @@ fn the_contract_and_the_explorer_report_autos_choice() {
         Some(SamplerKind::HitAndRun)
     );
     let sdp = explored.response(Method::Sdp).expect("the SDP is computed");
+    let Details::Sdp(sdp) = &sdp.details else {
+        panic!("{:?}", sdp.details)
+    };
     assert_eq!(
         sdp.sampler_choice.map(|c| c.kind),
         Some(SamplerKind::HitAndRun)

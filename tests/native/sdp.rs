@@ -247,7 +247,10 @@ fn certified_gap_brackets_the_robust_optimum() {
     let full = "[[true, true], [true, true]]";
     for samples in [100, 300] {
         let r = fuse(&request(diagonal, samples, 4)).unwrap();
-        let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
+        let (lower, upper) = {
+            let b = r.bracket().unwrap();
+            (b.lower, b.upper)
+        };
         // The robust optimum is exactly 2 here (separable pattern: nmCI's diag(1, 1) is
         // optimal, Reinhardt et al. 2015 per block): both proven ends must enclose it, the
         // upper one by no more than its rounding.
@@ -255,15 +258,15 @@ fn certified_gap_brackets_the_robust_optimum() {
         assert!(upper <= 2.0 * (1.0 + 1e-14), "upper {upper}");
         assert!(lower >= 2.0 * (1.0 - 1e-6), "lower {lower}");
         assert!(
-            r.upper_bound_rule == Some(Method::Nmci)
-                || r.upper_bound_rule == Some(Method::Certified),
+            r.bracket().map(|b| b.upper_rule) == Some(Method::Nmci)
+                || r.bracket().map(|b| b.upper_rule) == Some(Method::Certified),
             "{:?}",
-            r.upper_bound_rule
+            r.bracket().map(|b| b.upper_rule)
         );
         // The gap is the exact difference rounded up: with Knuth's TwoSum,
         // `upper − lower = d + e` exactly, so the gap must be ≥ d + e, and within a few
         // units in the last place of it.
-        let gap = r.gap.unwrap();
+        let gap = r.bracket().unwrap().gap();
         let d = upper - lower;
         let bb = d - upper;
         let e = (upper - (d - bb)) + (-lower - bb);
@@ -276,7 +279,10 @@ fn certified_gap_brackets_the_robust_optimum() {
     }
     // The README's figures for the paper's example, 100 samples, seed 0.
     let r = fuse(&request(diagonal, 100, 0)).unwrap();
-    let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
+    let (lower, upper) = {
+        let b = r.bracket().unwrap();
+        (b.lower, b.upper)
+    };
     assert!(
         lower >= 1.99999999996,
         "README: at least 1.99999999996, got {lower}"
@@ -285,8 +291,11 @@ fn certified_gap_brackets_the_robust_optimum() {
         upper <= 2.0000000000000044,
         "README: at most 2.0000000000000044, got {upper}"
     );
-    assert_eq!(r.upper_bound_rule, Some(Method::Nmci));
-    assert!(r.gap_relative.unwrap() <= 2e-11, "README: 2·10⁻¹¹");
+    assert_eq!(r.bracket().map(|b| b.upper_rule), Some(Method::Nmci));
+    assert!(
+        r.bracket().unwrap().gap_relative() <= 2e-11,
+        "README: 2·10⁻¹¹"
+    );
     // Fully unknown P_ab: CI is optimal (and nmCI is CI); the bracket holds.
     let r = fuse(&request(full, 100, 5)).unwrap();
     let fully_unknown = FusionProblem::from_covariances(
@@ -296,8 +305,8 @@ fn certified_gap_brackets_the_robust_optimum() {
     )
     .unwrap();
     let ci = covariance_intersection(&fully_unknown, Criterion::Trace).unwrap();
-    assert!((r.upper_bound.unwrap() - ci.fused.trace()).abs() < 1e-12);
-    assert!(r.lower_bound.unwrap() <= r.upper_bound.unwrap());
+    assert!((r.upper_bound().unwrap() - ci.fused.trace()).abs() < 1e-12);
+    assert!(r.bracket().unwrap().lower <= r.upper_bound().unwrap());
     // Random problems and patterns: never lower > upper; the response serializes the keys.
     let mut rng = rng(77);
     for (n, prob) in [(2usize, 0.5), (3, 0.4), (3, 1.0), (4, 0.3)] {
@@ -307,18 +316,19 @@ fn certified_gap_brackets_the_robust_optimum() {
                 .map(|i| (0..n).map(|j| m[(i, j)]).collect::<Vec<_>>())
                 .collect::<Vec<_>>()
         };
-        let req = FuseRequest {
-            pab_unknown: Some(
-                (0..n)
-                    .map(|i| (0..n).map(|j| p.cross_pattern.is_unknown(i, j)).collect())
-                    .collect(),
-            ),
-            samples: Some(100),
-            seed: Some(1),
-            ..FuseRequest::new(Method::Sdp, rows(&p.P_a), rows(&p.P_b))
-        };
+        let mut req = FuseRequest::new(Method::Sdp, rows(&p.P_a), rows(&p.P_b));
+        req.pair.pab_unknown = Some(
+            (0..n)
+                .map(|i| (0..n).map(|j| p.cross_pattern.is_unknown(i, j)).collect())
+                .collect(),
+        );
+        req.options.samples = Some(100);
+        req.options.seed = Some(1);
         let r = fuse(&req).unwrap();
-        let (lower, upper) = (r.lower_bound.unwrap(), r.upper_bound.unwrap());
+        let (lower, upper) = {
+            let b = r.bracket().unwrap();
+            (b.lower, b.upper)
+        };
         // Both ends proven: no tolerance.
         assert!(lower <= upper, "n={n}: {lower} > {upper}");
         assert!(lower > 0.0, "n={n}: a trivial lower bound");
@@ -336,7 +346,7 @@ fn certified_gap_brackets_the_robust_optimum() {
             upper <= ci.min(nm) * (1.0 + 1e-13),
             "n={n}: {upper} vs CI {ci}, nmCI {nm}"
         );
-        match r.upper_bound_rule {
+        match r.bracket().map(|b| b.upper_rule) {
             Some(Method::Ci) => assert!(upper >= ci && upper <= ci * (1.0 + 1e-13)),
             Some(Method::Nmci) => assert!(upper >= nm && upper <= nm * (1.0 + 1e-13)),
             Some(Method::Certified) => assert!(upper < ci.min(nm)),
@@ -346,7 +356,10 @@ fn certified_gap_brackets_the_robust_optimum() {
         let json = serde_json::to_value(&r).unwrap();
         assert_eq!(json["lower_bound"].as_f64(), Some(lower));
         assert_eq!(json["upper_bound"].as_f64(), Some(upper));
-        assert_eq!(json["gap"].as_f64(), r.gap);
-        assert_eq!(json["gap_relative"].as_f64(), r.gap_relative);
+        assert_eq!(json["gap"].as_f64(), r.bracket().map(|b| b.gap()));
+        assert_eq!(
+            json["gap_relative"].as_f64(),
+            r.bracket().map(|b| b.gap_relative())
+        );
     }
 }

@@ -175,20 +175,139 @@ fn response_fields_per_method() {
     let base = r#""pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, false], [false, true]], "xa": [1, 2], "xb": [3, 4]"#;
     let ci: FuseResponse =
         serde_json::from_str(&run(&format!(r#"{{{base}, "method": "ci"}}"#)).unwrap()).unwrap();
-    assert_eq!(ci.omega.as_ref().unwrap().len(), 1);
-    assert!(ci.blocks.is_none() && ci.status.is_none());
+    assert!(matches!(ci.details, Details::Omega(_)));
+    assert!(ci.blocks().is_none());
+    let ci_json = run(&format!(r#"{{{base}, "method": "ci"}}"#)).unwrap();
+    assert!(!ci_json.contains("blocks") && !ci_json.contains("status"));
     let nm: FuseResponse =
         serde_json::from_str(&run(&format!(r#"{{{base}, "method": "nmci"}}"#)).unwrap()).unwrap();
     assert_eq!(nm.x, vec![3.0, 2.0]);
-    assert_eq!(nm.blocks, Some(vec![vec![0], vec![1]]));
+    assert_eq!(nm.blocks(), Some(&vec![vec![0], vec![1]]));
     assert_eq!(nm.det, 1.0);
     let text = run(&format!(
         r#"{{{base}, "method": "sdp", "samples": 60, "seed": 4}}"#
     ))
     .unwrap();
     let sdp: FuseResponse = serde_json::from_str(&text).unwrap();
-    assert!(sdp.omega.is_none() && !text.contains("omega"));
-    assert_eq!(sdp.samples, Some(60));
-    assert!(sdp.iterations.unwrap() > 0 && sdp.acceptance_rate == Some(1.0));
+    assert!(sdp.omega().is_none() && !text.contains("omega"));
+    let Details::Sdp(d) = &sdp.details else {
+        panic!("{:?}", sdp.details)
+    };
+    assert_eq!(d.samples, 60);
+    assert!(d.iterations > 0 && d.acceptance_rate == 1.0);
     assert!((sdp.x[0] - 3.0).abs() < 1e-6 && (sdp.x[1] - 2.0).abs() < 1e-6);
+}
+
+/// The request parts are flattened into one JSON object, so serde's `deny_unknown_fields`
+/// cannot apply: the wire structs collect what no part took. The error names the field and
+/// lists exactly the fields a request has (read from a serialised request, so the list cannot
+/// drift from the parts), for both kinds of request; a request with every field set survives
+/// the round trip through JSON.
+#[test]
+fn unknown_fields_are_named_and_the_known_ones_listed() {
+    let listed = |err: &str| -> std::collections::BTreeSet<String> {
+        let list = err.split("expected one of ").nth(1).expect(err);
+        list.split(", ")
+            .map(|f| f.trim_matches('`').to_string())
+            .collect()
+    };
+    let full: FuseRequest = serde_json::from_str(
+        r#"{"pa": [[2]], "pb": [[3]], "xa": [1], "xb": [0], "pab_unknown": [[true]],
+            "method": "sdp", "criterion": "trace", "samples": 20, "seed": 3, "max_trials": 5000,
+            "sampler": "auto", "time_limit": 30, "level": 2, "sectors": 8}"#,
+    )
+    .unwrap();
+    assert_eq!(full.pair.xa, Some(vec![1.0]));
+    assert_eq!(full.options.sampler, Some(SamplerKind::Auto));
+    let again: FuseRequest = serde_json::from_value(serde_json::to_value(&full).unwrap()).unwrap();
+    assert_eq!(again, full);
+    let err = fuse_json(r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "speed": 1}"#).unwrap_err();
+    assert_eq!(err.field().as_deref(), Some("speed"));
+    let fuse_fields = listed(&err.to_string());
+    let expected: std::collections::BTreeSet<String> = [
+        "pa",
+        "pb",
+        "xa",
+        "xb",
+        "pab_unknown",
+        "method",
+        "criterion",
+        "samples",
+        "seed",
+        "max_trials",
+        "sampler",
+        "time_limit",
+        "level",
+        "sectors",
+        "estimates",
+        "patterns",
+    ]
+    .map(String::from)
+    .into();
+    assert_eq!(fuse_fields, expected);
+    // The explorer: the same parts, no method, the region instead of N-way.
+    let err = serde_json::from_str::<ExploreRequest>(r#"{"pa": [[1]], "pb": [[1]], "bogus": 1}"#)
+        .unwrap_err()
+        .to_string();
+    assert!(err.starts_with("unknown field `bogus`"), "{err}");
+    let mut explore_fields = expected.clone();
+    for f in ["method", "estimates", "patterns"] {
+        explore_fields.remove(f);
+    }
+    explore_fields.insert("region_samples".into());
+    assert_eq!(listed(&err), explore_fields);
+    // A field of a nested object is still checked by that object (`deny_unknown_fields`).
+    let err = fuse_json(r#"{"estimates": [{"p": [[1]], "q": 1}, {"p": [[1]]}], "method": "ci"}"#)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("unknown field `q`"), "{err}");
+}
+
+/// One set of defaults: `Options::plan` of an empty request is every settings type's
+/// `Default`, and the explorer's SDP with no options is `fuse`'s SDP with none.
+#[test]
+fn fuse_and_explore_run_one_plan_with_one_set_of_defaults() {
+    let plan = Options::default().plan().unwrap();
+    assert_eq!(plan.sdp, SdpSettings::default());
+    assert_eq!(plan.certify, CertifySettings::default());
+    assert_eq!(plan.cuts, CutsSettings::default());
+    assert_eq!(plan.criterion, Criterion::Trace);
+    // Options reach every settings type that takes them.
+    let plan = Options {
+        seed: Some(9),
+        time_limit: Some(4.0),
+        sectors: Some(8),
+        max_trials: Some(1000),
+        ..Default::default()
+    }
+    .plan()
+    .unwrap();
+    assert_eq!((plan.sdp.seed, plan.cuts.seed), (9, 9));
+    assert_eq!(plan.sdp.sampler.max_trials, 1000);
+    assert_eq!(plan.cuts.certify_settings, plan.certify);
+    assert_eq!(plan.certify.sectors, Some(8));
+    for t in [
+        plan.sdp.time_limit,
+        plan.certify.time_limit,
+        plan.cuts.time_limit,
+    ] {
+        assert_eq!(t, Some(4.0));
+    }
+    let pair = r#""pa": [[3, 0.5], [0.5, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, false], [true, true]]"#;
+    let fused: FuseResponse =
+        serde_json::from_str(&fuse_json(&format!(r#"{{{pair}, "method": "sdp"}}"#)).unwrap())
+            .unwrap();
+    let explored = explore(
+        &serde_json::from_str::<ExploreRequest>(&format!(r#"{{{pair}, "region_samples": 0}}"#))
+            .unwrap(),
+    )
+    .unwrap();
+    let sdp = explored.response(Method::Sdp).unwrap();
+    assert_eq!((&sdp.x, &sdp.p), (&fused.x, &fused.p));
+    let samples = |r: &FuseResponse| match &r.details {
+        Details::Sdp(d) => d.samples,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(samples(sdp), SdpSettings::default().samples);
+    assert_eq!(samples(&fused), samples(sdp));
 }

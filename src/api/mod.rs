@@ -1,0 +1,350 @@
+//! The JSON request/response contract shared by `nmci fuse`, the wasm export `fuse`, Python
+//! and Rust.
+//!
+//! A request ([`request`]) names two estimates, the pattern of `P_ab` and a method — or, for
+//! N-way CI and nmCI, a list of `estimates` and the patterns of the pairs' cross-covariances —
+//! and options that become a validated [`Plan`]; the response ([`response`]) carries the
+//! fused estimate, the bound, the gains and the method's own details. Unknown fields are
+//! rejected.
+
+mod request;
+mod response;
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{InputError, RequestError, SolveError};
+use crate::fusion::bracket::{
+    bracket_certificate, gain_certified_trace, trace_upper_bound, upper_bounds, UpperBounds,
+};
+use crate::fusion::certify::{certified_fusion, Certificates, CertifiedResult, CertifySettings};
+use crate::fusion::ci::covariance_intersection;
+use crate::fusion::cuts::optimal_fusion_cuts;
+use crate::fusion::ei::ellipsoidal_intersection;
+use crate::fusion::ici::inverse_covariance_intersection;
+use crate::fusion::known::naive_fusion;
+use crate::fusion::nmci::non_monolithic_ci;
+use crate::fusion::nway::{
+    covariance_intersection_nway, non_monolithic_ci_nway, NwayResult, PairPattern,
+};
+use crate::fusion::rules::Method;
+use crate::fusion::sdp::optimal_fusion;
+use crate::fusion::{Criterion, Estimate, Fused, FusionProblem};
+use crate::linalg::matrix_to_rows;
+use crate::structure::CrossPattern;
+
+pub(crate) use request::{check_blocks, check_count, matrix, unknown_field};
+pub use request::{FuseRequest, NwayEstimate, NwayPair, Options, PairInput, Plan};
+pub use response::{CertifiedDetails, CutsDetails, Details, FuseResponse, Gains, Rows, SdpDetails};
+
+/// The longest request text [`fuse_json`] (and so the CLI and Python's `fuse`) reads: two
+/// 1000-state covariances written with full precision take about 50 MB. Checked before the
+/// text is parsed; the CLI stops reading past it.
+pub const MAX_REQUEST_BYTES: usize = 64 << 20;
+
+/// Most samples an `sdp` request (and the explorer's SDP or region) may ask for.
+pub const MAX_SAMPLES: usize = 100_000;
+
+/// Largest rejection-sampler budget (`max_trials`) a request may give: 50 times the default.
+pub const MAX_TRIALS: u64 = 100_000_000;
+
+/// Most estimates of an N-way request.
+pub const MAX_ESTIMATES: usize = 32;
+
+/// A covariance's size: a response's `trace` and `det` ([`FuseResponse`]), and the explorer's
+/// row of each estimate ([`crate::Exploration::estimates`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CovarianceSummary {
+    /// The field it comes from (`pa`, `pb`; `p` for a response).
+    pub name: String,
+    /// `tr P`.
+    pub trace: f64,
+    /// `det P`.
+    pub det: f64,
+}
+
+impl CovarianceSummary {
+    /// `field`'s covariance `P`.
+    #[allow(non_snake_case)]
+    pub fn of(field: &str, P: &DMatrix<f64>) -> Self {
+        Self {
+            name: field.into(),
+            trace: P.trace(),
+            det: P.determinant(),
+        }
+    }
+}
+
+/// The response of a two-estimate rule: estimate, bound, both gains and `details`.
+pub(crate) fn response(
+    method: Method,
+    criterion: Criterion,
+    fused: &Fused,
+    details: Details,
+) -> FuseResponse {
+    let summary = CovarianceSummary::of("p", &fused.P);
+    FuseResponse {
+        method,
+        criterion,
+        x: fused.x.iter().copied().collect(),
+        p: matrix_to_rows(&fused.P),
+        trace: summary.trace,
+        det: summary.det,
+        gains: Gains::Pair {
+            ka: matrix_to_rows(&fused.K_a),
+            kb: matrix_to_rows(&fused.K_b),
+        },
+        details,
+    }
+}
+
+/// Runs a request.
+///
+/// ```
+/// let req: nmci::FuseRequest = serde_json::from_str(
+///     r#"{"pa": [[3,0],[0,1]], "pb": [[1,0],[0,4]],
+///         "pab_unknown": [[true,false],[false,true]], "method": "nmci"}"#).unwrap();
+/// let res = nmci::fuse(&req).unwrap();
+/// assert_eq!(res.omega(), Some(vec![0.0, 1.0]));
+/// assert_eq!(res.trace, 2.0);
+/// ```
+pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
+    let plan = request.plan()?;
+    if let Some(estimates) = &request.estimates {
+        return fuse_nway(
+            estimates,
+            request.patterns.as_deref().unwrap_or_default(),
+            request.method,
+            plan.criterion,
+        );
+    }
+    let problem = request.problem()?;
+    check_blocks(request.method, &problem)?;
+    match request.method {
+        Method::Ci => Ok(ci_response(&problem, plan.criterion)?.0),
+        Method::Nmci => Ok(nmci_response(&problem, plan.criterion)?.0),
+        Method::Ici => Ok(ici_response(&problem, plan.criterion)?.0),
+        Method::Ei => Ok(ei_response(&problem)?.0),
+        Method::Naive => Ok(naive_response(&problem).0),
+        Method::Certified => Ok(certified_response(&problem, &plan.certify)?.0),
+        Method::Sdp => Ok(sdp_response(&problem, &plan, None, true)?.0),
+        Method::SdpCuts => {
+            let cuts = optimal_fusion_cuts(&problem, &plan.cuts)?;
+            // Past the time limit the own-gain certificate is left out, not an error (the loop
+            // has its bracket).
+            let gain_certified_trace =
+                match gain_certified_trace(&problem, &cuts.fused.K_a, &plan.certify) {
+                    Ok(t) => t,
+                    Err(SolveError::TimeLimit { .. }) => None,
+                    Err(e) => return Err(e.into()),
+                };
+            // The loop computed the certified rule already (blocks of up to 6 states).
+            let uppers = UpperBounds::of(&problem, cuts.certified_trace)?;
+            let details = Details::SdpCuts(CutsDetails {
+                status: cuts.status,
+                iterations: cuts.iterations as u32,
+                lmis: cuts.constraints,
+                violation: cuts.violation,
+                converged: cuts.converged,
+                stop: cuts.stop,
+                gap_closed: cuts.gap_closed,
+                bracket: uppers.bracket(cuts.lower_bound),
+                certificates: cuts.certificates,
+                gain_certified_trace,
+            });
+            Ok(response(
+                Method::SdpCuts,
+                Criterion::Trace,
+                &cuts.fused,
+                details,
+            ))
+        }
+    }
+}
+
+/// N-way CI (`method` `ci`) or nmCI (`nmci`) of a request's `estimates` and `patterns`.
+#[allow(non_snake_case)]
+fn fuse_nway(
+    estimates: &[NwayEstimate],
+    patterns: &[NwayPair],
+    method: Method,
+    criterion: Criterion,
+) -> Result<FuseResponse, RequestError> {
+    let estimates = estimates
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let name = format!("estimates[{i}]");
+            let P = matrix(&format!("{name}.p"), &e.p)?;
+            let x = match &e.x {
+                Some(x) => DVector::from_row_slice(x),
+                None => DVector::zeros(P.nrows()),
+            };
+            Estimate::new(&name, x, P)
+        })
+        .collect::<Result<Vec<_>, InputError>>()?;
+    let result: NwayResult = if method == Method::Ci {
+        covariance_intersection_nway(&estimates, criterion)?
+    } else {
+        let pairs = patterns
+            .iter()
+            .map(|p| {
+                Ok(PairPattern {
+                    i: p.i,
+                    j: p.j,
+                    pattern: CrossPattern::from_rows(&p.pab_unknown)?,
+                })
+            })
+            .collect::<Result<Vec<_>, InputError>>()?;
+        non_monolithic_ci_nway(&estimates, &pairs, criterion)?
+    };
+    let summary = CovarianceSummary::of("p", &result.P);
+    Ok(FuseResponse {
+        method,
+        criterion,
+        x: result.x.iter().copied().collect(),
+        p: matrix_to_rows(&result.P),
+        trace: summary.trace,
+        det: summary.det,
+        gains: Gains::Nway(result.gains.iter().map(matrix_to_rows).collect()),
+        details: Details::Nway {
+            weights: result.omega,
+            blocks: result.blocks,
+            iterations: result.iterations as u32,
+        },
+    })
+}
+
+/// The certified rule's response and the fused result it was made from: its own trace is
+/// the upper bound (rule `certified`); there is no lower bound without a relaxation.
+pub(crate) fn certified_response(
+    problem: &FusionProblem,
+    settings: &CertifySettings,
+) -> Result<(FuseResponse, Fused), SolveError> {
+    let cert = certified_fusion(problem, settings)?;
+    Ok((certificate_response(&cert), cert.fused))
+}
+
+/// The response of a computed certificate.
+pub(crate) fn certificate_response(cert: &CertifiedResult) -> FuseResponse {
+    let details = Details::Certified(CertifiedDetails {
+        status: cert.status,
+        iterations: cert.iterations,
+        blocks: cert.blocks.clone(),
+        repair: cert.repair,
+        certificates: Certificates::of(cert),
+        upper_bound: trace_upper_bound(&cert.fused.P),
+    });
+    response(Method::Certified, Criterion::Trace, &cert.fused, details)
+}
+
+/// The CI response and the fused result it was made from.
+pub(crate) fn ci_response(
+    problem: &FusionProblem,
+    criterion: Criterion,
+) -> Result<(FuseResponse, Fused), InputError> {
+    let ci = covariance_intersection(problem, criterion)?;
+    let r = response(Method::Ci, criterion, &ci.fused, Details::Omega(ci.omega));
+    Ok((r, ci.fused))
+}
+
+/// The nmCI response and the fused result it was made from.
+pub(crate) fn nmci_response(
+    problem: &FusionProblem,
+    criterion: Criterion,
+) -> Result<(FuseResponse, Fused), InputError> {
+    let nm = non_monolithic_ci(problem, criterion)?;
+    let details = Details::Blocks {
+        omega: nm.omega,
+        blocks: nm.blocks,
+    };
+    Ok((
+        response(Method::Nmci, criterion, &nm.fused, details),
+        nm.fused,
+    ))
+}
+
+/// The ICI response and the fused result it was made from.
+pub(crate) fn ici_response(
+    problem: &FusionProblem,
+    criterion: Criterion,
+) -> Result<(FuseResponse, Fused), InputError> {
+    let ici = inverse_covariance_intersection(problem, criterion)?;
+    let r = response(
+        Method::Ici,
+        criterion,
+        &ici.fused,
+        Details::Omega(ici.omega),
+    );
+    Ok((r, ici.fused))
+}
+
+/// The EI response and the fused result it was made from (`criterion` reported as the
+/// default: EI has no weight to optimise).
+pub(crate) fn ei_response(problem: &FusionProblem) -> Result<(FuseResponse, Fused), InputError> {
+    let fused = ellipsoidal_intersection(problem)?;
+    let r = response(Method::Ei, Criterion::default(), &fused, Details::None);
+    Ok((r, fused))
+}
+
+/// The naive-fusion response and the fused result it was made from.
+pub(crate) fn naive_response(problem: &FusionProblem) -> (FuseResponse, Fused) {
+    let fused = naive_fusion(problem);
+    let r = response(Method::Naive, Criterion::default(), &fused, Details::None);
+    (r, fused)
+}
+
+/// The sampled-SDP response; `uppers` are the certified upper bounds when the caller has
+/// already computed them (the bracket's certificates are then not repeated here);
+/// `own_gain`: whether to certify the SDP's own gain.
+pub(crate) fn sdp_response(
+    problem: &FusionProblem,
+    plan: &Plan,
+    uppers: Option<UpperBounds>,
+    own_gain: bool,
+) -> Result<(FuseResponse, Fused), SolveError> {
+    let opt = optimal_fusion(problem, &plan.sdp)?;
+    let gain_certified_trace = if own_gain {
+        gain_certified_trace(problem, &opt.fused.K_a, &plan.certify)?
+    } else {
+        None
+    };
+    let (uppers, certificates) = match uppers {
+        Some(u) => (u, None),
+        None => {
+            let cert = bracket_certificate(problem, &plan.certify)?;
+            let certificates = cert.as_ref().map(Certificates::of);
+            let uppers = upper_bounds(problem, cert.as_ref().map(|c| &c.fused.P))?;
+            (uppers, certificates)
+        }
+    };
+    let details = Details::Sdp(SdpDetails {
+        blocks: opt.blocks.clone(),
+        samples: opt.samples,
+        status: opt.status,
+        iterations: opt.iterations,
+        acceptance_rate: opt.acceptance_rate,
+        sampler_choice: opt.sampler_choice,
+        lmis: opt.lmis,
+        worst_sample_margin: opt.worst_sample_margin,
+        bracket: uppers.bracket(opt.lower_bound),
+        certificates,
+        gain_certified_trace,
+    });
+    let r = response(Method::Sdp, Criterion::Trace, &opt.fused, details);
+    Ok((r, opt.fused))
+}
+
+/// Parses a JSON request, runs it and returns the JSON response.
+pub fn fuse_json(request: &str) -> Result<String, RequestError> {
+    if request.len() > MAX_REQUEST_BYTES {
+        return Err(RequestError::TooLarge {
+            bytes: request.len(),
+            limit: MAX_REQUEST_BYTES,
+        });
+    }
+    let req: FuseRequest =
+        serde_json::from_str(request).map_err(|e| RequestError::Malformed(e.to_string()))?;
+    let res = fuse(&req)?;
+    serde_json::to_string_pretty(&res).map_err(|e| RequestError::Malformed(e.to_string()))
+}
