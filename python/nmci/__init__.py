@@ -265,7 +265,7 @@ def ci(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
-    criterion: str = "trace",
+    criterion: Optional[str] = None,
 ) -> Fused:
     """Covariance intersection with the exactly optimal ``ω`` (``criterion`` "trace" or
     "logdet"): conservative for every cross-covariance. ``omega`` is ``[ω]``."""
@@ -279,7 +279,7 @@ def nmci(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
-    criterion: str = "trace",
+    criterion: Optional[str] = None,
 ) -> Fused:
     """Non-monolithic CI: one ``ω`` per independent block of the known-zero pattern
     (``blocks``, ``omega``); conservative for every admissible cross-covariance."""
@@ -293,9 +293,9 @@ def optimal(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
-    samples: int = 200,
-    seed: int = 0,
-    sampler: str = "rejection",
+    samples: Optional[int] = None,
+    seed: Optional[int] = None,
+    sampler: Optional[str] = None,
     max_trials: Optional[int] = None,
     time_limit: Optional[float] = None,
     level: Optional[int] = None,
@@ -329,7 +329,7 @@ def sdp_cuts(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
-    seed: int = 0,
+    seed: Optional[int] = None,
     time_limit: Optional[float] = None,
     level: Optional[int] = None,
     sectors: Optional[int] = None,
@@ -387,7 +387,7 @@ def ici(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
-    criterion: str = "trace",
+    criterion: Optional[str] = None,
 ) -> Fused:
     """Inverse covariance intersection: conservative for common-information correlation only
     (``guarantee``: ``"common_information"``)."""
@@ -423,7 +423,7 @@ Estimates = Sequence[Union[ArrayLike, Tuple[Optional[ArrayLike], ArrayLike]]]
 Patterns = Union[Mapping[Tuple[int, int], ArrayLike], Sequence[Tuple[int, int, ArrayLike]]]
 
 
-def _nway(method: str, estimates: Estimates, patterns: Optional[Patterns], criterion: str) -> Fused:
+def _nway(method: str, estimates: Estimates, patterns: Optional[Patterns], criterion: Optional[str]) -> Fused:
     items = []
     for k, e in enumerate(estimates):
         if isinstance(e, tuple):
@@ -446,7 +446,7 @@ def _nway(method: str, estimates: Estimates, patterns: Optional[Patterns], crite
 
 
 def ci_nway(
-    estimates: Estimates, *, patterns: Optional[Patterns] = None, criterion: str = "trace"
+    estimates: Estimates, *, patterns: Optional[Patterns] = None, criterion: Optional[str] = None
 ) -> Fused:
     """N-way CI: one weight per estimate on the simplex (``weights``, ``gains``). Each estimate
     is ``P`` or ``(x, P)``; ``patterns`` maps a pair ``(i, j)`` to the pattern of ``P_ij``
@@ -455,7 +455,7 @@ def ci_nway(
 
 
 def nmci_nway(
-    estimates: Estimates, *, patterns: Optional[Patterns] = None, criterion: str = "trace"
+    estimates: Estimates, *, patterns: Optional[Patterns] = None, criterion: Optional[str] = None
 ) -> Fused:
     """N-way nmCI: one weight vector per independent block of the pairs' known-zero patterns."""
     return _nway("nmci", estimates, patterns, criterion)
@@ -472,8 +472,8 @@ def sample_cross_covariances(
     pab_unknown: Optional[ArrayLike] = None,
     *,
     count: int = 100,
-    seed: int = 0,
-    sampler: str = "rejection",
+    seed: Optional[int] = None,
+    sampler: Optional[str] = None,
     max_trials: Optional[int] = None,
 ) -> np.ndarray:
     """``count`` admissible cross-covariances ``P_ab'`` (an array ``count × n × n``): the
@@ -484,7 +484,7 @@ def sample_cross_covariances(
         _matrix("P_b", Pb),
         _pattern("pab_unknown", pab_unknown),
         int(count),
-        int(seed),
+        seed,
         sampler,
         max_trials,
     )

@@ -29,8 +29,8 @@ def sample_cross_covariances(
     pb: npt.NDArray[np.float64],
     pab_unknown: Optional[npt.NDArray[np.bool_]],
     count: int,
-    seed: int,
-    sampler: str,
+    seed: Optional[int],
+    sampler: Optional[str],
     max_trials: Optional[int],
 ) -> Tuple[npt.NDArray[np.float64], int]: ...
 def config_from_toml(text: str) -> str: ...

@@ -306,11 +306,13 @@ fn sample_cross_covariances<'py>(
     pb: PyReadonlyArray2<'py, f64>,
     pab_unknown: Option<PyReadonlyArray2<'py, bool>>,
     count: usize,
-    seed: u64,
-    sampler: &str,
+    seed: Option<u64>,
+    sampler: Option<&str>,
     max_trials: Option<u64>,
 ) -> PyResult<(Bound<'py, PyArray3<f64>>, u64)> {
-    let kind: nmci::SamplerKind = serde_json::from_value(serde_json::Value::from(sampler))
+    let kind: Option<nmci::SamplerKind> = sampler
+        .map(|s| serde_json::from_value(serde_json::Value::from(s)))
+        .transpose()
         .map_err(|e| {
             // serde's message lists the variants of `SamplerKind` itself.
             error(py, "RequestError", format!("invalid request: sampler: {e}"))
@@ -325,15 +327,13 @@ fn sample_cross_covariances<'py>(
         .problem()
         .map_err(|e| request_error(py, RequestError::Input(e)))?;
     let options = nmci::Options {
-        sampler: Some(kind),
+        sampler: kind,
+        seed,
         max_trials,
         ..Default::default()
     };
-    let settings = options
-        .plan()
-        .map_err(|e| request_error(py, e))?
-        .sdp
-        .sampler;
+    let sdp = options.plan().map_err(|e| request_error(py, e))?.sdp;
+    let (seed, settings) = (sdp.seed, sdp.sampler);
     let samples = detached(py, move || {
         nmci::sample_cross_covariances(&problem, count, seed, settings)
     })?

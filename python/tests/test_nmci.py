@@ -131,6 +131,25 @@ def test_the_array_functions_return_the_contract_s_response():
         assert got.method == method
 
 
+def test_the_defaults_are_the_library_s_not_python_s():
+    # Absent keyword arguments are left out of the request: the Rust plan fills in the one set
+    # of defaults, so a call without options equals the bare contract request.
+    rng = np.random.default_rng(11)
+    a, b, m = spd(rng, 2), spd(rng, 2), random_pattern(rng, 2)
+    bare = {"pa": a, "pb": b, "pab_unknown": m}
+    for method, call in {
+        "sdp": nmci.optimal,
+        "ci": nmci.ci,
+        "sdp_cuts": nmci.sdp_cuts,
+    }.items():
+        assert call(a, b, pab_unknown=m).to_dict() == nmci.fuse({**bare, "method": method}), method
+    # The sampler's default seed and kind are the plan's too: the default call equals the
+    # call with the plan's defaults spelled out (seed 0, the rejection sampler).
+    default = nmci.sample_cross_covariances(a, b, m, count=20)
+    spelled = nmci.sample_cross_covariances(a, b, m, count=20, seed=0, sampler="rejection")
+    assert np.array_equal(default, spelled)
+
+
 def test_every_response_field_is_a_typed_attribute_of_fused():
     rng = np.random.default_rng(2)
     keys = set()

@@ -75,6 +75,30 @@ impl CovarianceSummary {
     }
 }
 
+/// A response: the estimate `x`, its bound `P` (with its `trace` and `det`), the gains and the
+/// method's details.
+#[allow(non_snake_case)]
+fn response_of(
+    method: Method,
+    criterion: Criterion,
+    x: &DVector<f64>,
+    P: &DMatrix<f64>,
+    gains: Gains,
+    details: Details,
+) -> FuseResponse {
+    let summary = CovarianceSummary::of("p", P);
+    FuseResponse {
+        method,
+        criterion,
+        x: x.iter().copied().collect(),
+        p: matrix_to_rows(P),
+        trace: summary.trace,
+        det: summary.det,
+        gains,
+        details,
+    }
+}
+
 /// The response of a two-estimate rule: estimate, bound, both gains and `details`.
 pub(crate) fn response(
     method: Method,
@@ -82,20 +106,11 @@ pub(crate) fn response(
     fused: &Fused,
     details: Details,
 ) -> FuseResponse {
-    let summary = CovarianceSummary::of("p", &fused.P);
-    FuseResponse {
-        method,
-        criterion,
-        x: fused.x.iter().copied().collect(),
-        p: matrix_to_rows(&fused.P),
-        trace: summary.trace,
-        det: summary.det,
-        gains: Gains::Pair {
-            ka: matrix_to_rows(&fused.K_a),
-            kb: matrix_to_rows(&fused.K_b),
-        },
-        details,
-    }
+    let gains = Gains::Pair {
+        ka: matrix_to_rows(&fused.K_a),
+        kb: matrix_to_rows(&fused.K_b),
+    };
+    response_of(method, criterion, &fused.x, &fused.P, gains, details)
 }
 
 /// Runs a request.
@@ -198,21 +213,15 @@ fn fuse_nway(
             .collect::<Result<Vec<_>, InputError>>()?;
         non_monolithic_ci_nway(&estimates, &pairs, criterion)?
     };
-    let summary = CovarianceSummary::of("p", &result.P);
-    Ok(FuseResponse {
-        method,
-        criterion,
-        x: result.x.iter().copied().collect(),
-        p: matrix_to_rows(&result.P),
-        trace: summary.trace,
-        det: summary.det,
-        gains: Gains::Nway(result.gains.iter().map(matrix_to_rows).collect()),
-        details: Details::Nway {
-            weights: result.omega,
-            blocks: result.blocks,
-            iterations: result.iterations as u32,
-        },
-    })
+    let gains = Gains::Nway(result.gains.iter().map(matrix_to_rows).collect());
+    let details = Details::Nway {
+        weights: result.omega,
+        blocks: result.blocks,
+        iterations: result.iterations as u32,
+    };
+    Ok(response_of(
+        method, criterion, &result.x, &result.P, gains, details,
+    ))
 }
 
 /// The certified rule's response and the fused result it was made from: its own trace is
