@@ -244,7 +244,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
         upper_rule: b.upper_rule,
         absolute: b.gap(),
         relative: b.gap_relative(),
-        closed: b.closed(CLOSED_RTOL),
+        closed: b.gap_relative() <= CLOSED_RTOL,
         certificates: match &certificate {
             Ok(Some(cert)) => Some(Certificates::of(cert)),
             _ => None,

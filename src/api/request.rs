@@ -387,7 +387,7 @@ pub(crate) fn unknown_field<T: Serialize>(
 
 impl FuseRequest {
     /// A two-estimate request for `method` with every optional field absent (zero means, a
-    /// fully unknown `P_ab`, the defaults), to be completed with struct-update syntax.
+    /// fully unknown `P_ab`, the defaults), to be completed through its `pair` and `options`.
     ///
     /// ```
     /// let mut req = nmci::FuseRequest::new(nmci::Method::Nmci, vec![vec![3.0, 0.0], vec![0.0, 1.0]],

@@ -106,8 +106,14 @@ pub struct SdpDetails {
     pub lmis: usize,
     /// Smallest `λ_min(P̄ − K P'_i Kᵀ)` over the samples.
     pub worst_sample_margin: f64,
-    /// The proven bracket on the robust optimum (`fusion::bracket`; JSON `lower_bound`,
-    /// `upper_bound`, `upper_bound_rule`, `gap`, `gap_relative`).
+    /// The proven bracket on the robust optimum of `tr P̄` (`fusion::bracket`, with the
+    /// argument; JSON `lower_bound`, `upper_bound`, `upper_bound_rule`, `gap` — rounded up,
+    /// never negative — and `gap_relative`). Lower end: the solver's dual matrices turned into
+    /// a Lagrangian bound checked in exact arithmetic (summed over blocks, rounded down), which
+    /// holds whatever the solver's accuracy. Upper end: the rounded-up trace of the best
+    /// conservative rule — CI, nmCI (recomputed with Young's inequality in exact arithmetic)
+    /// or the certified rule (when every independent block has at most
+    /// [`crate::BRACKET_CERTIFY_MAX_BLOCK`] states); ties go to CI / nmCI.
     pub bracket: Option<Bracket>,
     /// The certified rule in the bracket (blocks of at most
     /// [`crate::BRACKET_CERTIFY_MAX_BLOCK`] states; absent when the caller gave the upper ends).
