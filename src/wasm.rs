@@ -39,7 +39,11 @@ fn thrown(error: RequestError) -> JsValue {
 
 /// A response as a plain JS object (absent optional fields are left out, not `null`).
 fn to_js<T: Serialize>(value: &T) -> Result<JsValue, JsError> {
-    let serializer = serde_wasm_bindgen::Serializer::new().serialize_missing_as_null(false);
+    // Maps as plain objects: a struct with a flattened part (the explorer's `Gap`) is written
+    // through serde's map interface, and the page reads it as an object.
+    let serializer = serde_wasm_bindgen::Serializer::new()
+        .serialize_missing_as_null(false)
+        .serialize_maps_as_objects(true);
     Ok(value.serialize(&serializer)?)
 }
 

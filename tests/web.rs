@@ -189,6 +189,10 @@ fn explore_hands_the_region_over_as_a_typed_array() {
         .as_f64()
         .unwrap();
     assert!(abs.abs() < 1e-6, "gap {abs}");
+    // The gap's flattened certificates arrive as plain properties of a plain object.
+    assert!(!gap.is_instance_of::<js_sys::Map>());
+    let levels = Reflect::get(&gap, &"levels".into()).unwrap();
+    assert!(js_sys::Array::is_array(&levels), "levels {levels:?}");
 }
 
 #[path = "golden/mod.rs"]
