@@ -57,6 +57,7 @@ fn name(family: Family) -> String {
     match family {
         Family::Global(level) => format!("level {level}"),
         Family::Sectors(count) => format!("{count} sectors"),
+        Family::Cones(count) => format!("{count} cones"),
     }
 }
 
@@ -85,6 +86,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         arg_list(&args, "--sectors", &[])
             .into_iter()
             .map(|s| Family::Sectors(s as u32)),
+    );
+    // `--cones 4,16` (three states: level 1 on that many cones of directions).
+    families.extend(
+        arg_list(&args, "--cones", &[])
+            .into_iter()
+            .map(|c| Family::Cones(c as u32)),
     );
     // The cutting planes stop when the worst violation is below this times tr P̄ (the
     // library default is 1e-7; the lower end needs less to close brackets to 1e-6).
@@ -157,7 +164,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let nm = non_monolithic_ci(&p, Criterion::Trace)?;
                 let nm_upper = nmci_upper_bound(&p, &nm).unwrap_or(f64::INFINITY);
                 for (k, &family) in families.iter().enumerate() {
-                    if matches!(family, Family::Sectors(_)) && n != 2 {
+                    if matches!(family, Family::Sectors(_)) && n != 2
+                        || matches!(family, Family::Cones(_)) && n != 3
+                    {
                         continue;
                     }
                     let start = Instant::now();
@@ -169,6 +178,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         },
                         Family::Sectors(count) => CertifySettings {
                             sectors: Some(count),
+                            tolerance,
+                            ..CertifySettings::default()
+                        },
+                        Family::Cones(count) => CertifySettings {
+                            cones: Some(count),
                             tolerance,
                             ..CertifySettings::default()
                         },

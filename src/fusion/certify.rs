@@ -87,6 +87,21 @@
 //! and `g′ ≥ 0`. The multipliers' coefficients are integers below `2¹⁴` times `2⁻¹²`,
 //! exact floats, so the repair below treats `S_k ⊗ C′_k` exactly.
 //!
+//! **Three states** ([`CertifySettings::cones`], opt-in): the same argument with several
+//! multipliers per piece. The pieces are `4`, `16` or `64` cones spanned by integer
+//! generators `u₁, u₂, u₃` — the four octants of `v₃ ≥ 0`, split 0, 1 or 2 times into four at
+//! the edges' midpoints (generators `u_i + u_j`), an exact subdivision, so the cones and their
+//! negatives cover space (also checked exactly on an integer grid). With facet normals
+//! `n_i = u_j × u_k`, every `v = Σ λ_i u_i` of the cone has `n_i·v = λ_i det U`, all of one
+//! sign, so the three products `q_ij(v) = (n_i·v)(n_j·v) = vᵀ S_ij v`, `i < j`, are
+//! non-negative on the cone and its negative. Each piece then takes `C − Σ_ij S_ij ⊗ C′_ij
+//! ⪰ w wᵀ` with `C′_ij ⪰ 0`, and `vᵀQv − ⟨J₀, Z(v)⟩ = vᵀ G v + Σ_ij g′_ij q_ij(v)` with
+//! `G ⪰ 0`, `g′_ij ≥ 0`: on the cone `Z(v) ⪰ Kᵀ v vᵀ K` and the residual is non-negative,
+//! and the chain above gives `Q ⪰ K J Kᵀ`. The `S_ij` have dyadic entries (integers times a
+//! power of two), so the repair forms `S ⊗ C′` exactly as for two states. This family
+//! contains level 1 (zero multipliers); the sweep in docs/methods.md measures it against
+//! the levels (it narrows the gaps, but at more cost than level 3, so it is not a default).
+//!
 //! ## Exact in floating point, whatever the solver's accuracy
 //! The solver's point satisfies 1–4 only to its tolerance. The reported bound is made to
 //! satisfy them exactly, for the reported floats `K_a`, `P̄ = Q` and `K_b = I − K_a` taken
@@ -174,6 +189,10 @@ pub struct CertifySettings {
     /// `2..=`[`MAX_SECTORS`]. `None` (default): [`DEFAULT_SECTORS`] unless `level` is set,
     /// which then applies to two-state blocks too (one certificate for every direction).
     pub sectors: Option<u32>,
+    /// Blocks of three states: the number of cones of directions (4, 16 or 64), each with its
+    /// own level-1 certificate (module docs, "Sectors"); `None` (default): one certificate of
+    /// [`CertifySettings::level_for`].
+    pub cones: Option<u32>,
 }
 
 impl Default for CertifySettings {
@@ -186,6 +205,7 @@ impl Default for CertifySettings {
             max_cone: 90,
             time_limit: None,
             sectors: None,
+            cones: None,
         }
     }
 }
@@ -218,6 +238,9 @@ impl CertifySettings {
                 )));
             }
         }
+        if let Some(count) = self.cones {
+            cone_generators(count)?;
+        }
         check_time_limit(self.time_limit)
     }
 
@@ -229,6 +252,7 @@ impl CertifySettings {
             (2, Some(_), _) | (2, None, None) => {
                 Family::Sectors(self.sectors.unwrap_or(DEFAULT_SECTORS))
             }
+            (3, _, _) if self.cones.is_some() => Family::Cones(self.cones.unwrap_or(4)),
             _ => Family::Global(self.level_for(dim)),
         }
     }
@@ -283,6 +307,9 @@ pub enum Family {
     Global(u32),
     /// Two states: a level-1 certificate on each of this many sectors of directions.
     Sectors(u32),
+    /// Three states: a level-1 certificate on each of this many cones of directions (4, 16
+    /// or 64: the octants of a half-space, subdivided 0, 1 or 2 times).
+    Cones(u32),
 }
 
 impl Family {
@@ -290,15 +317,15 @@ impl Family {
     pub fn level(self) -> u32 {
         match self {
             Family::Global(level) => level,
-            Family::Sectors(_) => 1,
+            Family::Sectors(_) | Family::Cones(_) => 1,
         }
     }
 
-    /// The number of sectors (0 for one certificate for every direction).
+    /// The number of sectors or cones (0 for one certificate for every direction).
     pub fn sectors(self) -> u32 {
         match self {
             Family::Global(_) => 0,
-            Family::Sectors(count) => count,
+            Family::Sectors(count) | Family::Cones(count) => count,
         }
     }
 
@@ -311,6 +338,8 @@ impl Family {
                 Some(Family::Sectors(count / 2))
             }
             Family::Sectors(_) => Some(Family::Global(CertifySettings::auto_level(2))),
+            Family::Cones(count) if count / 4 >= 4 => Some(Family::Cones(count / 4)),
+            Family::Cones(_) => Some(Family::Global(CertifySettings::auto_level(3))),
             Family::Global(level) if level > 1 => Some(Family::Global(level - 1)),
             Family::Global(_) => None,
         }
@@ -359,6 +388,94 @@ pub(crate) fn sector_multipliers(count: u32) -> Result<Vec<[f64; 3]>, SolveError
         .collect())
 }
 
+/// The multipliers of each piece of directions (module docs, "Sectors"): for two states one
+/// per sector of [`sector_multipliers`]; for three states, `count` ∈ {4, 16, 64} cones
+/// spanned by integer generators — the four octants of `v₃ ≥ 0`, each split 0, 1 or 2 times
+/// into four at its edges' midpoints (the generators `u_i + u_j`), an exact subdivision of the
+/// octant — with the three products `q_ij(v) = (n_i·v)(n_j·v)`, `i < j`, of the cone's facet
+/// normals `n_i = u_j × u_k`: on the cone all `n_i·v` share a sign (`n_i·v = λ_i det U` for
+/// `v = Σ λ_i u_i`), so every `q_ij ≥ 0` there and on its negative, and the octants and their
+/// negatives cover space. Each matrix is scaled by a power of two to entries of order one
+/// (exact).
+#[allow(non_snake_case)]
+pub(crate) fn cone_multipliers(n: usize, count: u32) -> Result<Vec<Vec<DMatrix<f64>>>, SolveError> {
+    match n {
+        2 => Ok(sector_multipliers(count)?
+            .into_iter()
+            .map(|sigma| {
+                vec![DMatrix::from_row_slice(
+                    2,
+                    2,
+                    &[sigma[0], 0.5 * sigma[1], 0.5 * sigma[1], sigma[2]],
+                )]
+            })
+            .collect()),
+        3 => Ok(cone_generators(count)?
+            .iter()
+            .map(|u| {
+                let cross = |a: [i64; 3], b: [i64; 3]| {
+                    [
+                        a[1] * b[2] - a[2] * b[1],
+                        a[2] * b[0] - a[0] * b[2],
+                        a[0] * b[1] - a[1] * b[0],
+                    ]
+                };
+                let normals = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])];
+                [(0, 1), (0, 2), (1, 2)]
+                    .iter()
+                    .map(|&(i, j)| {
+                        let (a, b) = (normals[i], normals[j]);
+                        // 2 S = a bᵀ + b aᵀ in integers, then scaled by a power of two.
+                        let twice: Vec<i64> = (0..9)
+                            .map(|e| a[e / 3] * b[e % 3] + b[e / 3] * a[e % 3])
+                            .collect();
+                        let largest = twice.iter().map(|v| v.abs()).max().unwrap_or(1).max(1);
+                        let scale = 0.5 / (largest as f64).log2().ceil().exp2();
+                        DMatrix::from_iterator(3, 3, twice.iter().map(|&v| v as f64 * scale))
+                    })
+                    .collect()
+            })
+            .collect()),
+        _ => Err(SolveError::InvalidSettings(format!(
+            "cones of directions certify blocks of two or three states (got a block of {n})"
+        ))),
+    }
+}
+
+/// The integer generators of the cones of [`cone_multipliers`] for three states.
+pub(crate) fn cone_generators(count: u32) -> Result<Vec<[[i64; 3]; 3]>, SolveError> {
+    let splits = match count {
+        4 => 0,
+        16 => 1,
+        64 => 2,
+        _ => {
+            return Err(SolveError::InvalidSettings(format!(
+                "three-state blocks are certified on 4, 16 or 64 cones (got {count})"
+            )))
+        }
+    };
+    let mut cones: Vec<[[i64; 3]; 3]> = [(1, 1), (-1, 1), (-1, -1), (1, -1)]
+        .iter()
+        .map(|&(x, y)| [[x, 0, 0], [0, y, 0], [0, 0, 1]])
+        .collect();
+    let add = |a: [i64; 3], b: [i64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+    for _ in 0..splits {
+        cones = cones
+            .iter()
+            .flat_map(|&[u1, u2, u3]| {
+                let (m12, m13, m23) = (add(u1, u2), add(u1, u3), add(u2, u3));
+                [
+                    [u1, m12, m13],
+                    [u2, m12, m23],
+                    [u3, m13, m23],
+                    [m12, m23, m13],
+                ]
+            })
+            .collect();
+    }
+    Ok(cones)
+}
+
 /// Checks an optional wall-clock limit (positive and finite).
 pub(crate) fn check_time_limit(limit: Option<f64>) -> Result<(), SolveError> {
     match limit {
@@ -374,8 +491,8 @@ pub(crate) fn check_time_limit(limit: Option<f64>) -> Result<(), SolveError> {
 pub struct Certificates {
     /// The certificate level per block (JSON `levels`).
     pub levels: Vec<u32>,
-    /// The number of sectors per block, 0 for one certificate for every direction (JSON
-    /// `sectors`).
+    /// The number of sectors (two states) or cones (three states) per block, 0 for one
+    /// certificate for every direction (JSON `sectors`).
     pub sectors: Vec<u32>,
 }
 
@@ -405,7 +522,7 @@ pub struct CertifiedResult {
     /// The level used on each block: the requested one, or a lower one where the solver
     /// broke down numerically on it (1 on a block certified by sectors).
     pub levels: Vec<u32>,
-    /// The number of sectors used on each block (0: one certificate for every direction).
+    /// The number of sectors or cones used on each block (0: one certificate for every direction).
     pub sectors: Vec<u32>,
     /// Per block: whether CI's proven bound (for the block's CI gain, or for the given gain
     /// with its best `ω`) was tighter than the solver's certificate and was taken instead —
@@ -709,16 +826,23 @@ impl Layout {
         k
     }
 
-    /// A sector multiplier's coefficient (`σ` on `v₁², v₁v₂, v₂²`) on the monomial of index
-    /// `g` in `products` (level 1, two states).
-    fn sector_coefficient(&self, sigma: &[f64; 3], g: usize) -> f64 {
-        let power = self
+    /// A multiplier's coefficient on the monomial of index `g` in `products` (level 1):
+    /// `q(v) = vᵀ S v` has `S_kk` on `v_k²` and `2 S_kl` on `v_k v_l` (exact: `S` holds
+    /// multiples of a power of two with room to spare).
+    #[allow(non_snake_case)]
+    fn multiplier_coefficient(&self, S: &DMatrix<f64>, g: usize) -> f64 {
+        let e = self
             .products
             .iter()
             .find(|(_, &i)| i == g)
-            .map(|(e, _)| e[1])
+            .map(|(e, _)| e)
             .expect("a degree-2 monomial");
-        sigma[power]
+        let ones: Vec<usize> = (0..self.n).filter(|&k| e[k] > 0).collect();
+        match ones.as_slice() {
+            [k] => S[(*k, *k)],
+            [k, l] => 2.0 * S[(*k, *l)],
+            _ => unreachable!("a degree-2 monomial has one or two variables"),
+        }
     }
 
     /// Index in `products` of `2β + e_k + e_l`.
@@ -739,11 +863,12 @@ struct BlockCertificate {
     repair: f64,
 }
 
-/// One piece of a block's certificate: its conditions hold for every direction (`sigma`
-/// `None`), or only on a sector's double cone, through the multiplier
-/// `q(v) = Σ_γ σ_γ v^γ ≥ 0` there (level 1, two states; module docs, "Sectors").
+/// One piece of a block's certificate: its conditions hold for every direction (no
+/// multipliers), or only on a cone of directions and its negative, through multipliers
+/// `q_j(v) = vᵀ S_j v ≥ 0` there (level 1; module docs, "Sectors").
+#[allow(non_snake_case)]
 struct Piece {
-    sigma: Option<[f64; 3]>,
+    multipliers: Vec<DMatrix<f64>>,
 }
 
 #[allow(non_snake_case)]
@@ -755,16 +880,16 @@ fn certify_block(
 ) -> Result<BlockCertificate, SolveError> {
     let n = problem.dim();
     let (level, pieces) = match family {
-        Family::Global(level) => (level, vec![Piece { sigma: None }]),
-        Family::Sectors(count) => {
-            if n != 2 {
-                return Err(SolveError::InvalidSettings(format!(
-                    "sectors certify blocks of two states (got a block of {n})"
-                )));
-            }
-            let pieces = sector_multipliers(count)?
+        Family::Global(level) => (
+            level,
+            vec![Piece {
+                multipliers: Vec::new(),
+            }],
+        ),
+        Family::Sectors(count) | Family::Cones(count) => {
+            let pieces = cone_multipliers(n, count)?
                 .into_iter()
-                .map(|sigma| Piece { sigma: Some(sigma) })
+                .map(|multipliers| Piece { multipliers })
                 .collect::<Vec<_>>();
             (1, pieces)
         }
@@ -778,7 +903,7 @@ fn certify_block(
         _ => 0.0,
     };
     // Variables: Q (svec of n), K_a (n², when free), then per piece C (svec of N), G (svec of
-    // s) and, for a sector, C' (svec of m) and g' (one).
+    // s) and, per multiplier of the piece, C' (svec of m) and g' (one).
     let var_q = |k: usize, l: usize| svec_index(k.min(l), k.max(l));
     let off_k = n * (n + 1) / 2;
     let var_k = |k: usize, i: usize| off_k + k + i * n;
@@ -786,24 +911,31 @@ fn certify_block(
     struct Offsets {
         c: usize,
         g: usize,
-        cp: usize,
-        gp: usize,
+        /// Per multiplier: the offsets of its C' and of its g'.
+        mult: Vec<(usize, usize)>,
     }
     let offsets: Vec<Offsets> = pieces
         .iter()
         .map(|piece| {
             let c = next;
             let g = c + N * (N + 1) / 2;
-            let cp = g + s * (s + 1) / 2;
-            let gp = cp + m * (m + 1) / 2;
-            next = if piece.sigma.is_some() { gp + 1 } else { cp };
-            Offsets { c, g, cp, gp }
+            next = g + s * (s + 1) / 2;
+            let mult = piece
+                .multipliers
+                .iter()
+                .map(|_| {
+                    let cp = next;
+                    next = cp + m * (m + 1) / 2 + 1;
+                    (cp, cp + m * (m + 1) / 2)
+                })
+                .collect();
+            Offsets { c, g, mult }
         })
         .collect();
     let total_vars = next;
     let var_c = |o: &Offsets, x: usize, y: usize| o.c + svec_index(x.min(y), x.max(y));
     let var_g = |o: &Offsets, a: usize, b: usize| o.g + svec_index(a.min(b), a.max(b));
-    let var_cp = |o: &Offsets, x: usize, y: usize| o.cp + svec_index(x.min(y), x.max(y));
+    let var_cp = |cp: usize, x: usize, y: usize| cp + svec_index(x.min(y), x.max(y));
 
     // Condition 2: per piece, one group of C entries per (γ, unknown (i, j)) that must sum to
     // zero.
@@ -851,11 +983,11 @@ fn certify_block(
                 *row.entry(var_g(o, a, b)).or_default() -= 1.0;
             }
         }
-        if let Some(sigma) = &piece.sigma {
+        for (S, &(_, gp)) in piece.multipliers.iter().zip(&o.mult) {
             for (g, row) in rows.iter_mut().enumerate() {
-                let sg = lay.sector_coefficient(sigma, g);
+                let sg = lay.multiplier_coefficient(S, g);
                 if sg != 0.0 {
-                    *row.entry(o.gp).or_default() -= sg;
+                    *row.entry(gp).or_default() -= sg;
                 }
             }
         }
@@ -864,17 +996,11 @@ fn certify_block(
     let sqrt2 = std::f64::consts::SQRT_2;
     let zeros = groups.len() + sos.len();
     let cone = N + nb;
-    let sectors = pieces.iter().filter(|p| p.sigma.is_some()).count();
+    let multipliers: usize = pieces.iter().map(|p| p.multipliers.len()).sum();
     let piece_rows = |piece: &Piece| {
-        cone * (cone + 1) / 2
-            + s * (s + 1) / 2
-            + if piece.sigma.is_some() {
-                m * (m + 1) / 2
-            } else {
-                0
-            }
+        cone * (cone + 1) / 2 + s * (s + 1) / 2 + piece.multipliers.len() * m * (m + 1) / 2
     };
-    let rows_total = zeros + pieces.iter().map(piece_rows).sum::<usize>() + sectors;
+    let rows_total = zeros + pieces.iter().map(piece_rows).sum::<usize>() + multipliers;
     let mut b = vec![0.0; rows_total];
     let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
     for (e, group) in groups.iter().enumerate() {
@@ -913,34 +1039,33 @@ fn certify_block(
             }
         }
     };
-    // Per piece: condition 1 as [[C, W D^{1/2}], [·, I]] ⪰ 0, condition 4 (G ⪰ 0) and, for
-    // a sector, C' ⪰ 0.
+    // Per piece: condition 1 as [[C, W D^{1/2}], [·, I]] ⪰ 0, condition 4 (G ⪰ 0) and, per
+    // multiplier, C' ⪰ 0.
     let mut schur_bases = Vec::with_capacity(pieces.len());
     for (piece, o) in pieces.iter().zip(&offsets) {
         psd(&mut rows, &mut cols, &mut vals, base, N, &|x, y| {
             var_c(o, x, y)
         });
-        if let Some(sigma) = &piece.sigma {
-            // The top left block is C − S ⊗ C' (S the matrix of q): (S ⊗ C')[(a,p),(b,q)] =
-            // S_ab C'_pq.
-            let S = sector_matrix(sigma);
-            let mut coef: BTreeMap<(usize, usize), f64> = BTreeMap::new();
+        // The top left block is C − Σ_j S_j ⊗ C'_j (S_j the matrix of q_j):
+        // (S ⊗ C')[(a,p),(b,q)] = S_ab C'_pq.
+        let mut coef: BTreeMap<(usize, usize), f64> = BTreeMap::new();
+        for (S, &(cp, _)) in piece.multipliers.iter().zip(&o.mult) {
             for c in 0..N {
                 for r in 0..=c {
                     let (a, p, bb, q) = (r / m, r % m, c / m, c % m);
                     let w = if r == c { 1.0 } else { sqrt2 };
                     if S[(a, bb)] != 0.0 {
                         *coef
-                            .entry((base + svec_index(r, c), var_cp(o, p, q)))
+                            .entry((base + svec_index(r, c), var_cp(cp, p, q)))
                             .or_default() += w * S[(a, bb)];
                     }
                 }
             }
-            for ((row, var), c) in coef {
-                rows.push(row);
-                cols.push(var);
-                vals.push(c);
-            }
+        }
+        for ((row, var), c) in coef {
+            rows.push(row);
+            cols.push(var);
+            vals.push(c);
         }
         schur_bases.push(base);
         base += cone * (cone + 1) / 2;
@@ -950,25 +1075,25 @@ fn certify_block(
         });
         base += s * (s + 1) / 2;
         cones.push(SupportedConeT::PSDTriangleConeT(s));
-        if piece.sigma.is_some() {
+        for &(cp, _) in &o.mult {
             psd(&mut rows, &mut cols, &mut vals, base, m, &|x, y| {
-                var_cp(o, x, y)
+                var_cp(cp, x, y)
             });
             base += m * (m + 1) / 2;
             cones.push(SupportedConeT::PSDTriangleConeT(m));
         }
     }
-    // g' ≥ 0 for each sector.
-    for (piece, o) in pieces.iter().zip(&offsets) {
-        if piece.sigma.is_some() {
+    // g' ≥ 0 for each multiplier.
+    for o in &offsets {
+        for &(_, gp) in &o.mult {
             rows.push(base);
-            cols.push(o.gp);
+            cols.push(gp);
             vals.push(-1.0);
             base += 1;
         }
     }
-    if sectors > 0 {
-        cones.push(SupportedConeT::NonnegativeConeT(sectors));
+    if multipliers > 0 {
+        cones.push(SupportedConeT::NonnegativeConeT(multipliers));
     }
     debug_assert_eq!(base, rows_total);
     for &schur in &schur_bases {
@@ -1035,12 +1160,17 @@ fn certify_block(
     for (piece, o) in pieces.iter().zip(&offsets) {
         let C = DMatrix::from_fn(N, N, |r, c| x[var_c(o, r, c)]);
         let G = DMatrix::from_fn(s, s, |a, b| x[var_g(o, a, b)]);
-        let sector = piece.sigma.map(|sigma| SectorPart {
-            sigma,
-            Cp: DMatrix::from_fn(m, m, |r, c| x[var_cp(o, r, c)]),
-            gp: x[o.gp].max(0.0),
-        });
-        repair(problem, &lay, &K_a, C, &mut Q, &G, sector)?;
+        let parts = piece
+            .multipliers
+            .iter()
+            .zip(&o.mult)
+            .map(|(S, &(cp, gp))| MultiplierPart {
+                S: S.clone(),
+                Cp: DMatrix::from_fn(m, m, |r, c| x[var_cp(cp, r, c)]),
+                gp: x[gp].max(0.0),
+            })
+            .collect();
+        repair(problem, &lay, &K_a, C, &mut Q, &G, parts)?;
     }
     let repair = (Q.trace() - trace_solver).max(0.0);
     Ok(BlockCertificate {
@@ -1109,24 +1239,17 @@ fn exact_zero_sum(x: &mut [f64], group: &[usize]) {
     x[*last] = -sum;
 }
 
-/// The symmetric matrix `S` of a sector's multiplier, `q(v) = vᵀ S v`, from its coefficients
-/// `σ` on `v₁², v₁v₂, v₂²` (`σ₁₂ / 2` is exact).
+/// One multiplier of a piece (module docs, "Sectors"): its matrix `S` (`q(v) = vᵀ S v`,
+/// exact), `C'` and `g' ≥ 0`.
 #[allow(non_snake_case)]
-fn sector_matrix(sigma: &[f64; 3]) -> nalgebra::Matrix2<f64> {
-    nalgebra::Matrix2::new(sigma[0], 0.5 * sigma[1], 0.5 * sigma[1], sigma[2])
-}
-
-/// A sector piece's multiplier part (module docs, "Sectors"): `σ` (on `v₁², v₁v₂, v₂²`), `C'`
-/// and `g' ≥ 0`.
-#[allow(non_snake_case)]
-struct SectorPart {
-    sigma: [f64; 3],
+struct MultiplierPart {
+    S: DMatrix<f64>,
     Cp: DMatrix<f64>,
     gp: f64,
 }
 
-/// The verified repair of one piece (module docs): `C ← C + δI` until `C − W D Wᵀ ⪰ 0` is
-/// proven (and, for a sector, `C' ← C' + δ'I` until `C' ⪰ 0` is), then `Q ← Q + ηI` until
+/// The verified repair of one piece (module docs): `C ← C + δI` until `C − Σ S ⊗ C' − W D Wᵀ
+/// ⪰ 0` is proven (each multiplier's `C' ← C' + δ'I` until `C' ⪰ 0` is, first), then `Q ← Q + ηI` until
 /// `G + E ⪰ 0` is proven. `Q` only grows (by multiples of `I`), so a piece proven before
 /// stays proven.
 #[allow(non_snake_case)]
@@ -1137,7 +1260,7 @@ fn repair(
     C: DMatrix<f64>,
     Q: &mut DMatrix<f64>,
     G: &DMatrix<f64>,
-    sector: Option<SectorPart>,
+    parts: Vec<MultiplierPart>,
 ) -> Result<(), SolveError> {
     let n = lay.n;
     let (m, s, N) = (lay.m, lay.mons.len(), lay.big());
@@ -1167,30 +1290,26 @@ fn repair(
             rad: up(c * w.rad + U * mid.abs(), 3),
         }
     });
-    // A sector's C' ⪰ 0 proven first (its diagonal shifted if needed: the diagonal holds no
-    // cross entry, and C enters only through C − S ⊗ C', proven next).
-    let sector = match sector {
-        None => None,
-        Some(SectorPart { sigma, Cp, gp }) => {
-            let zero = DMatrix::zeros(m, m);
+    // Each multiplier's C' ⪰ 0 proven first (its diagonal shifted if needed: the diagonal
+    // holds no cross entry, and C enters only through C − Σ S ⊗ C', proven next).
+    let zero = DMatrix::zeros(m, m);
+    let parts = parts
+        .into_iter()
+        .map(|MultiplierPart { S, Cp, gp }| {
             let first = BallMatrix::exact(&Cp);
             let Cp = shift_until_proven(Cp, &first, "C' ⪰ 0", |shifted| is_psd(shifted, &zero))?;
-            Some((sigma, Cp, gp))
-        }
-    };
-    let S = sector.as_ref().map(|(sigma, _, _)| {
-        let S = sector_matrix(sigma);
-        [[S[(0, 0)], S[(0, 1)]], [S[(1, 0)], S[(1, 1)]]]
-    });
+            Ok(MultiplierPart { S, Cp, gp })
+        })
+        .collect::<Result<Vec<_>, SolveError>>()?;
     let margin = |C: &DMatrix<f64>| {
         BallMatrix::from_fn(N, N, |x, y| {
             let mut d = Dot::new();
             d.add(Ball::exact(C[(x, y)]));
-            if let (Some(S), Some((_, Cp, _))) = (&S, &sector) {
+            for part in &parts {
                 // − (S ⊗ C')[(a,p),(b,q)] = − S_ab C'_pq (level 1: x = a m + p).
                 d.add_prod(
-                    Ball::exact(-S[x / m][y / m]),
-                    Ball::exact(Cp[(x % m, y % m)]),
+                    Ball::exact(-part.S[(x / m, y / m)]),
+                    Ball::exact(part.Cp[(x % m, y % m)]),
                 );
             }
             for t in 0..nb {
@@ -1265,11 +1384,11 @@ fn repair(
                 d.add(Ball::exact(-G[(a, b)]));
             }
         }
-        if let Some((sigma, _, gp)) = &sector {
+        for part in &parts {
             for (g, d) in coef.iter_mut().enumerate() {
-                let c = lay.sector_coefficient(sigma, g);
+                let c = lay.multiplier_coefficient(&part.S, g);
                 if c != 0.0 {
-                    d.add_exact_prod(-c, *gp);
+                    d.add_exact_prod(-c, part.gp);
                 }
             }
         }
@@ -1339,6 +1458,71 @@ fn repair_failed(what: &str) -> SolveError {
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
+
+    #[test]
+    #[allow(non_snake_case)]
+    fn cones_cover_space_exactly_and_their_multipliers_are_the_normals_products() {
+        // The proof needs: every v ≠ 0 lies in some cone or its negative, where each q_ij is
+        // ≥ 0. Checked exactly in integers over every direction of a 17³ grid (the cones'
+        // generators have entries up to 4, so the grid meets every cone's interior and
+        // boundary), and each multiplier matrix, evaluated exactly (dyadic entries, small
+        // integer v), equals the product of its two normals' forms up to its power-of-two
+        // scale.
+        for count in [4u32, 16, 64] {
+            let cones = cone_generators(count).unwrap();
+            let mults = cone_multipliers(3, count).unwrap();
+            assert_eq!(cones.len(), count as usize);
+            let cross = |a: [i64; 3], b: [i64; 3]| {
+                [
+                    a[1] * b[2] - a[2] * b[1],
+                    a[2] * b[0] - a[0] * b[2],
+                    a[0] * b[1] - a[1] * b[0],
+                ]
+            };
+            let dot = |a: [i64; 3], b: [i64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+            let normals: Vec<[[i64; 3]; 3]> = cones
+                .iter()
+                .map(|u| [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])])
+                .collect();
+            for x in -8i64..=8 {
+                for y in -8i64..=8 {
+                    for z in -8i64..=8 {
+                        let v = [x, y, z];
+                        if v == [0, 0, 0] {
+                            continue;
+                        }
+                        let inside = normals.iter().position(|nn| {
+                            let d = nn.map(|n| dot(n, v));
+                            d.iter().all(|&t| t >= 0) || d.iter().all(|&t| t <= 0)
+                        });
+                        let k = inside.unwrap_or_else(|| panic!("{count} cones miss {v:?}"));
+                        let d = normals[k].map(|n| dot(n, v));
+                        for (S, (i, j)) in mults[k].iter().zip([(0, 1), (0, 2), (1, 2)]) {
+                            let vf = v.map(|t| t as f64);
+                            let mut q = 0.0;
+                            for a in 0..3 {
+                                for b in 0..3 {
+                                    q += vf[a] * S[(a, b)] * vf[b];
+                                }
+                            }
+                            let exact = (d[i] * d[j]) as f64;
+                            assert!(q >= 0.0, "{count} cones: q < 0 at {v:?}");
+                            // q = exact · 2^-e for the matrix's scale: the ratio is a power of
+                            // two (or both are zero).
+                            if exact == 0.0 {
+                                assert_eq!(q, 0.0);
+                            } else {
+                                let ratio = q / exact;
+                                assert_eq!(ratio, ratio.log2().round().exp2(), "{v:?}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(cone_generators(8).is_err());
+        assert!(cone_multipliers(4, 4).is_err());
+    }
 
     #[test]
     fn sector_multipliers_cover_the_plane_exactly() {

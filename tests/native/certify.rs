@@ -182,6 +182,71 @@ fn sector_certificates_proven_whatever_the_solver_accuracy() {
 }
 
 #[test]
+fn cone_certificates_in_three_states_proven_and_never_looser_than_level_one() {
+    // Three states on 4 and 16 cones of directions, at a loose and the default tolerance: the
+    // repair makes each cone's proof exact (conservative on fresh samples, never below the
+    // cutting planes' proven lower bound, no tolerance); the cone family contains level 1
+    // (zero multipliers), so its bound is never looser than level 1's up to the solver's
+    // tolerance; the response reports the cones like sectors.
+    let mut r = rng(29);
+    let p = random_problem(
+        3,
+        CrossPattern::from_fn(3, |i, j| (i + 2 * j) % 3 != 1),
+        &mut r,
+    );
+    let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+    let level1 = certified_fusion(
+        &p,
+        &CertifySettings {
+            level: Some(1),
+            ..CertifySettings::default()
+        },
+    )
+    .unwrap();
+    let mut reported = Vec::new();
+    for (cones, tolerance) in [(4u32, 1e-3), (4, 1e-10), (16, 1e-10)] {
+        let cert = certified_fusion(
+            &p,
+            &CertifySettings {
+                cones: Some(cones),
+                tolerance,
+                ..CertifySettings::default()
+            },
+        )
+        .unwrap();
+        let upper = trace_upper_bound(&cert.fused.P);
+        assert!(cuts.lower_bound <= upper, "{cones} cones, tol {tolerance}");
+        let margin = fresh_margin(&p, &cert.fused);
+        assert!(margin >= -1e-12 * upper, "{cones} cones: margin {margin}");
+        if tolerance == 1e-10 {
+            // The cones, or (a solve that ended with reduced accuracy) the fallback family
+            // whose proof was smaller.
+            let fallback = (vec![CertifySettings::auto_level(3)], vec![0]);
+            let got = (cert.levels.clone(), cert.sectors.clone());
+            assert!(got == (vec![1], vec![cones]) || got == fallback, "{got:?}");
+            reported.push(got);
+            assert!(
+                cert.fused.trace() <= level1.fused.trace() * (1.0 + 1e-7),
+                "{cones} cones {} vs level 1 {}",
+                cert.fused.trace(),
+                level1.fused.trace()
+            );
+        }
+    }
+    assert!(reported.contains(&(vec![1], vec![16])), "{reported:?}");
+    // A count that is not a subdivision of the octants is refused, naming the counts.
+    let err = certified_fusion(
+        &p,
+        &CertifySettings {
+            cones: Some(8),
+            ..CertifySettings::default()
+        },
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("4, 16 or 64"), "{err}");
+}
+
+#[test]
 fn the_sampled_sdp_gain_certified() {
     // For the SDP's own gain, the tightest certified bound lies above the SDP's (relaxed)
     // trace and is conservative.
