@@ -100,7 +100,8 @@
 //! and the chain above gives `Q ⪰ K J Kᵀ`. The `S_ij` have dyadic entries (integers times a
 //! power of two), so the repair forms `S ⊗ C′` exactly as for two states. This family
 //! contains level 1 (zero multipliers); the sweep in docs/methods.md measures it against
-//! the levels (it narrows the gaps, but at more cost than level 3, so it is not a default).
+//! the levels (it narrows the gaps at a cost of the order of level 3's, so it is not a
+//! default).
 //!
 //! ## Exact in floating point, whatever the solver's accuracy
 //! The solver's point satisfies 1–4 only to its tolerance. The reported bound is made to
@@ -245,14 +246,16 @@ impl CertifySettings {
     }
 
     /// The certificate of a block of `dim` states: sectors for two states (the setting, or
-    /// [`DEFAULT_SECTORS`] when neither `sectors` nor `level` is set), else one certificate
-    /// of [`CertifySettings::level_for`].
+    /// [`DEFAULT_SECTORS`] when neither `sectors` nor `level` is set), cones for three states
+    /// when `cones` is set, else one certificate of [`CertifySettings::level_for`].
     pub fn family_for(&self, dim: usize) -> Family {
+        if let (3, Some(count)) = (dim, self.cones) {
+            return Family::Cones(count);
+        }
         match (dim, self.sectors, self.level) {
             (2, Some(_), _) | (2, None, None) => {
                 Family::Sectors(self.sectors.unwrap_or(DEFAULT_SECTORS))
             }
-            (3, _, _) if self.cones.is_some() => Family::Cones(self.cones.unwrap_or(4)),
             _ => Family::Global(self.level_for(dim)),
         }
     }
