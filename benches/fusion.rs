@@ -213,8 +213,9 @@ fn certified_benches(c: &mut Bench) {
             b.iter(|| certified_fusion(black_box(&one_zero), &level(l)).unwrap())
         });
     }
-    // Two states: level 1 on each of 16 or 32 (the default) sectors of directions.
-    for count in [16, 32] {
+    // Two states: level 1 on each of 16, 24 (the default, `DEFAULT_SECTORS`) or 32 sectors of
+    // directions.
+    for count in [16, DEFAULT_SECTORS, 32] {
         let settings = CertifySettings {
             sectors: Some(count),
             ..CertifySettings::default()

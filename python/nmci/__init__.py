@@ -300,6 +300,7 @@ def optimal(
     time_limit: Optional[float] = None,
     level: Optional[int] = None,
     sectors: Optional[int] = None,
+    cones: Optional[int] = None,
 ) -> Fused:
     """The paper's sampled SDP (method "sdp"): the tightest bound over ``samples`` sampled
     cross-covariances — a lower bound on the robust optimum, not guaranteed conservative.
@@ -319,6 +320,7 @@ def optimal(
         time_limit=time_limit,
         level=level,
         sectors=sectors,
+        cones=cones,
     )
 
 
@@ -333,6 +335,7 @@ def sdp_cuts(
     time_limit: Optional[float] = None,
     level: Optional[int] = None,
     sectors: Optional[int] = None,
+    cones: Optional[int] = None,
 ) -> Fused:
     """The robust SDP by cutting planes: worst-case cross-covariances as constraints, with a
     proven bracket on the robust optimum (``lower_bound``, ``upper_bound``, ``gap_closed``,
@@ -348,6 +351,7 @@ def sdp_cuts(
         time_limit=time_limit,
         level=level,
         sectors=sectors,
+        cones=cones,
     )
 
 
@@ -360,13 +364,15 @@ def certified(
     pab_unknown: Optional[ArrayLike] = None,
     level: Optional[int] = None,
     sectors: Optional[int] = None,
+    cones: Optional[int] = None,
     time_limit: Optional[float] = None,
 ) -> Fused:
     """A bound proven to dominate ``K P' Kᵀ`` for every admissible ``P'`` by a sum-of-squares
     certificate of level ``level`` (``levels`` per block), or, on blocks of two states, by a
-    level-1 certificate on each of ``sectors`` sectors of directions (default 32 unless
-    ``level`` is set; ``sectors`` per block, 0 where none); its trace never above nmCI's or
-    CI's beyond rounding."""
+    level-1 certificate on each of ``sectors`` sectors of directions (by default the library's
+    count, chosen by measurement, unless ``level`` is set; ``sectors`` per block, 0 where none), and on blocks of three states,
+    when ``cones`` (4, 16 or 64) is given, on each of that many cones of directions; its
+    trace never above nmCI's or CI's beyond rounding."""
     return _two(
         "certified",
         Pa,
@@ -376,6 +382,7 @@ def certified(
         pab_unknown,
         level=level,
         sectors=sectors,
+        cones=cones,
         time_limit=time_limit,
     )
 

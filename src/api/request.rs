@@ -198,6 +198,10 @@ pub struct Options {
     /// ([`CertifySettings::sectors`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sectors: Option<u32>,
+    /// Three-state blocks certified on this many cones of directions, 4, 16 or 64
+    /// ([`CertifySettings::cones`]; default none: one certificate of the block's level).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cones: Option<u32>,
 }
 
 /// What a request runs: its [`Options`] validated, every default filled in.
@@ -215,7 +219,7 @@ pub struct Plan {
 
 impl Options {
     /// Whether each method-specific option is set.
-    fn set(&self) -> [(RequestOption, bool); 7] {
+    fn set(&self) -> [(RequestOption, bool); 8] {
         RequestOption::ALL.map(|o| {
             let set = match o {
                 RequestOption::Samples => self.samples.is_some(),
@@ -225,6 +229,7 @@ impl Options {
                 RequestOption::TimeLimit => self.time_limit.is_some(),
                 RequestOption::Level => self.level.is_some(),
                 RequestOption::Sectors => self.sectors.is_some(),
+                RequestOption::Cones => self.cones.is_some(),
             };
             (o, set)
         })
@@ -265,6 +270,14 @@ impl Options {
                 ));
             }
         }
+        if let Some(count) = self.cones {
+            if ![4, 16, 64].contains(&count) {
+                return Err(RequestError::invalid(
+                    "cones",
+                    format!("`cones` must be 4, 16 or 64 (got {count})"),
+                ));
+            }
+        }
         check_count("samples", self.samples, MAX_SAMPLES)?;
         check_count("max_trials", self.max_trials, MAX_TRIALS)?;
         let sdp_defaults = SdpSettings::default();
@@ -282,6 +295,7 @@ impl Options {
         let certify = CertifySettings {
             level: self.level,
             sectors: self.sectors,
+            cones: self.cones,
             time_limit: self.time_limit,
             ..CertifySettings::default()
         };
@@ -537,6 +551,7 @@ impl Options {
             time_limit: Some(1.0),
             level: Some(1),
             sectors: Some(2),
+            cones: Some(4),
         }
     }
 }

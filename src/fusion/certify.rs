@@ -292,7 +292,7 @@ pub const MAX_SECTORS: u32 = 64;
 
 /// The default number of sectors of a two-state block, chosen from the measured
 /// gap-and-time curves (docs/methods.md, `examples/certify_levels.rs`).
-pub const DEFAULT_SECTORS: u32 = 32;
+pub const DEFAULT_SECTORS: u32 = 24;
 
 /// A block solved only `AlmostSolved` whose repair added more than this fraction of its trace
 /// is certified again with the next lower family, and the smaller bound kept (a tenth of

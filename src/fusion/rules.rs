@@ -141,11 +141,13 @@ pub enum RequestOption {
     Level,
     /// `sectors`.
     Sectors,
+    /// `cones`.
+    Cones,
 }
 
 impl RequestOption {
     /// Every option, in the order the request check reports them.
-    pub const ALL: [RequestOption; 7] = [
+    pub const ALL: [RequestOption; 8] = [
         RequestOption::Samples,
         RequestOption::MaxTrials,
         RequestOption::Sampler,
@@ -153,6 +155,7 @@ impl RequestOption {
         RequestOption::TimeLimit,
         RequestOption::Level,
         RequestOption::Sectors,
+        RequestOption::Cones,
     ];
 
     /// The request field's name.
@@ -165,6 +168,7 @@ impl RequestOption {
             RequestOption::TimeLimit => "time_limit",
             RequestOption::Level => "level",
             RequestOption::Sectors => "sectors",
+            RequestOption::Cones => "cones",
         }
     }
 }
@@ -309,6 +313,7 @@ pub const RULES: [RuleInfo; 8] = [
             RequestOption::TimeLimit,
             RequestOption::Level,
             RequestOption::Sectors,
+            RequestOption::Cones,
         ],
         nway: false,
         explorer: true,
@@ -348,6 +353,7 @@ pub const RULES: [RuleInfo; 8] = [
             RequestOption::TimeLimit,
             RequestOption::Level,
             RequestOption::Sectors,
+            RequestOption::Cones,
         ],
         nway: false,
         explorer: false,

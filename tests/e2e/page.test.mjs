@@ -181,8 +181,8 @@ test("toggling a pattern cell changes the detected blocks", async () => {
   assert.match(await text("#certified-status"), /% below the best of CI and nmCI, proven to dominate/);
   assert.match(await text("#gap"), /duals below, the certified bound above/);
   // Two states: the certificate is level 1 on sectors of directions, and the page says which.
-  assert.match(await text("#gap-verdict"), /^(proven optimal to 10⁻⁶ \(relative\): the certified bound \(certificate level 1 on (32|16) sectors\) is within|open: the robust optimum lies between the ends \(certificate level 1 on (32|16) sectors\))/);
-  assert.match(await text("#certified-status"), /\(certificate level 1 on (32|16) sectors, status/);
+  assert.match(await text("#gap-verdict"), /^(proven optimal to 10⁻⁶ \(relative\): the certified bound \(certificate level 1 on 24 sectors\) is within|open: the robust optimum lies between the ends \(certificate level 1 on 24 sectors\))/);
+  assert.match(await text("#certified-status"), /\(certificate level 1 on 24 sectors, status/);
   assert.equal(await page.locator("#row-certified .coin.neg").count(), 0);
   assert.equal(await page.locator("#layer-certified").count(), 1);
   await page.screenshot({ path: join(out, "explorer-not-separable.png"), fullPage: true });

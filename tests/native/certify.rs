@@ -234,6 +234,23 @@ fn cone_certificates_in_three_states_proven_and_never_looser_than_level_one() {
         }
     }
     assert!(reported.contains(&(vec![1], vec![16])), "{reported:?}");
+    // Through the contract: the request field `cones` reaches the certificate of a 3-state
+    // block, and the response reports it (or the fallback family that proved a smaller bound).
+    let response: serde_json::Value = serde_json::from_str(
+        &fuse_json(
+            r#"{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]],
+                "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]],
+                "method": "certified", "cones": 16}"#,
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let got = (response["levels"].clone(), response["sectors"].clone());
+    assert!(
+        got == (serde_json::json!([1]), serde_json::json!([16]))
+            || got == (serde_json::json!([2]), serde_json::json!([0])),
+        "{got:?}"
+    );
     // A count that is not a subdivision of the octants is refused, naming the counts.
     let err = certified_fusion(
         &p,

@@ -103,7 +103,7 @@ fn run(json: &str) -> Result<String, String> {
 fn request_errors() {
     let ok = r#""pa": [[1, 0], [0, 1]], "pb": [[2, 0], [0, 2]]"#;
     assert!(run(&format!(r#"{{{ok}, "method": "ci"}}"#)).is_ok());
-    let cases: [(&str, &str, Option<&str>); 27] = [
+    let cases: [(&str, &str, Option<&str>); 29] = [
         (r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "extra": 1}"#,
             "unknown field `extra`", Some("extra")),
         (r#"{"pa": [[1]], "pb": [[1]]}"#, "missing field `method`", Some("method")),
@@ -151,6 +151,10 @@ fn request_errors() {
             "`sectors` must be in 2..=64 (got 65)", Some("sectors")),
         (&format!(r#"{{{ok}, "method": "ci", "sectors": 16}}"#),
             "`sectors` applies to methods", Some("sectors")),
+        (&format!(r#"{{{ok}, "method": "certified", "cones": 8}}"#),
+            "`cones` must be 4, 16 or 64 (got 8)", Some("cones")),
+        (&format!(r#"{{{ok}, "method": "nmci", "cones": 16}}"#),
+            "`cones` applies to methods", Some("cones")),
         (r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,2]], "pab_unknown": [[true,true,true,true],[true,true,true,true],[true,true,true,true],[true,true,true,false]], "method": "certified", "level": 4}"#,
             "the level-4 certificate of a 4-state block needs a PSD cone of 300 rows, above the limit of 90 (max_cone)", None),
         (r#"{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]], "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]], "method": "certified", "level": 3, "time_limit": 0.001}"#,
@@ -214,7 +218,7 @@ fn unknown_fields_are_named_and_the_known_ones_listed() {
     let full: FuseRequest = serde_json::from_str(
         r#"{"pa": [[2]], "pb": [[3]], "xa": [1], "xb": [0], "pab_unknown": [[true]],
             "method": "sdp", "criterion": "trace", "samples": 20, "seed": 3, "max_trials": 5000,
-            "sampler": "auto", "time_limit": 30, "level": 2, "sectors": 8}"#,
+            "sampler": "auto", "time_limit": 30, "level": 2, "sectors": 8, "cones": 16}"#,
     )
     .unwrap();
     assert_eq!(full.pair.xa, Some(vec![1.0]));
@@ -239,6 +243,7 @@ fn unknown_fields_are_named_and_the_known_ones_listed() {
         "time_limit",
         "level",
         "sectors",
+        "cones",
         "estimates",
         "patterns",
     ]
