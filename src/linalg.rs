@@ -152,6 +152,38 @@ pub(crate) fn solve_lower_rows(L: &DMatrix<f64>, c: &mut [f64]) {
     }
 }
 
+/// `C ← L⁻ᵀ C` where `c` holds the `n × m` matrix `C` row by row (row-major), `L` lower
+/// triangular (only its lower triangle is read) with a non-zero diagonal: backward
+/// substitution with `Lᵀ`, row-oriented as [`solve_lower_rows`] (column `k` of `L` below the
+/// diagonal is row `k` of `Lᵀ` right of it, contiguous in column-major storage).
+///
+/// With `c` the column-major buffer of `Bᵀ` (the row-major storage of `B`), the buffer ends
+/// up holding `(L⁻ᵀB)ᵀ = Bᵀ L⁻¹` in column-major order.
+#[allow(non_snake_case)]
+pub(crate) fn solve_lower_transposed_rows(L: &DMatrix<f64>, c: &mut [f64]) {
+    let n = L.nrows();
+    if n == 0 {
+        return;
+    }
+    let m = c.len() / n;
+    debug_assert_eq!(c.len(), n * m);
+    let l = L.as_slice();
+    for k in (0..n).rev() {
+        let l_col = &l[k * n..(k + 1) * n];
+        let (head, done) = c.split_at_mut((k + 1) * m);
+        let row_k = &mut head[k * m..];
+        for (row_j, &l_jk) in done.chunks_exact(m).zip(&l_col[k + 1..]) {
+            for (r, &x) in row_k.iter_mut().zip(row_j) {
+                *r -= l_jk * x;
+            }
+        }
+        let inv = 1.0 / l_col[k];
+        for r in row_k.iter_mut() {
+            *r *= inv;
+        }
+    }
+}
+
 /// A random SPD matrix `A Aᵀ + δI` from a small LCG (no RNG dependency in unit tests): the
 /// unit tests' problem generator.
 #[cfg(test)]
@@ -234,5 +266,20 @@ mod tests {
                 assert!((rows[2 * i + j] - X[(i, j)]).abs() < 1e-12);
             }
         }
+        // L⁻ᵀ B, row-major, against nalgebra's transposed solve (a different algorithm).
+        let mut rows: Vec<f64> = (0..n).flat_map(|i| [B[(i, 0)], B[(i, 1)]]).collect();
+        solve_lower_transposed_rows(&L, &mut rows);
+        let Y = L.tr_solve_lower_triangular(&B).unwrap();
+        for i in 0..n {
+            for j in 0..2 {
+                assert!((rows[2 * i + j] - Y[(i, j)]).abs() < 1e-12);
+            }
+        }
+        // A non-symmetric square B given through the buffer of Bᵀ: the buffer ends up holding
+        // Bᵀ L⁻¹ column-major.
+        let mut Z = A.transpose();
+        solve_lower_transposed_rows(&L, Z.as_mut_slice());
+        let expected = A.transpose() * L.clone().try_inverse().unwrap();
+        assert!((&Z - &expected).amax() < 1e-12, "{Z} {expected}");
     }
 }

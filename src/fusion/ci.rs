@@ -27,8 +27,8 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use super::{covariance_twins, scatter_block, Criterion, Estimate, Fused, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::{
-    cholesky, min_eigenvalue, solve_lower_in_place, solve_lower_rows, symmetrize,
-    symmetrize_in_place,
+    cholesky, min_eigenvalue, solve_lower_in_place, solve_lower_rows, solve_lower_transposed_rows,
+    symmetrize, symmetrize_in_place,
 };
 
 /// CI result: the fused estimate and the optimal weight `ω` on estimate `a`.
@@ -171,9 +171,11 @@ impl Pencil {
 
     /// `W⁻¹ = Vᵀ L⁻¹`.
     pub(super) fn basis_inv(&self) -> DMatrix<f64> {
-        let mut Z = self.V.clone();
-        self.L.tr_solve_lower_triangular_mut(&mut Z); // Z = L⁻ᵀ V
-        Z.transpose()
+        // The column-major buffer of Vᵀ is V row by row; the row solve leaves (L⁻ᵀV)ᵀ = Vᵀ L⁻¹
+        // in it, column-major.
+        let mut Z = self.V.transpose();
+        solve_lower_transposed_rows(&self.L, Z.as_mut_slice());
+        Z
     }
 
     /// `W diag(s) R`.

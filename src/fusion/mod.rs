@@ -54,6 +54,11 @@ pub struct FusionProblem {
 }
 
 /// Checks that `m` is a usable covariance: non-empty, square, finite, symmetric, positive definite.
+///
+/// Positive definite means: proven so for `(m + mᵀ)/2` by a verified Cholesky test (Rump,
+/// BIT 2006; `fusion::verify`), or, for a matrix too close to singular for that proof, a
+/// floating-point Cholesky factorization that completes and a positive computed smallest
+/// eigenvalue (a numerical judgement at rounding level, not a proof).
 pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
     if m.nrows() == 0 {
         return Err(InputError::Empty { name: name.into() });
@@ -93,6 +98,13 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
         }
     }
     let sym = symmetrize(m);
+    // The common case in one factorization: proven positive definite by the verified
+    // Cholesky test (`verify::is_positive_definite`). A matrix too close to singular for
+    // that proof is judged as always: a floating-point Cholesky factorization and a positive
+    // computed smallest eigenvalue, which also names the eigenvalue in the error.
+    if verify::is_positive_definite(&sym) {
+        return Ok(());
+    }
     let lambda_min = min_eigenvalue(&sym);
     if nalgebra::Cholesky::new(sym).is_none() || lambda_min <= 0.0 {
         return Err(InputError::NotPositiveDefinite {

@@ -283,14 +283,23 @@ pub(crate) fn is_psd(mid: &DMatrix<f64>, rad: &DMatrix<f64>) -> bool {
     if n == 0 {
         return true;
     }
-    if mid.ncols() != n
-        || rad.shape() != mid.shape()
-        || mid.iter().chain(rad.iter()).any(|x| !x.is_finite())
-        || (0..n).any(|i| (0..i).any(|j| mid[(i, j)] != mid[(j, i)]))
-    {
+    if rad.shape() != mid.shape() || rad.iter().any(|x| !x.is_finite()) {
         return false;
     }
     let e = up(rad.iter().map(|r| r * r).sum::<f64>().sqrt(), n * n + 4);
+    psd_within(mid, e)
+}
+
+/// [`is_psd`] for the matrices within spectral distance `e ≥ ‖X − mid‖₂` of `mid` (`e` a
+/// float no smaller than the exact bound).
+fn psd_within(mid: &DMatrix<f64>, e: f64) -> bool {
+    let n = mid.nrows();
+    if mid.ncols() != n
+        || mid.iter().any(|x| !x.is_finite())
+        || (0..n).any(|j| (j + 1..n).any(|i| mid[(i, j)] != mid[(j, i)]))
+    {
+        return false;
+    }
     let t = up((0..n).map(|i| mid[(i, i)].abs()).sum::<f64>(), n + 2);
     let d = (0..n).map(|i| mid[(i, i)].abs()).fold(0.0, f64::max);
     let g = gamma(n + 1);
@@ -307,27 +316,43 @@ pub(crate) fn is_psd(mid: &DMatrix<f64>, rad: &DMatrix<f64>) -> bool {
     cholesky_succeeds(&b)
 }
 
+/// Proves that the symmetric float matrix `m` is positive definite: [`is_psd`] with radius 0,
+/// whose shift `s` is then positive (its underflow term alone is), so the proven bound
+/// `m ⪰ (0.98 s − 1.01 (a t + u d)) I` of the module docs is strictly positive. `false` means
+/// "not proven" (indefinite, or too close to singular for the proof).
+pub(crate) fn is_positive_definite(m: &DMatrix<f64>) -> bool {
+    m.nrows() == 0 || psd_within(m, 0.0)
+}
+
 /// Plain floating-point Cholesky `B = R̃ᵀR̃`; whether every pivot is positive (and finite).
+/// Left-looking on the columns of the lower factor `R̃ᵀ`: each entry is `b` minus its
+/// products summed in the order `k = 0, 1, …`, then divided by (or, on the diagonal, the
+/// square root of) the pivot — the factorization the error bound of the module docs is for
+/// (it holds for any summation order); the updates run along contiguous columns, so they
+/// vectorize.
 fn cholesky_succeeds(b: &DMatrix<f64>) -> bool {
     let n = b.nrows();
-    // Column-major upper factor R, stored densely.
-    let mut r = DMatrix::<f64>::zeros(n, n);
+    let mut factor = b.clone();
+    let data = factor.as_mut_slice();
     for j in 0..n {
-        for i in 0..j {
-            let mut s = b[(i, j)];
-            for k in 0..i {
-                s -= r[(k, i)] * r[(k, j)];
-            }
-            r[(i, j)] = s / r[(i, i)];
-        }
-        let mut s = b[(j, j)];
+        let (done, rest) = data.split_at_mut(j * n);
+        let col = &mut rest[j..n];
         for k in 0..j {
-            s -= r[(k, j)] * r[(k, j)];
+            let column_k = &done[k * n..(k + 1) * n];
+            let l_jk = column_k[j];
+            for (c, &l_ik) in col.iter_mut().zip(&column_k[j..]) {
+                *c -= l_ik * l_jk;
+            }
         }
-        if s.is_nan() || s <= 0.0 || !s.is_finite() {
+        let pivot = col[0];
+        if pivot.is_nan() || pivot <= 0.0 || !pivot.is_finite() {
             return false;
         }
-        r[(j, j)] = s.sqrt();
+        let r = pivot.sqrt();
+        col[0] = r;
+        for c in col[1..].iter_mut() {
+            *c /= r;
+        }
     }
     true
 }
@@ -364,6 +389,22 @@ pub(crate) fn psd_shift(m: &BallMatrix) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn positive_definite_is_proven_with_a_margin_and_never_without() {
+        let d = |v: &[f64]| DMatrix::from_diagonal(&nalgebra::DVector::from_row_slice(v));
+        assert!(is_positive_definite(&d(&[1.0, 1e-6])));
+        assert!(is_positive_definite(&DMatrix::identity(40, 40)));
+        // Singular, indefinite, or positive definite below the proof's margin (~1e-15):
+        // never proven.
+        for m in [d(&[1.0, 0.0]), d(&[1.0, -1e-300]), d(&[1.0, 1e-17])] {
+            assert!(!is_positive_definite(&m), "{m}");
+        }
+        let s = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        assert!(!is_positive_definite(&s));
+        let s = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0 - 1e-12]);
+        assert!(!is_positive_definite(&s));
+    }
 
     #[test]
     fn identity_is_proven_and_a_negative_eigenvalue_never_is() {

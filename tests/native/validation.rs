@@ -48,6 +48,32 @@ fn covariance_errors_name_the_problem() {
     let e = problem(I.clone(), diag(&[1.0, 0.0])).unwrap_err();
     assert!(e.to_string().starts_with("P_b is not positive definite"));
 
+    // Too close to singular for the verified test (its shift is ~9e-16 here): judged by the
+    // floating-point Cholesky and the computed smallest eigenvalue, on either side of zero.
+    assert!(problem(I.clone(), diag(&[1.0, 5e-16])).is_ok());
+    let e = problem(I.clone(), diag(&[1.0, -5e-16])).unwrap_err();
+    assert!(
+        matches!(e, InputError::NotPositiveDefinite { min_eigenvalue, .. } if (min_eigenvalue + 5e-16).abs() < 1e-16),
+        "{e}"
+    );
+    // The same judgement at a size that takes the verified test's path when the matrix is
+    // well conditioned: a 6 × 6 with one eigenvalue −1e-9, and the same with +1e-9.
+    let q = nalgebra::linalg::QR::new(DMatrix::from_fn(6, 6, |i, j| {
+        ((i * 7 + j * 3) % 5) as f64 - 2.0 + if i == j { 4.0 } else { 0.0 }
+    }))
+    .q();
+    let with_smallest = |l: f64| {
+        let d = diag(&[l, 1.0, 2.0, 3.0, 4.0, 5.0]);
+        let m = &q * d * q.transpose();
+        (&m + m.transpose()) * 0.5
+    };
+    validate_covariance("P_b", &with_smallest(1e-9)).unwrap();
+    let e = validate_covariance("P_b", &with_smallest(-1e-9)).unwrap_err();
+    assert!(
+        matches!(e, InputError::NotPositiveDefinite { min_eigenvalue, .. } if (min_eigenvalue + 1e-9).abs() < 1e-12),
+        "{e}"
+    );
+
     let e = problem(I.clone(), DMatrix::identity(3, 3)).unwrap_err();
     assert_eq!(
         e.to_string(),
