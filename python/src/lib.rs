@@ -157,8 +157,8 @@ fn array2<'py>(py: Python<'py>, rows: &[Vec<f64>]) -> PyResult<Bound<'py, PyArra
 
 /// A response as a dict with the contract's keys: the estimate, bound and gains (`x`, `p`,
 /// `ka`, `kb`, `gains`) go to numpy straight from the typed response, `omega` and `weights`
-/// as numpy arrays from its JSON, the rest as in the JSON. (Serialising the bulk arrays to a
-/// JSON value first took 0.4 ms at `n = 112`, a fifth of CI itself.)
+/// as numpy arrays from its JSON, the rest as in the JSON (the bulk arrays never become JSON
+/// values).
 fn response_dict<'py>(py: Python<'py>, mut r: FuseResponse) -> PyResult<Bound<'py, PyDict>> {
     let internal = |e: String| error(py, "InternalError", e);
     let x = std::mem::take(&mut r.x);
