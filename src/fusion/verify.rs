@@ -404,6 +404,17 @@ mod tests {
         assert!(!is_positive_definite(&s));
         let s = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0 - 1e-12]);
         assert!(!is_positive_definite(&s));
+        // Dense (every factor entry updated): Q diag(λ) Qᵀ with λ_min = ±1e-3, the rest 1–4.
+        let q = nalgebra::linalg::QR::new(DMatrix::from_fn(5, 5, |i, j| {
+            ((3 * i + 5 * j) % 7) as f64 - 3.0 + if i == j { 6.0 } else { 0.0 }
+        }))
+        .q();
+        let with_smallest = |l: f64| {
+            let m = &q * d(&[1.0, l, 2.0, 3.0, 4.0]) * q.transpose();
+            (&m + m.transpose()) * 0.5
+        };
+        assert!(is_positive_definite(&with_smallest(1e-3)));
+        assert!(!is_positive_definite(&with_smallest(-1e-3)));
     }
 
     #[test]
