@@ -51,6 +51,19 @@ fn covariance_errors_name_the_problem() {
     // Too close to singular for the verified test (its shift is ~9e-16 here): judged by the
     // floating-point Cholesky and the computed smallest eigenvalue, on either side of zero.
     assert!(problem(I.clone(), diag(&[1.0, 5e-16])).is_ok());
+    // Both must hold: here the Cholesky factorization completes (pivot 1e-17) but the
+    // computed smallest eigenvalue rounds to 0.
+    let e = problem(I.clone(), diag(&[1.0, 1e-17])).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "P_b is not positive definite (smallest eigenvalue 0.000000e0)"
+    );
+    // All zero: symmetric (no tolerance issue at scale 0), not positive definite.
+    let e = problem(I.clone(), DMatrix::zeros(2, 2)).unwrap_err();
+    assert!(matches!(e, InputError::NotPositiveDefinite { .. }), "{e}");
+    // The symmetry tolerance is relative to the largest entry: 1e-4 off at scale 1e6 passes.
+    let big = DMatrix::from_row_slice(2, 2, &[1e6, 5e5, 5e5 + 1e-4, 1e6]);
+    assert!(problem(I.clone(), big).is_ok());
     let e = problem(I.clone(), diag(&[1.0, -5e-16])).unwrap_err();
     assert!(
         matches!(e, InputError::NotPositiveDefinite { min_eigenvalue, .. } if (min_eigenvalue + 5e-16).abs() < 1e-16),
