@@ -5,6 +5,8 @@
 //! Targets: `ci/trace/112` ≤ 2× `eigen/symmetric/112`; `sdp/paper/100` ≤ 10 ms,
 //! `sdp/paper/1000` ≤ 150 ms.
 //! Issue 6: `ici/trace/112`, `ci_nway/5x14`.
+//! The contract's path at `n = 112`: `validate/112` (one covariance's check), `min_eigenvalue/112`,
+//! `fuse/ci/112` (CI with the checks and the response), `response_json/ci/112`.
 //! Issue 5: `sample/hit_and_run/14x1000` (≥ 1000 samples/s), `sdp_cuts/paper` (the paper's
 //! example by cutting planes) and `sdp_cuts/random6` (a random 6-D problem, each entry of
 //! `P_ab` unknown with probability 0.6: no independent blocks); the certified rule per level
@@ -78,6 +80,30 @@ fn benches(c: &mut Bench) {
     let s = random_spd(112, &mut rng);
     c.bench_function("eigen/symmetric/112", |b| {
         b.iter(|| SymmetricEigen::new(black_box(s.clone())))
+    });
+    // The contract's input check of one covariance (a verified Cholesky test) and the smallest
+    // eigenvalue it computed for every matrix before 2026-11-25 (now only near singular).
+    c.bench_function("validate/112", |b| {
+        b.iter(|| validate_covariance("P", black_box(&s)).unwrap())
+    });
+    c.bench_function("min_eigenvalue/112", |b| {
+        b.iter(|| min_eigenvalue(black_box(&s)))
+    });
+    // CI through the contract (checks, CI, response) and the response as a JSON value (what
+    // the Python layer built before numpy until 2026-11-25).
+    let rows = |m: &DMatrix<f64>| -> Vec<Vec<f64>> {
+        m.row_iter().map(|r| r.iter().copied().collect()).collect()
+    };
+    let request: FuseRequest = serde_json::from_value(serde_json::json!({
+        "pa": rows(&p112.P_a), "pb": rows(&p112.P_b), "method": "ci"
+    }))
+    .unwrap();
+    c.bench_function("fuse/ci/112", |b| {
+        b.iter(|| fuse(black_box(&request)).unwrap())
+    });
+    let response = fuse(&request).unwrap();
+    c.bench_function("response_json/ci/112", |b| {
+        b.iter(|| serde_json::to_value(black_box(&response)).unwrap())
     });
 
     // 8 blocks of 14 states, cross pattern block-diagonal (the tracking study's structure).
