@@ -1,6 +1,77 @@
 //! Small dense linear-algebra helpers shared by the fusion rules.
+//!
+//! ## Wider vectors, the same numbers
+//! The kernels that carry the dense work — the triangular solves and the symmetric
+//! eigensolver of CI's pencil (`eigen`) — are compiled twice on x86-64 by [`wide!`]: for the
+//! portable baseline (SSE2) and with AVX2 enabled, the copy picked at run time when the CPU
+//! has AVX2. Rust compiles floating point strictly: no fused multiply-add contraction and no
+//! reassociation, so wider vectors can only be used for operations that are already
+//! independent (elements of an axpy or a rotation), never to reorder a sum. The two copies
+//! therefore perform the same IEEE operations in the same order and give bitwise identical
+//! results (tested), as the wasm32 build (SIMD128) does.
 
 use nalgebra::{Cholesky, DMatrix, Dyn};
+
+/// Defines a function whose body is compiled twice on x86-64 — the baseline and with AVX2 —
+/// and dispatched at run time (`is_x86_feature_detected!` caches its answer); one copy
+/// elsewhere. For elementwise kernels only (see the module docs: same operations, same order,
+/// so the same bits).
+macro_rules! wide {
+    ($(#[$m:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? $body:block) => {
+        $(#[$m])*
+        $vis fn $name($($arg: $ty),*) $(-> $ret)? {
+            #[inline(always)]
+            #[allow(non_snake_case)]
+            fn baseline($($arg: $ty),*) $(-> $ret)? $body
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2")]
+                #[allow(non_snake_case)]
+                unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
+                    baseline($($arg),*)
+                }
+                if !$crate::linalg::baseline_forced() && std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU supports AVX2, the only requirement of `avx2`.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            baseline($($arg),*)
+        }
+    };
+}
+
+mod eigen;
+pub(crate) use eigen::symmetric_eigen;
+
+#[cfg(test)]
+thread_local! {
+    /// Unit tests only: run the baseline copies of [`wide!`] functions on this thread.
+    static FORCE_BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Whether this thread runs the baseline copies (only ever in unit tests; only x86-64 has
+/// another copy).
+#[inline(always)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+pub(crate) fn baseline_forced() -> bool {
+    #[cfg(test)]
+    {
+        FORCE_BASELINE.with(|f| f.get())
+    }
+    #[cfg(not(test))]
+    {
+        false
+    }
+}
+
+/// Unit tests: `f` run on the baseline copies of the [`wide!`] functions (on this thread).
+#[cfg(test)]
+pub(crate) fn on_baseline<R>(f: impl FnOnce() -> R) -> R {
+    FORCE_BASELINE.with(|b| b.set(true));
+    let r = f();
+    FORCE_BASELINE.with(|b| b.set(false));
+    r
+}
 
 /// Relative tolerance of the symmetry check on inputs.
 pub(crate) const SYMMETRY_RTOL: f64 = 1e-9;
@@ -97,6 +168,7 @@ pub(crate) fn matrix_to_rows(a: &DMatrix<f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
+wide! {
 /// `B ← L⁻¹ B` for a lower-triangular `L` (only its lower triangle is read); `b` holds the
 /// columns of `B` one after the other (`DMatrix::as_mut_slice`, or a `DVector`'s). Column-
 /// oriented forward substitution on contiguous slices: nalgebra's `solve_lower_triangular_mut`
@@ -118,7 +190,9 @@ pub(crate) fn solve_lower_in_place(L: &DMatrix<f64>, b: &mut [f64]) {
         }
     }
 }
+}
 
+wide! {
 /// `C ← L⁻¹ C` where `c` holds the `n × m` matrix `C` **row by row** (row-major), `L` lower
 /// triangular (only its lower triangle is read) with a non-zero diagonal. Row-oriented forward
 /// substitution: the inner loop is an axpy over a whole contiguous row of `m` entries, which
@@ -151,7 +225,9 @@ pub(crate) fn solve_lower_rows(L: &DMatrix<f64>, c: &mut [f64]) {
         }
     }
 }
+}
 
+wide! {
 /// `C ← L⁻ᵀ C` where `c` holds the `n × m` matrix `C` row by row (row-major), `L` lower
 /// triangular (only its lower triangle is read) with a non-zero diagonal: backward
 /// substitution with `Lᵀ`, row-oriented as [`solve_lower_rows`] (column `k` of `L` below the
@@ -182,6 +258,7 @@ pub(crate) fn solve_lower_transposed_rows(L: &DMatrix<f64>, c: &mut [f64]) {
             *r *= inv;
         }
     }
+}
 }
 
 /// A random SPD matrix `A Aᵀ + δI` from a small LCG (no RNG dependency in unit tests): the
@@ -281,5 +358,31 @@ mod tests {
         solve_lower_transposed_rows(&L, Z.as_mut_slice());
         let expected = A.transpose() * L.clone().try_inverse().unwrap();
         assert!((&Z - &expected).amax() < 1e-12, "{Z} {expected}");
+    }
+
+    /// The two copies of each triangular solve give the same bits (on a CPU with AVX2 the
+    /// dispatched copy is the AVX2 one; without, this compares the baseline with itself),
+    /// on sizes that leave every remainder of the vector loops.
+    #[test]
+    fn triangular_solves_same_bits_on_both_copies() {
+        let mut seed = 11;
+        for n in [1, 2, 3, 5, 8, 13, 14, 31, 112] {
+            let L = cholesky(&test_spd(n, &mut seed, 0.5)).unwrap().unpack();
+            for m in [1, 3, 7, n] {
+                let b = test_spd(n.max(m), &mut seed, 0.0);
+                let c: Vec<f64> = b.as_slice()[..n * m].to_vec();
+                let run = |f: fn(&DMatrix<f64>, &mut [f64])| {
+                    let (mut wide, mut base) = (c.clone(), c.clone());
+                    f(&L, &mut wide);
+                    on_baseline(|| f(&L, &mut base));
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&wide), bits(&base), "n {n} m {m}");
+                    assert_ne!(wide, c, "the solve changed nothing");
+                };
+                run(solve_lower_rows);
+                run(solve_lower_transposed_rows);
+                run(solve_lower_in_place);
+            }
+        }
     }
 }
