@@ -37,6 +37,9 @@
 //! ```
 #![deny(missing_docs)]
 
+// First, so that its `wide!` macro is in scope in the modules below.
+#[macro_use]
+mod linalg;
 mod api;
 /// The README's Rust example, run as a doc test.
 #[cfg(doctest)]
@@ -47,7 +50,6 @@ mod error;
 mod explore;
 mod fig2;
 mod fusion;
-mod linalg;
 pub mod sim;
 mod structure;
 #[cfg(target_arch = "wasm32")]

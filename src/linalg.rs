@@ -133,9 +133,42 @@ fn eigenvalues_2x2(a: &DMatrix<f64>) -> (f64, f64) {
     (m - r, m + r)
 }
 
-/// Cholesky factor, or `None` when the matrix is not (numerically) positive definite.
+/// Cholesky factor, or `None` when the matrix is not (numerically) positive definite:
+/// `Cholesky::new(a.clone())`, bit for bit (tested), compiled as a [`wide!`] kernel.
 pub(crate) fn cholesky(a: &DMatrix<f64>) -> Option<Cholesky<f64, Dyn>> {
-    Cholesky::new(a.clone())
+    cholesky_in_place(a.clone()).map(Cholesky::pack_dirty)
+}
+
+wide! {
+/// nalgebra 0.34's `Cholesky::new_internal` without a substitute, written out so that it is
+/// compiled as a [`wide!`] kernel: column `j` minus `l_jk` times column `k` (`axpy`) for
+/// `k < j`, then the square root of the pivot and the column below it divided by it; `None`
+/// for a zero, negative or NaN pivot. The strict upper triangle keeps `a`'s entries, as
+/// nalgebra's does ("dirty").
+fn cholesky_in_place(a: DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let mut matrix = a;
+    let n = matrix.nrows();
+    if matrix.ncols() != n {
+        return None;
+    }
+    for j in 0..n {
+        for k in 0..j {
+            let factor = -matrix[(j, k)];
+            let (mut col_j, col_k) = matrix.columns_range_pair_mut(j, k);
+            let mut col_j = col_j.rows_range_mut(j..);
+            col_j.axpy(factor, &col_k.rows_range(j..), 1.0);
+        }
+        let diag = matrix[(j, j)];
+        if diag == 0.0 || diag.is_nan() || diag < 0.0 {
+            return None;
+        }
+        let denom = diag.sqrt();
+        matrix[(j, j)] = denom;
+        let mut col = matrix.view_range_mut(j + 1.., j);
+        col /= denom;
+    }
+    Some(matrix)
+}
 }
 
 /// `log det A` from a Cholesky factor.
@@ -382,6 +415,34 @@ mod tests {
                 run(solve_lower_rows);
                 run(solve_lower_transposed_rows);
                 run(solve_lower_in_place);
+            }
+        }
+    }
+
+    /// [`cholesky`] is nalgebra's factorization bit for bit (dirty upper triangle included),
+    /// on both copies, and refuses what nalgebra refuses (singular, indefinite, NaN).
+    #[test]
+    fn cholesky_same_bits_as_nalgebra_on_both_copies() {
+        let mut seed = 17;
+        for n in [1, 2, 3, 7, 14, 31, 112] {
+            let mut cases = vec![test_spd(n, &mut seed, 0.1), test_spd(n, &mut seed, 1e-9)];
+            let mut indefinite = test_spd(n, &mut seed, 0.0);
+            indefinite[(n - 1, n - 1)] = -1.0;
+            cases.push(indefinite);
+            cases.push(DMatrix::zeros(n, n));
+            let mut nan = test_spd(n, &mut seed, 0.1);
+            nan[(n / 2, n / 2)] = f64::NAN;
+            cases.push(nan);
+            for a in cases {
+                let reference = Cholesky::new(a.clone()).map(|c| c.unpack_dirty());
+                let bits = |m: &Option<DMatrix<f64>>| {
+                    m.as_ref()
+                        .map(|m| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>())
+                };
+                let wide = cholesky(&a).map(|c| c.unpack_dirty());
+                let base = on_baseline(|| cholesky(&a)).map(|c| c.unpack_dirty());
+                assert_eq!(bits(&wide), bits(&reference), "n {n}\n{a}");
+                assert_eq!(bits(&base), bits(&reference), "baseline, n {n}");
             }
         }
     }

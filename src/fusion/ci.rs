@@ -139,8 +139,8 @@ impl Pencil {
     fn from_half(half: HalfPencil, P_a: &DMatrix<f64>) -> Result<Self, InputError> {
         // Off-diagonal entries below 4ε relative to their diagonal neighbours count as zero
         // (nalgebra's default is ε): eigenvalues still accurate to ~1e-15 ‖M‖, ~15 % fewer QR
-        // sweeps. Without an iteration limit the QR iteration always ends (nalgebra's
-        // `SymmetricEigen`, bit for bit: `linalg::symmetric_eigen`).
+        // sweeps. nalgebra's `SymmetricEigen` without an iteration limit, bit for bit
+        // (`linalg::symmetric_eigen`, whose docs say why it ends).
         let (mu, V) = symmetric_eigen(half.pencil_matrix(), 4.0 * f64::EPSILON)
             .ok_or_else(|| not_pd("P_a", P_a))?;
         let L = half.L;

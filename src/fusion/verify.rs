@@ -324,12 +324,14 @@ pub(crate) fn is_positive_definite(m: &DMatrix<f64>) -> bool {
     m.nrows() == 0 || psd_within(m, 0.0)
 }
 
+wide! {
 /// Plain floating-point Cholesky `B = R̃ᵀR̃`; whether every pivot is positive (and finite).
 /// Left-looking on the columns of the lower factor `R̃ᵀ`: each entry is `b` minus its
 /// products summed in the order `k = 0, 1, …`, then divided by (or, on the diagonal, the
 /// square root of) the pivot — the factorization the error bound of the module docs is for
 /// (it holds for any summation order); the updates run along contiguous columns, so they
-/// vectorize.
+/// vectorize — with AVX2 where the CPU has it ([`wide!`](crate::linalg), the same operations
+/// in the same order, so the same bits).
 fn cholesky_succeeds(b: &DMatrix<f64>) -> bool {
     let n = b.nrows();
     let mut factor = b.clone();
@@ -355,6 +357,7 @@ fn cholesky_succeeds(b: &DMatrix<f64>) -> bool {
         }
     }
     true
+}
 }
 
 /// A float `s ≥ 0` with `λ_min(X) ≥ −s` proven for every `X` of the ball matrix (symmetric
@@ -389,6 +392,33 @@ pub(crate) fn psd_shift(m: &BallMatrix) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The verified test decides the same on both copies of `cholesky_succeeds` ([`wide!`]):
+    /// matrices shifted across their smallest eigenvalue in steps of 1e−14 relative, where
+    /// the last pivot decides.
+    #[test]
+    fn both_copies_decide_alike_at_the_boundary() {
+        let mut seed = 23;
+        let mut decided = [0, 0];
+        for n in [2, 5, 14, 33] {
+            let a = crate::linalg::test_spd(n, &mut seed, 0.0);
+            let lmin = nalgebra::SymmetricEigen::new(a.clone()).eigenvalues.min();
+            for k in -20..=20 {
+                let mut b = a.clone();
+                for i in 0..n {
+                    b[(i, i)] += -lmin + k as f64 * 1e-14 * a.amax();
+                }
+                let wide = cholesky_succeeds(&b);
+                let base = crate::linalg::on_baseline(|| cholesky_succeeds(&b));
+                assert_eq!(wide, base, "n {n} k {k}");
+                decided[usize::from(wide)] += 1;
+            }
+        }
+        assert!(
+            decided[0] > 0 && decided[1] > 0,
+            "{decided:?}: both answers occur"
+        );
+    }
 
     #[test]
     fn positive_definite_is_proven_with_a_margin_and_never_without() {

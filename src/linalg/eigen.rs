@@ -12,8 +12,9 @@
 //! same values, so it performs the same IEEE operations; written here
 //! only so that those generic, inlined blocks are compiled inside a function that [`wide!`]
 //! also builds with AVX2 (nalgebra's own copy is compiled once, for the baseline). The
-//! result is bitwise that of `SymmetricEigen::try_new(m, eps, 0)` (tested on random,
-//! diagonal, zero, clustered and graded matrices of sizes 1–120), on either copy.
+//! result is bitwise that of `SymmetricEigen::try_new(m, eps, 0)` on either copy (tested on
+//! nine kinds of matrices — random, indefinite, diagonal, zero, identity, clustered, graded,
+//! rank one, split — of sizes 1–20, 28, 56, 112 and 120).
 
 use nalgebra::linalg::givens::GivensRotation;
 use nalgebra::linalg::householder::reflection_axis_mut;
@@ -22,8 +23,11 @@ use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 
 wide! {
 /// `(λ, V)` with `A = V diag(λ) Vᵀ` for a symmetric `A` (only its lower triangle is read):
-/// exactly `SymmetricEigen::try_new(a, eps, 0)`'s eigenvalues and eigenvectors. Without an
-/// iteration limit the QR iteration always ends; `None` only for an empty `a`.
+/// exactly `SymmetricEigen::try_new(a, eps, 0)`'s eigenvalues and eigenvectors. No iteration
+/// limit, as that call has none: the QR iteration with Wilkinson's shift converges globally
+/// (Parlett, *The Symmetric Eigenvalue Problem*, § 8.10). `None` for an empty or non-square
+/// `a`, or a 2 × 2 block without real eigenvalues (which a symmetric one cannot be: its
+/// discriminant is a sum of squares; nalgebra would panic there).
 pub(crate) fn symmetric_eigen(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>, DMatrix<f64>)> {
     let dim = a.nrows();
     if dim == 0 || a.ncols() != dim {
