@@ -12,30 +12,29 @@
 
 use nalgebra::{Cholesky, DMatrix, Dyn};
 
-/// Defines a function whose body is compiled twice on x86-64 — the baseline and with AVX2 —
-/// and dispatched at run time (`is_x86_feature_detected!` caches its answer); one copy
-/// elsewhere. For elementwise kernels only (see the module docs: same operations, same order,
-/// so the same bits).
+/// `wide! { /// docs  fn name(args) -> ret = kernel; }` defines `name`, which calls the
+/// `#[inline(always)]` function `kernel` compiled twice on x86-64 — inlined into the baseline
+/// code and into a copy with AVX2 enabled — and picks the copy at run time
+/// (`is_x86_feature_detected!` caches its answer); elsewhere it is a plain call. The kernel
+/// is ordinary code (formatted, linted and mutated like any other); the module docs say why
+/// both copies give the same bits.
 macro_rules! wide {
-    ($(#[$m:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? $body:block) => {
+    ($(#[$m:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? = $kernel:ident;) => {
         $(#[$m])*
         $vis fn $name($($arg: $ty),*) $(-> $ret)? {
-            #[inline(always)]
-            #[allow(non_snake_case)]
-            fn baseline($($arg: $ty),*) $(-> $ret)? $body
             #[cfg(target_arch = "x86_64")]
             {
                 #[target_feature(enable = "avx2")]
                 #[allow(non_snake_case)]
                 unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
-                    baseline($($arg),*)
+                    $kernel($($arg),*)
                 }
                 if !$crate::linalg::baseline_forced() && std::is_x86_feature_detected!("avx2") {
                     // SAFETY: the CPU supports AVX2, the only requirement of `avx2`.
                     return unsafe { avx2($($arg),*) };
                 }
             }
-            baseline($($arg),*)
+            $kernel($($arg),*)
         }
     };
 }
@@ -145,7 +144,13 @@ wide! {
 /// `k < j`, then the square root of the pivot and the column below it divided by it; `None`
 /// for a zero, negative or NaN pivot. The strict upper triangle keeps `a`'s entries, as
 /// nalgebra's does ("dirty").
-fn cholesky_in_place(a: DMatrix<f64>) -> Option<DMatrix<f64>> {
+fn cholesky_in_place(a: DMatrix<f64>) -> Option<DMatrix<f64>> = cholesky_in_place_kernel;
+}
+
+/// The body of [`cholesky_in_place`], compiled into each of its copies.
+#[inline(always)]
+#[allow(non_snake_case)]
+fn cholesky_in_place_kernel(a: DMatrix<f64>) -> Option<DMatrix<f64>> {
     let mut matrix = a;
     let n = matrix.nrows();
     if matrix.ncols() != n {
@@ -168,7 +173,6 @@ fn cholesky_in_place(a: DMatrix<f64>) -> Option<DMatrix<f64>> {
         col /= denom;
     }
     Some(matrix)
-}
 }
 
 /// `log det A` from a Cholesky factor.
@@ -208,7 +212,13 @@ wide! {
 /// goes one right-hand side at a time through strided views and dominated the tracking study.
 /// `L` must have a non-zero diagonal (a Cholesky factor has a positive one).
 #[allow(non_snake_case)]
-pub(crate) fn solve_lower_in_place(L: &DMatrix<f64>, b: &mut [f64]) {
+pub(crate) fn solve_lower_in_place(L: &DMatrix<f64>, b: &mut [f64]) = solve_lower_in_place_kernel;
+}
+
+/// The body of [`solve_lower_in_place`], compiled into each of its copies.
+#[inline(always)]
+#[allow(non_snake_case)]
+fn solve_lower_in_place_kernel(L: &DMatrix<f64>, b: &mut [f64]) {
     let n = L.nrows();
     debug_assert_eq!(b.len() % n.max(1), 0);
     let l = L.as_slice();
@@ -223,7 +233,6 @@ pub(crate) fn solve_lower_in_place(L: &DMatrix<f64>, b: &mut [f64]) {
         }
     }
 }
-}
 
 wide! {
 /// `C ← L⁻¹ C` where `c` holds the `n × m` matrix `C` **row by row** (row-major), `L` lower
@@ -235,7 +244,13 @@ wide! {
 /// `solve_lower_rows(L, P.as_mut_slice())` leaves `L⁻¹P` in row-major order, i.e. `(L⁻¹P)ᵀ` in
 /// the column-major matrix.
 #[allow(non_snake_case)]
-pub(crate) fn solve_lower_rows(L: &DMatrix<f64>, c: &mut [f64]) {
+pub(crate) fn solve_lower_rows(L: &DMatrix<f64>, c: &mut [f64]) = solve_lower_rows_kernel;
+}
+
+/// The body of [`solve_lower_rows`], compiled into each of its copies.
+#[inline(always)]
+#[allow(non_snake_case)]
+fn solve_lower_rows_kernel(L: &DMatrix<f64>, c: &mut [f64]) {
     let n = L.nrows();
     if n == 0 {
         return;
@@ -258,7 +273,6 @@ pub(crate) fn solve_lower_rows(L: &DMatrix<f64>, c: &mut [f64]) {
         }
     }
 }
-}
 
 wide! {
 /// `C ← L⁻ᵀ C` where `c` holds the `n × m` matrix `C` row by row (row-major), `L` lower
@@ -269,7 +283,13 @@ wide! {
 /// With `c` the column-major buffer of `Bᵀ` (the row-major storage of `B`), the buffer ends
 /// up holding `(L⁻ᵀB)ᵀ = Bᵀ L⁻¹` in column-major order.
 #[allow(non_snake_case)]
-pub(crate) fn solve_lower_transposed_rows(L: &DMatrix<f64>, c: &mut [f64]) {
+pub(crate) fn solve_lower_transposed_rows(L: &DMatrix<f64>, c: &mut [f64]) = solve_lower_transposed_rows_kernel;
+}
+
+/// The body of [`solve_lower_transposed_rows`], compiled into each of its copies.
+#[inline(always)]
+#[allow(non_snake_case)]
+fn solve_lower_transposed_rows_kernel(L: &DMatrix<f64>, c: &mut [f64]) {
     let n = L.nrows();
     if n == 0 {
         return;
@@ -291,7 +311,6 @@ pub(crate) fn solve_lower_transposed_rows(L: &DMatrix<f64>, c: &mut [f64]) {
             *r *= inv;
         }
     }
-}
 }
 
 /// A random SPD matrix `A Aᵀ + δI` from a small LCG (no RNG dependency in unit tests): the

@@ -332,7 +332,13 @@ wide! {
 /// (it holds for any summation order); the updates run along contiguous columns, so they
 /// vectorize — with AVX2 where the CPU has it ([`wide!`](crate::linalg), the same operations
 /// in the same order, so the same bits).
-fn cholesky_succeeds(b: &DMatrix<f64>) -> bool {
+fn cholesky_succeeds(b: &DMatrix<f64>) -> bool = cholesky_succeeds_kernel;
+}
+
+/// The body of [`cholesky_succeeds`], compiled into each of its copies.
+#[inline(always)]
+#[allow(non_snake_case)]
+fn cholesky_succeeds_kernel(b: &DMatrix<f64>) -> bool {
     let n = b.nrows();
     let mut factor = b.clone();
     let data = factor.as_mut_slice();
@@ -357,7 +363,6 @@ fn cholesky_succeeds(b: &DMatrix<f64>) -> bool {
         }
     }
     true
-}
 }
 
 /// A float `s ≥ 0` with `λ_min(X) ≥ −s` proven for every `X` of the ball matrix (symmetric

@@ -28,7 +28,13 @@ wide! {
 /// (Parlett, *The Symmetric Eigenvalue Problem*, § 8.10). `None` for an empty or non-square
 /// `a`, or a 2 × 2 block without real eigenvalues (which a symmetric one cannot be: its
 /// discriminant is a sum of squares; nalgebra would panic there).
-pub(crate) fn symmetric_eigen(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>, DMatrix<f64>)> {
+pub(crate) fn symmetric_eigen(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>, DMatrix<f64>)> = symmetric_eigen_kernel;
+}
+
+/// The body of [`symmetric_eigen`], compiled into each of its copies.
+#[inline(always)]
+#[allow(non_snake_case)]
+fn symmetric_eigen_kernel(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>, DMatrix<f64>)> {
     let dim = a.nrows();
     if dim == 0 || a.ncols() != dim {
         return None;
@@ -108,7 +114,6 @@ pub(crate) fn symmetric_eigen(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>
     }
     diag.scale_mut(m_amax);
     Some((diag, q))
-}
 }
 
 /// `SymmetricTridiagonal::new(m).unpack()`: `(Q, diagonal, |off-diagonal|)` with
