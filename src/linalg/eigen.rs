@@ -216,7 +216,8 @@ mod tests {
     /// Matrices of every kind the QR iteration branches on: random SPD and indefinite,
     /// diagonal (no reflection, immediate deflation) with repeated entries, zero, identity,
     /// a cluster `I + 1e-12 E`, graded scales `10^{±k}` (deflation by the relative test),
-    /// rank one, and a split tridiagonal (an exact zero coupling in the middle).
+    /// rank one, a split tridiagonal (an exact zero coupling in the middle), and a tridiagonal
+    /// Toeplitz one (equal diagonals: the 2 × 2 step's tie).
     fn cases(n: usize, seed: &mut u64) -> Vec<DMatrix<f64>> {
         let spd = test_spd(n, seed, 0.1);
         let indefinite = test_spd(n, seed, 0.0) - DMatrix::identity(n, n) * (n as f64 / 12.0);
@@ -238,6 +239,13 @@ mod tests {
             1 if i.min(j) != n / 2 => 1.0,
             _ => 0.0,
         });
+        // Equal diagonals: the 2 × 2 step's two candidate bases tie exactly (for n = 2 the
+        // whole matrix; the reduction makes the coupling positive, and then they coincide).
+        let tie = DMatrix::from_fn(n, n, |i, j| match i.abs_diff(j) {
+            0 => 2.0,
+            1 => -1.0,
+            _ => 0.0,
+        });
         vec![
             spd,
             indefinite,
@@ -248,6 +256,7 @@ mod tests {
             graded,
             rank_one,
             split,
+            tie,
         ]
     }
 
@@ -272,7 +281,7 @@ mod tests {
                 }
             }
         }
-        assert_eq!(checked, 24 * 9 * 2);
+        assert_eq!(checked, 24 * 10 * 2);
     }
 
     /// A decomposition, not only a copy: `A V = V Λ` and `VᵀV = I` to rounding (so a test
