@@ -1,8 +1,9 @@
 //! Small dense linear-algebra helpers shared by the fusion rules.
 //!
 //! ## Wider vectors, the same numbers
-//! The kernels that carry the dense work — the triangular solves and the symmetric
-//! eigensolver of CI's pencil (`eigen`) — are compiled twice on x86-64 by [`wide!`]: for the
+//! The kernels that carry the dense work — the triangular solves, the Cholesky factorizations
+//! (this module's and the verified test's in `fusion::verify`) and the symmetric eigensolver of
+//! CI's pencil (`eigen`) — are compiled twice on x86-64 by [`wide!`]: for the
 //! portable baseline (SSE2) and with AVX2 enabled, the copy picked at run time when the CPU
 //! has AVX2. Rust compiles floating point strictly: no fused multiply-add contraction and no
 //! reassociation, so wider vectors can only be used for operations that are already
