@@ -12,6 +12,10 @@
 //! `P_ab` unknown with probability 0.6: no independent blocks); the certified rule per level
 //! `certified/<level>/paper_one_zero`, `certified/<level>/random3`, `certified/1/random4`, and
 //! on sectors `certified/sectors<count>/paper_one_zero`.
+//! Issue 17: `explore/{paper,twoblock,twoblock_full}`, the explorer's computation natively (the
+//! page runs it in wasm): every rule, the bracket and 300 region samples, for the page's
+//! opening example (n = 2), its two-block preset (n = 4, two 2 × 2 blocks) and the same
+//! covariances with `P_ab` fully unknown (the presets' values, as `www/state.js` sets them).
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
@@ -283,10 +287,47 @@ fn certified_benches(c: &mut Bench) {
     });
 }
 
+fn explorer_benches(c: &mut Bench) {
+    let twoblock = r#""pa": [[3, 0.5, 0, 0], [0.5, 1, 0, 0], [0, 0, 1, 0.2], [0, 0, 0.2, 2]],
+        "pb": [[1, -0.3, 0, 0], [-0.3, 2, 0, 0], [0, 0, 4, 1], [0, 0, 1, 2]]"#;
+    let (t, f) = (true, false);
+    let requests = [
+        (
+            "paper",
+            r#""pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]]"#,
+            vec![vec![t, f], vec![f, t]],
+        ),
+        (
+            "twoblock",
+            twoblock,
+            (0..4)
+                .map(|i| (0..4).map(|j| i / 2 == j / 2).collect())
+                .collect(),
+        ),
+        ("twoblock_full", twoblock, vec![vec![t; 4]; 4]),
+    ];
+    for (name, covariances, unknown) in requests {
+        let json = format!(
+            "{{{covariances}, \"pab_unknown\": {}}}",
+            serde_json::to_string(&unknown).unwrap()
+        );
+        let request: ExploreRequest = serde_json::from_str(&json).unwrap();
+        c.bench_function(&format!("explore/{name}"), |b| {
+            b.iter(|| explore(black_box(&request)).unwrap())
+        });
+    }
+}
+
+criterion_group! {
+    name = explorer;
+    config = Bench::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
+    targets = explorer_benches
+}
+
 criterion_group! {
     name = certified;
     config = Bench::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
     targets = certified_benches
 }
 
-criterion_main!(fusion, cuts, certified);
+criterion_main!(fusion, cuts, certified, explorer);

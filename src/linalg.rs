@@ -136,7 +136,13 @@ fn eigenvalues_2x2(a: &DMatrix<f64>) -> (f64, f64) {
 /// Cholesky factor, or `None` when the matrix is not (numerically) positive definite:
 /// `Cholesky::new(a.clone())`, bit for bit (tested), compiled as a [`wide!`] kernel.
 pub(crate) fn cholesky(a: &DMatrix<f64>) -> Option<Cholesky<f64, Dyn>> {
-    cholesky_in_place(a.clone()).map(Cholesky::pack_dirty)
+    cholesky_of(a.clone())
+}
+
+/// [`cholesky`] of a matrix the caller gives up: `Cholesky::new(a)`, bit for bit. The crate
+/// factors through these two, never through nalgebra's copy (compiled for the baseline only).
+pub(crate) fn cholesky_of(a: DMatrix<f64>) -> Option<Cholesky<f64, Dyn>> {
+    cholesky_in_place(a).map(Cholesky::pack_dirty)
 }
 
 wide! {

@@ -71,6 +71,7 @@ use super::verify::{down, is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::Criterion;
 use super::FusionProblem;
 use crate::error::{InputError, SolveError};
+use crate::linalg::cholesky_of;
 
 /// The relative gap below which a bracket counts as closed: the robust optimum is then
 /// proven to that relative accuracy (`gap ≤ 10⁻⁶ · upper`).
@@ -465,7 +466,7 @@ pub fn lower_bound(
     };
     // v̂ ≈ −H⁻¹ g.
     let g_mid = DVector::from_iterator(nn, g.iter().map(|b| b.mid));
-    let v = match H.mid.clone().cholesky() {
+    let v = match cholesky_of(H.mid.clone()) {
         Some(ch) => -ch.solve(&g_mid),
         None => DVector::zeros(nn),
     };

@@ -9,7 +9,9 @@
 use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::{covariance_twins, Estimate, Fused, FusionProblem};
-use crate::linalg::{solve_lower_in_place, solve_lower_rows, symmetrize, symmetrize_in_place};
+use crate::linalg::{
+    cholesky_of, solve_lower_in_place, solve_lower_rows, symmetrize, symmetrize_in_place,
+};
 
 /// The optimal fusion when the cross-covariance is known to be `P_ab`.
 ///
@@ -30,7 +32,7 @@ pub fn known_correlation_fusion(problem: &FusionProblem, P_ab: &DMatrix<f64>) ->
     let P_ba = P_ab.transpose();
     let S = symmetrize(&(&problem.P_a + &problem.P_b - P_ab - &P_ba));
     let B = &problem.P_b - &P_ba; // K_a = B S⁻¹  ⇔  K_aᵀ = S⁻¹ Bᵀ
-    let K_a = match nalgebra::Cholesky::new(S.clone()) {
+    let K_a = match cholesky_of(S.clone()) {
         Some(c) => c.solve(&B.transpose()).transpose(),
         None => {
             // S is PD for every admissible P_ab; at the boundary use the pseudo-inverse.
@@ -76,7 +78,7 @@ pub(crate) fn naive_in_place(a: &mut [Estimate], b: &[Estimate]) {
         let (a, b) = (&mut a[k], &b[k]);
         let (L, P) = match shared {
             Some(done) => done,
-            None => match nalgebra::Cholesky::new(&a.P + &b.P) {
+            None => match cholesky_of(&a.P + &b.P) {
                 Some(c) => {
                     let L = c.unpack();
                     // P_b symmetric: the row solve leaves Z = L⁻¹P_b row-major, i.e. Zᵀ

@@ -19,7 +19,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::error::InputError;
-use crate::linalg::{min_eigenvalue, symmetrize, SYMMETRY_RTOL};
+use crate::linalg::{cholesky_of, min_eigenvalue, symmetrize, SYMMETRY_RTOL};
 use crate::structure::CrossPattern;
 
 /// What a fusion rule minimises over its weights.
@@ -106,7 +106,7 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
         return Ok(());
     }
     let lambda_min = min_eigenvalue(&sym);
-    if nalgebra::Cholesky::new(sym).is_none() || lambda_min <= 0.0 {
+    if cholesky_of(sym).is_none() || lambda_min <= 0.0 {
         return Err(InputError::NotPositiveDefinite {
             name: name.into(),
             min_eigenvalue: lambda_min,

@@ -43,6 +43,7 @@ use serde::{Deserialize, Serialize};
 
 use super::FusionProblem;
 use crate::error::SampleError;
+use crate::linalg::cholesky;
 
 /// Which sampler draws the admissible cross-covariances.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -345,7 +346,7 @@ fn propose<R: Rng>(
         joint[(i, n + j)] = c;
         joint[(n + j, i)] = c;
     }
-    nalgebra::Cholesky::new(joint.clone()).is_some()
+    cholesky(joint).is_some()
 }
 
 /// The joint correlation matrix `[[R_a, 0], [0, R_b]]`, the scales `D_a`, `D_b` and the free
@@ -378,14 +379,12 @@ fn correlation_frame(
 
 /// `J⁻¹` of a positive definite joint correlation matrix.
 fn inverse(joint: &DMatrix<f64>) -> Result<DMatrix<f64>, SampleError> {
-    nalgebra::Cholesky::new(joint.clone())
-        .map(|c| c.inverse())
-        .ok_or_else(|| {
-            SampleError::NumericalBreakdown(
-                "the hit-and-run chain left the positive definite set (rounding at the boundary)"
-                    .into(),
-            )
-        })
+    cholesky(joint).map(|c| c.inverse()).ok_or_else(|| {
+        SampleError::NumericalBreakdown(
+            "the hit-and-run chain left the positive definite set (rounding at the boundary)"
+                .into(),
+        )
+    })
 }
 
 /// Coordinate hit-and-run on the admissible correlation cross terms (see the module docs).

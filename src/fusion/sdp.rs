@@ -52,7 +52,7 @@ use super::check::{conservativeness_margin, worst_margin};
 use super::sample::{sample_cross_covariances, AutoChoice, CrossSamples, SamplerSettings};
 use super::{per_block, Fused, FusionProblem};
 use crate::error::SolveError;
-use crate::linalg::symmetrize;
+use crate::linalg::{cholesky_of, symmetrize};
 use crate::structure::independent_blocks;
 
 /// How Clarabel ended a solve that produced a usable bound (in JSON: `"Solved"`,
@@ -429,7 +429,7 @@ fn difference_factor(problem: &FusionProblem, P_ab: &DMatrix<f64>) -> DMatrix<f6
     Z.view_mut((0, n), (n, n)).copy_from(&C.transpose());
     Z.view_mut((n, n), (n, n)).copy_from(&problem.P_b);
     let Z = symmetrize(&Z);
-    if let Some(c) = nalgebra::Cholesky::new(Z.clone()) {
+    if let Some(c) = cholesky_of(Z.clone()) {
         return c.l();
     }
     let eig = SymmetricEigen::new(Z);

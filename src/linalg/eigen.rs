@@ -7,14 +7,17 @@
 //! symmetric QR iteration with Wilkinson's shift on `T`, each Givens rotation applied to `Q`,
 //! 2 × 2 blocks in closed form (Golub and Van Loan, *Matrix Computations*, 4th ed., §§ 8.3.1,
 //! 8.3.5). It calls nalgebra's own building blocks (`reflection_axis_mut`, `dotc`, `axpy`,
-//! `hegerc`, `GivensRotation`, `wilkinson_shift`, `Matrix2::eigenvalues`; `hegemv` and
-//! `Reflection::reflect_with_sign` written out from their source) in the same order on the
-//! same values, so it performs the same IEEE operations; written here
-//! only so that those generic, inlined blocks are compiled inside a function that [`wide!`]
-//! also builds with AVX2 (nalgebra's own copy is compiled once, for the baseline). The
-//! result is bitwise that of `SymmetricEigen::try_new(m, eps, 0)` on either copy (tested on
-//! nine kinds of matrices — random, indefinite, diagonal, zero, identity, clustered, graded,
-//! rank one, split — of sizes 1–20, 28, 56, 112 and 120).
+//! `GivensRotation`, `wilkinson_shift`, `Matrix2::eigenvalues`; `hegemv`,
+//! `Reflection::reflect_with_sign` and the reduction's three `hegerc` rank-one updates written
+//! out from their source, the last fused into one pass over the lower triangle in which each
+//! entry gets the same three operations in the same order) on the same values, so it performs
+//! the same IEEE operations. It is written here so that those generic, inlined blocks are
+//! compiled inside a function that [`wide!`] also builds with AVX2 (nalgebra's own copy is
+//! compiled once, for the baseline), and so that the rank-one updates read and write the
+//! matrix once instead of three times. The result is bitwise that of
+//! `SymmetricEigen::try_new(m, eps, 0)` on either copy (tested on twelve kinds of matrices —
+//! random, indefinite, diagonal, zero, identity, clustered, graded, rank one, split, equal
+//! diagonals, couplings on either deflation threshold — of sizes 1–20, 28, 56, 112 and 120).
 
 use nalgebra::linalg::givens::GivensRotation;
 use nalgebra::linalg::householder::reflection_axis_mut;
@@ -144,9 +147,26 @@ fn tridiagonal(mut m: DMatrix<f64>) -> (DMatrix<f64>, DVector<f64>, DVector<f64>
                     .axpy(alpha * axis[j], &col.rows_range(j + 1..), 1.0);
             }
             let dot = axis.dotc(&p);
-            m.hegerc(-1.0, &p, &axis, 1.0);
-            m.hegerc(-1.0, &axis, &p, 1.0);
-            m.hegerc(dot * 2.0, &axis, &axis, 1.0);
+            // nalgebra's three rank-one updates of the lower triangle, `m.hegerc(-1.0, &p,
+            // &axis, 1.0)`, `m.hegerc(-1.0, &axis, &p, 1.0)` and `m.hegerc(dot * 2.0, &axis,
+            // &axis, 1.0)`, in one pass: each entry gets the same three `a·xᵢ·1 + 1·mᵢⱼ`
+            // (the products by one exact) in the same order; `(−1)·y` is exactly `−y`.
+            for j in 0..m.ncols() {
+                let (c1, c2, c3) = (-axis[j], -p[j], dot * 2.0 * axis[j]);
+                let mut col = m.column_mut(j);
+                let mut col = col.rows_range_mut(j..);
+                let (p, axis) = (p.rows_range(j..), axis.rows_range(j..));
+                for ((m_ij, &p_i), &a_i) in col
+                    .as_mut_slice()
+                    .iter_mut()
+                    .zip(p.as_slice())
+                    .zip(axis.as_slice())
+                {
+                    let m1 = c1 * p_i + *m_ij;
+                    let m2 = c2 * a_i + m1;
+                    *m_ij = c3 * a_i + m2;
+                }
+            }
         }
     }
     let diag = m.diagonal();
@@ -216,8 +236,9 @@ mod tests {
     /// Matrices of every kind the QR iteration branches on: random SPD and indefinite,
     /// diagonal (no reflection, immediate deflation) with repeated entries, zero, identity,
     /// a cluster `I + 1e-12 E`, graded scales `10^{±k}` (deflation by the relative test),
-    /// rank one, a split tridiagonal (an exact zero coupling in the middle), and a tridiagonal
-    /// Toeplitz one (equal diagonals: the 2 × 2 step's tie).
+    /// rank one, a split tridiagonal (an exact zero coupling in the middle), a tridiagonal
+    /// Toeplitz one (equal diagonals: the 2 × 2 step's tie), and couplings exactly on the
+    /// deflation threshold of either tolerance.
     fn cases(n: usize, seed: &mut u64) -> Vec<DMatrix<f64>> {
         let spd = test_spd(n, seed, 0.1);
         let indefinite = test_spd(n, seed, 0.0) - DMatrix::identity(n, n) * (n as f64 / 12.0);
@@ -246,6 +267,16 @@ mod tests {
             1 => -1.0,
             _ => 0.0,
         });
+        // Couplings exactly on the deflation threshold `eps (|dᵢ| + |dᵢ₊₁|)` for each tolerance
+        // the tests use (the reduction leaves this matrix exactly as it is): deflated, as
+        // nalgebra's strict `>` says, not iterated on.
+        let threshold = |eps: f64| {
+            DMatrix::from_fn(n, n, |i, j| match i.abs_diff(j) {
+                0 => 1.0,
+                1 => 2.0 * eps,
+                _ => 0.0,
+            })
+        };
         vec![
             spd,
             indefinite,
@@ -257,6 +288,8 @@ mod tests {
             rank_one,
             split,
             tie,
+            threshold(f64::EPSILON),
+            threshold(4.0 * f64::EPSILON),
         ]
     }
 
@@ -281,7 +314,7 @@ mod tests {
                 }
             }
         }
-        assert_eq!(checked, 24 * 10 * 2);
+        assert_eq!(checked, 24 * 12 * 2);
     }
 
     /// A decomposition, not only a copy: `A V = V Λ` and `VᵀV = I` to rounding (so a test

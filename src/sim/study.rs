@@ -22,7 +22,7 @@ use crate::fusion::known::{naive_fusion, naive_in_place};
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::rules::{Guarantee, Method};
 use crate::fusion::{Criterion, Estimate, FusionProblem};
-use crate::linalg::symmetrize_in_place;
+use crate::linalg::{cholesky, symmetrize_in_place};
 
 /// The decentralized fusion rules of the study.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -695,7 +695,7 @@ impl RunState {
 /// precision) so the NEES is reported as the huge finite number it is, not as a failure.
 #[allow(non_snake_case)]
 fn nees(P: &DMatrix<f64>, err: &DVector<f64>) -> f64 {
-    if let Some(c) = nalgebra::Cholesky::new(P.clone()) {
+    if let Some(c) = cholesky(P) {
         return err.dot(&c.solve(err));
     }
     let eig = nalgebra::SymmetricEigen::new(P.clone());
