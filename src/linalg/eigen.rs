@@ -268,8 +268,9 @@ mod tests {
             _ => 0.0,
         });
         // Couplings exactly on the deflation threshold `eps (|dᵢ| + |dᵢ₊₁|)` for each tolerance
-        // the tests use (the reduction leaves this matrix exactly as it is): deflated, as
-        // nalgebra's strict `>` says, not iterated on.
+        // the tests use (the reduction keeps the diagonal and the couplings' magnitudes
+        // exactly, so the test sees equality): deflated, as nalgebra's strict `>` says, not
+        // iterated on (`>=` there fails the bit-for-bit test).
         let threshold = |eps: f64| {
             DMatrix::from_fn(n, n, |i, j| match i.abs_diff(j) {
                 0 => 1.0,
