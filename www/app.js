@@ -263,7 +263,7 @@ function render() {
     // nonzero fill paints their union once — the look of one path each under the group's
     // opacity, with one DOM node instead of hundreds.
     const rg = el("g", { opacity: 0.32, id: "layer-region" }, g);
-    el("path", { d: region.map((m) => ellipsePath(m, toPx, 40)).join(""), fill: STYLE.region.color, stroke: "none" }, rg);
+    el("path", { d: region.map((m) => ellipsePath(m, toPx)).join(""), fill: STYLE.region.color, stroke: "none" }, rg);
   }
   for (const k of LAYERS.filter((l) => l !== "region")) {
     if (!state.layers[k] || !mats[k]) continue;

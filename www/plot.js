@@ -31,32 +31,28 @@ export function fromAxes(major, minor, theta) {
   return [[c * c * l1 + s * s * l2, c * s * (l1 - l2)], [c * s * (l1 - l2), s * s * l1 + c * c * l2]];
 }
 
-/** `(cos t, sin t)` at `steps + 1` points of the circle, computed once per `steps`. */
-const circles = new Map();
-function unitCircle(steps) {
-  let c = circles.get(steps);
-  if (!c) {
-    c = Float64Array.from({ length: 2 * (steps + 1) }, (_, k) => (k % 2 ? Math.sin : Math.cos)((2 * Math.PI * (k >> 1)) / steps));
-    circles.set(steps, c);
-  }
-  return c;
-}
-
 /** Two decimals (what `toFixed(2)` keeps, without its trailing zeros), as a path number. */
 const r2 = (v) => Math.round(v * 100) / 100;
 
-/** The closed SVG path of the 1σ ellipse of the 2×2 covariance `m` (pixels by `toPx`). */
-export function ellipsePath(m, toPx, steps = 72) {
+/**
+ * The closed SVG path of the 1σ ellipse of the 2×2 covariance `m`, placed by `toPx` (a
+ * similarity: the page's frames scale both axes alike): two elliptical arcs between the ends of
+ * the major axis, so the curve is exact at any zoom and the path is a few dozen characters
+ * instead of a polygon's hundreds. Every ellipse is drawn in the same direction (sweep flag 1),
+ * so one path of many ellipses fills their union under the nonzero rule.
+ */
+export function ellipsePath(m, toPx) {
   const { major, minor, theta } = axes(m);
   const [c, s] = [Math.cos(theta), Math.sin(theta)];
-  const circle = unitCircle(steps);
-  const parts = new Array(steps + 1);
-  for (let k = 0; k <= steps; k++) {
-    const [u, v] = [major * circle[2 * k], minor * circle[2 * k + 1]];
-    const [x, y] = toPx(c * u - s * v, s * u + c * v);
-    parts[k] = (k === 0 ? "M" : "L") + r2(x) + "," + r2(y);
-  }
-  return parts.join("") + "Z";
+  const [x0, y0] = toPx(0, 0);
+  const [x1, y1] = toPx(major * c, major * s);
+  const [x2, y2] = toPx(-major * c, -major * s);
+  const [xm, ym] = toPx(-minor * s, minor * c);
+  const rx = Math.hypot(x1 - x0, y1 - y0);
+  const ry = Math.hypot(xm - x0, ym - y0);
+  const angle = (Math.atan2(y1 - y0, x1 - x0) * 180) / Math.PI;
+  const arc = `A${r2(rx)},${r2(ry)},${r2(angle)},0,1,`;
+  return `M${r2(x1)},${r2(y1)}${arc}${r2(x2)},${r2(y2)}${arc}${r2(x1)},${r2(y1)}Z`;
 }
 
 export function niceStep(range, target = 6) {

@@ -356,6 +356,50 @@ test("interaction cost: each of 40 edits is recomputed once, to the CLI's number
   console.log(`interaction cost: median ${stats.median.toFixed(1)} ms over ${stats.count} edits (wasm explore ${stats.compute_median.toFixed(1)} ms)`);
 });
 
+test("an ellipse drawn is the 1σ ellipse of its covariance, every one in the same direction (the region's union fill)", async () => {
+  const covariances = [[[3, 0], [0, 1]], [[1, 0], [0, 4]], [[2, 1.2], [1.2, 1]], [[1, -0.9], [-0.9, 1]], [[1, 0.95], [0.95, 1]], [[0.5, 0.1], [0.1, 2.5]]];
+  const results = await page.evaluate(async (covariances) => {
+    const { ellipsePath } = await import("./plot.js");
+    const svg = document.createElementNS("http://www.w3.org/2000/svg", "svg");
+    document.body.appendChild(svg);
+    // A similarity with the y axis flipped, as the page's frames are, and an offset centre.
+    const [cx, cy, scale, ox, oy] = [400, 380, 120, 0.5, 0.25];
+    const toPx = (x, y) => [cx + (ox + x) * scale, cy - (oy + y) * scale];
+    const out = covariances.map(([[a, b], [, d]]) => {
+      const path = document.createElementNS("http://www.w3.org/2000/svg", "path");
+      path.setAttribute("d", ellipsePath([[a, b], [b, d]], toPx));
+      svg.appendChild(path);
+      // Along 48 directions e, the ellipse {u : uᵀP⁻¹u = 1} is at radius 1/√(eᵀP⁻¹e):
+      // 1 % inside it must be in the path's fill, 1 % outside must not.
+      const det = a * d - b * b;
+      const wrong = [];
+      for (let k = 0; k < 48; k++) {
+        const phi = (2 * Math.PI * k) / 48;
+        const [e1, e2] = [Math.cos(phi), Math.sin(phi)];
+        const r = 1 / Math.sqrt((d * e1 * e1 - 2 * b * e1 * e2 + a * e2 * e2) / det);
+        for (const [f, inside] of [[0.99, true], [1.01, false]]) {
+          const [px, py] = toPx(f * r * e1, f * r * e2);
+          if (path.isPointInFill(new DOMPoint(px, py)) !== inside) wrong.push([k, f]);
+        }
+      }
+      // The direction the path is drawn in: the sign of the signed area of points along it.
+      const length = path.getTotalLength();
+      let area = 0;
+      let prev = path.getPointAtLength(0);
+      for (let k = 1; k <= 48; k++) {
+        const p = path.getPointAtLength((length * k) / 48);
+        area += prev.x * p.y - p.x * prev.y;
+        prev = p;
+      }
+      return { wrong, direction: Math.sign(area) };
+    });
+    svg.remove();
+    return out;
+  }, covariances);
+  results.forEach((r, k) => assert.deepEqual(r.wrong, [], `covariance ${k}: directions (index, factor) on the wrong side`));
+  assert.equal(new Set(results.map((r) => r.direction)).size, 1, `directions ${results.map((r) => r.direction)}`);
+});
+
 test("interaction cost at n = 4: each of 10 edits of the two-block preset (every rule; the certified rule closes two 2-D blocks) is recomputed once, to the CLI's numbers", async () => {
   await page.selectOption("#preset", "twoblock");
   await settle();
