@@ -334,26 +334,34 @@ async function assertRulesMatchCli(p, what) {
   return { ci, nmci };
 }
 
+/**
+ * The interaction cost: `count` edits (`edit(k)` makes and checks edit `k`), each recomputed
+ * once (asserted); the round-trip times (and the wasm call's) go to `test-output/e2e/<file>` —
+ * a measurement for docs/development.md, not an assertion.
+ */
+async function measureEdits(count, edit, file, label, what) {
+  await page.evaluate(() => { window.nmciStats.timings.splice(0); window.nmciStats.computeTimings.splice(0); });
+  const runs0 = await page.evaluate(() => window.nmciStats.runs);
+  for (let k = 0; k < count; k++) await edit(k);
+  const stats = await page.evaluate(() => ({ median: window.nmciStats.median(), compute_median: window.nmciStats.computeMedian(), count: window.nmciStats.timings.length, runs: window.nmciStats.runs, timings: window.nmciStats.timings }));
+  assert.equal(stats.runs - runs0, count, "one recompute per edit");
+  assert.equal(stats.count, count);
+  assert.ok(stats.timings.every((t) => Number.isFinite(t) && t > 0), JSON.stringify(stats.timings));
+  await writeFile(join(out, file), JSON.stringify({ ...stats, what }, null, 2));
+  console.log(`${label}: median ${stats.median.toFixed(1)} ms over ${stats.count} edits (wasm explore ${stats.compute_median.toFixed(1)} ms)`);
+}
+
 test("interaction cost: each of 40 edits is recomputed once, to the CLI's numbers (n = 2, 200 SDP samples, 300 region samples)", async () => {
   const values = ["3", "3.1", "3.2", "3.3", "3.4", "3.5", "3.6"];
   const expected = values.map((v) => three(cli({ pa: [[Number(v), 0], [0, 1]], pb: [[1, 0], [0, 4]], pab_unknown: [[true, false], [false, true]], method: "ci" }).trace));
-  await page.evaluate(() => { window.nmciStats.timings.splice(0); window.nmciStats.computeTimings.splice(0); });
-  const runs0 = await page.evaluate(() => window.nmciStats.runs);
-  for (let k = 0; k < 40; k++) {
+  await measureEdits(40, async (k) => {
     // 3.1 … 3.6 in turn: never the value already shown (an unchanged input is not an edit).
     const v = 1 + (k % 6);
     await cell("pa", 1, 1).fill(values[v]);
     await settle();
     assert.equal((await text("#row-ci .trace")).trim(), expected[v], `edit ${k}`);
     assert.equal((await text("#row-nmci .trace")).trim(), "2.000", `edit ${k}`);
-  }
-  const stats = await page.evaluate(() => ({ median: window.nmciStats.median(), compute_median: window.nmciStats.computeMedian(), count: window.nmciStats.timings.length, runs: window.nmciStats.runs, timings: window.nmciStats.timings }));
-  assert.equal(stats.runs - runs0, 40, "one recompute per edit");
-  assert.equal(stats.count, 40);
-  assert.ok(stats.timings.every((t) => Number.isFinite(t) && t > 0), JSON.stringify(stats.timings));
-  // The cost itself is a measurement (written for docs/development.md), not an assertion.
-  await writeFile(join(out, "interaction.json"), JSON.stringify({ ...stats, what: "edit → all rules + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone" }, null, 2));
-  console.log(`interaction cost: median ${stats.median.toFixed(1)} ms over ${stats.count} edits (wasm explore ${stats.compute_median.toFixed(1)} ms)`);
+  }, "interaction.json", "interaction cost", "edit → all rules + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone");
 });
 
 test("an ellipse drawn is the 1σ ellipse of its covariance, every one in the same direction (the region's union fill)", async () => {
@@ -404,22 +412,13 @@ test("interaction cost at n = 4: each of 10 edits of the two-block preset (every
   await page.selectOption("#preset", "twoblock");
   await settle();
   assert.equal(await page.locator("#dim").inputValue(), "4");
-  await page.evaluate(() => { window.nmciStats.timings.splice(0); window.nmciStats.computeTimings.splice(0); });
-  const runs0 = await page.evaluate(() => window.nmciStats.runs);
-  for (let k = 0; k < 10; k++) {
+  await measureEdits(10, async (k) => {
     // P_a[1,1] = 3 in the preset: 3.1 … 3.5 in turn, never the value already shown.
     await cell("pa", 1, 1).fill(`3.${1 + (k % 5)}`);
     await settle();
     await assertRulesMatchCli(page, `edit ${k}`);
     assert.match((await text("#row-certified .trace")).trim(), /^\d+\.\d{3}$/, `edit ${k}: the certified rule is shown`);
-  }
-  const stats = await page.evaluate(() => ({ median: window.nmciStats.median(), compute_median: window.nmciStats.computeMedian(), count: window.nmciStats.timings.length, runs: window.nmciStats.runs, timings: window.nmciStats.timings }));
-  assert.equal(stats.runs - runs0, 10, "one recompute per edit");
-  assert.equal(stats.count, 10);
-  assert.ok(stats.timings.every((t) => Number.isFinite(t) && t > 0), JSON.stringify(stats.timings));
-  // A measurement (docs/development.md; issue 17's goal at n = 4), not an assertion.
-  await writeFile(join(out, "interaction-n4.json"), JSON.stringify({ ...stats, what: "n = 4, two 2 × 2 blocks: edit → all rules (the certified rule on both blocks) + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone" }, null, 2));
-  console.log(`interaction cost at n = 4: median ${stats.median.toFixed(1)} ms over ${stats.count} edits (wasm explore ${stats.compute_median.toFixed(1)} ms)`);
+  }, "interaction-n4.json", "interaction cost at n = 4", "n = 4, two 2 × 2 blocks: edit → all rules (the certified rule on both blocks) + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone");
 });
 
 test("a panic in the worker is reported, the worker replaced, and the next edit computed", async () => {
