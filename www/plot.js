@@ -37,8 +37,8 @@ const r2 = (v) => Math.round(v * 100) / 100;
 /**
  * The closed SVG path of the 1σ ellipse of the 2×2 covariance `m`, placed by `toPx` (a
  * similarity: the page's frames scale both axes alike): two elliptical arcs between the ends of
- * the major axis, so the curve is exact at any zoom and the path is a few dozen characters
- * instead of a polygon's hundreds. Every ellipse is drawn in the same direction (sweep flag 1),
+ * the major axis, so the curve is an ellipse, not a polygon (its ends, radii and angle rounded
+ * to 0.01 px and 0.01°), and the path is a few dozen characters instead of a polygon's hundreds. Every ellipse is drawn in the same direction (sweep flag 1),
  * so one path of many ellipses fills their union under the nonzero rule.
  */
 export function ellipsePath(m, toPx) {

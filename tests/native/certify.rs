@@ -376,3 +376,43 @@ fn through_the_json_contract() {
         "invalid request: methods \"certified\", \"sdp\" and \"sdp_cuts\" minimise the trace; criterion \"logdet\" is not available for them"
     );
 }
+
+/// The paper's example with only `P_ab[2,1]` known to be zero (the benches'
+/// `certified/<level>/paper_one_zero` and `certified/sectors<count>/paper_one_zero`): the
+/// certified upper end meets the cutting planes' proven lower end (gap ≤ 1e-6 relative) at every
+/// level 1–5 and on 16, 24 and 32 sectors, well below nmCI = CI.
+#[test]
+fn paper_one_zero_closes_at_every_level_and_sector_count() {
+    let p = FusionProblem::from_covariances(
+        diag(&[3.0, 1.0]),
+        diag(&[1.0, 4.0]),
+        CrossPattern::from_fn(2, |i, j| !(i == 1 && j == 0)),
+    )
+    .unwrap();
+    let lower = optimal_fusion_cuts(&p, &CutsSettings::default())
+        .unwrap()
+        .lower_bound;
+    let nm = non_monolithic_ci(&p, Criterion::Trace)
+        .unwrap()
+        .fused
+        .trace();
+    let settings = (1..=5)
+        .map(|l| CertifySettings {
+            level: Some(l),
+            ..CertifySettings::default()
+        })
+        .chain([16, 24, 32].map(|s| CertifySettings {
+            sectors: Some(s),
+            ..CertifySettings::default()
+        }));
+    for s in settings {
+        let cert = certified_fusion(&p, &s).unwrap();
+        let upper = trace_upper_bound(&cert.fused.P);
+        assert!(lower <= upper, "{s:?}: lower {lower} above upper {upper}");
+        assert!(
+            upper - lower <= 1e-6 * upper,
+            "{s:?}: open, [{lower}, {upper}]"
+        );
+        assert!(upper < nm - 1.0, "{s:?}: {upper} vs nmCI {nm}");
+    }
+}
