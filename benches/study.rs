@@ -10,10 +10,9 @@
 use std::time::Instant;
 
 use nmci::sim::{
-    coin_parallel, merge_rule_traces, simulate_run, simulate_run_for_rule, study_parallel, Model,
-    Rule, Storage, StudyConfig,
+    coin_parallel, simulate_rules_parallel, simulate_run, study_parallel, Model, Rule, Storage,
+    StudyConfig,
 };
-use rayon::prelude::*;
 
 fn report(name: &str, mut seconds: Vec<f64>) {
     seconds.sort_by(f64::total_cmp);
@@ -64,25 +63,12 @@ fn main() {
             study_parallel(&config, &model, || {}).expect("study");
         }),
     );
-    // The paper's rules only, split into runs × rules pieces as `simulate_runs_parallel` does.
+    // The paper's rules only, in the pieces `simulate_runs_parallel` cuts them into.
     let paper = [Rule::Ci, Rule::Nmci, Rule::Naive];
     report(
         "study/paper_rules",
         time(&|| {
-            let pieces: Vec<(u64, Rule)> = (0..config.runs as u64)
-                .flat_map(|r| paper.iter().map(move |&rule| (r, rule)))
-                .collect();
-            let traces = pieces
-                .par_iter()
-                .map(|&(r, rule)| {
-                    simulate_run_for_rule(&model, &config.run_spec(r, Storage::Blocks), rule)
-                        .expect("run")
-                })
-                .collect::<Vec<_>>();
-            let _runs: Vec<_> = traces
-                .chunks(paper.len())
-                .map(|c| merge_rule_traces(c.to_vec()))
-                .collect();
+            simulate_rules_parallel(&config, &model, &paper, 0, || {}).expect("runs");
         }),
     );
     report(

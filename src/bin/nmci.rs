@@ -243,9 +243,9 @@ mod cli {
         } else {
             0
         };
-        let bar = ProgressBar::new((cfg.runs * RULES.len() + coin_pieces) as u64).with_style(
+        let bar = ProgressBar::new((run_pieces(cfg.runs, RULES.len()) + coin_pieces) as u64).with_style(
             ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} runs × rules (+ exact COIN per estimator), {elapsed} (eta {eta})",
+                "{bar:40} {pos}/{len} rules × slices of runs (+ exact COIN per estimator), {elapsed} (eta {eta})",
             )
             .map_err(|e| e.to_string())?,
         );

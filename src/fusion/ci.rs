@@ -24,7 +24,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::{covariance_twins, scatter_block, Criterion, Estimate, Fused, FusionProblem};
+use super::{
+    covariance_twins, scatter_block, BlockMean, Criterion, Fused, FusionProblem, MeanPlan,
+};
 use crate::error::InputError;
 use crate::linalg::{
     cholesky, min_eigenvalue, solve_lower_in_place, solve_lower_rows, solve_lower_transposed_rows,
@@ -216,7 +218,12 @@ impl Pencil {
     /// The fused mean without the gains: with `P_a⁻¹ = W⁻ᵀ diag(λ) W⁻¹` and
     /// `P_b⁻¹ = W⁻ᵀ W⁻¹`, `x = P (ω P_a⁻¹ x_a + (1−ω) P_b⁻¹ x_b)
     /// = W diag(1/dᵢ) (ω λ ∘ W⁻¹x_a + (1−ω) W⁻¹x_b)`.
-    fn fused_mean(&self, x_a: &DVector<f64>, x_b: &DVector<f64>, omega: f64) -> DVector<f64> {
+    pub(super) fn fused_mean(
+        &self,
+        x_a: &DVector<f64>,
+        x_b: &DVector<f64>,
+        omega: f64,
+    ) -> DVector<f64> {
         let (u_a, u_b) = (self.coordinates(x_a), self.coordinates(x_b));
         let coords = DVector::from_fn(u_a.len(), |i, _| {
             let s = self.slopes[i];
@@ -225,18 +232,39 @@ impl Pencil {
         &self.basis * coords
     }
 
-    /// Overwrites `a` with the fusion of `a` and `b` at `ω` (exact at the endpoints); `shared`
-    /// is the fused covariance when a twin block already computed it.
-    fn fuse_into(&self, a: &mut Estimate, b: &Estimate, omega: f64, shared: Option<&DMatrix<f64>>) {
+    /// Overwrites the covariance `P_a` with that of the fusion with `P_b` at `ω` (exact at the
+    /// endpoints); `shared` is the fused covariance when a twin block already computed it. The
+    /// mean is [`BlockMean::ci`]'s.
+    #[allow(non_snake_case)]
+    fn fuse_covariance_into(
+        &self,
+        P_a: &mut DMatrix<f64>,
+        P_b: &DMatrix<f64>,
+        omega: f64,
+        shared: Option<&DMatrix<f64>>,
+    ) {
         if omega == 1.0 {
             return;
         }
         if omega == 0.0 {
-            a.clone_from(b);
+            P_a.clone_from(P_b);
             return;
         }
-        a.x = self.fused_mean(&a.x, &b.x, omega);
-        a.P = shared.cloned().unwrap_or_else(|| self.covariance(omega));
+        *P_a = shared.cloned().unwrap_or_else(|| self.covariance(omega));
+    }
+}
+
+impl BlockMean {
+    /// CI's mean at `ω` with pencil `pencil` of the plan: `x_a` at `ω = 1`, `x_b` at `ω = 0`
+    /// (exactly), otherwise [`Pencil::fused_mean`].
+    fn ci(omega: f64, pencil: usize) -> Self {
+        if omega == 1.0 {
+            BlockMean::Keep
+        } else if omega == 0.0 {
+            BlockMean::Take
+        } else {
+            BlockMean::Ci { pencil, omega }
+        }
     }
 }
 
@@ -527,100 +555,131 @@ pub(super) fn weighted<'a>(
         .collect()
 }
 
-/// Monolithic CI of block-stored estimates, in place: `a[k] ← CI(a[k], b[k])` with one common
-/// `ω` (the blocks are independent parts of one state). Means and covariances only — no
-/// gains — for filters that keep their estimates in blocks (the tracking study). Same `ω` and
-/// numbers as [`covariance_intersection_independent`] up to rounding. Blocks whose covariances
-/// equal an earlier block's in both estimates ([`covariance_twins`]) share its pencil and fused
-/// covariance.
+/// Monolithic CI of block-stored estimates, in place: `P_a[k] ← CI(P_a[k], P_b[k])` with one
+/// common `ω` (the blocks are independent parts of one state), and the plan that fuses the
+/// means ([`MeanPlan`]). For filters that keep their estimates in blocks (the tracking study);
+/// no gains. Same `ω` and numbers as [`covariance_intersection_independent`] up to rounding.
+/// Blocks whose covariances equal an earlier block's in both estimates ([`covariance_twins`])
+/// share its pencil and fused covariance.
+#[allow(non_snake_case)]
 pub(crate) fn ci_in_place(
-    a: &mut [Estimate],
-    b: &[Estimate],
+    P_a: &mut [DMatrix<f64>],
+    P_b: &[DMatrix<f64>],
     criterion: Criterion,
-) -> Result<f64, InputError> {
-    let twins = covariance_twins(a, b);
-    let mut pencils = Vec::with_capacity(a.len());
+) -> Result<(f64, MeanPlan), InputError> {
+    let twins = covariance_twins(P_a, P_b);
+    let mut pencils = Vec::with_capacity(P_a.len());
     for (k, twin) in twins.iter().enumerate() {
         pencils.push(match twin {
             Some(_) => None,
-            None => Some(Pencil::new(&a[k].P, &b[k].P)?),
+            None => Some(Pencil::new(&P_a[k], &P_b[k])?),
         });
     }
     let source = |k: usize| twins[k].unwrap_or(k);
-    let refs = weighted(&pencils, &twins);
-    let omega = optimal_omega(&refs, criterion);
-    for k in 0..a.len() {
+    let omega = optimal_omega(&weighted(&pencils, &twins), criterion);
+    for k in 0..P_a.len() {
         if let Some(pencil) = &pencils[source(k)] {
             // A twin's source t < k is fused already: its covariance is the twin's.
-            let (done, rest) = a.split_at_mut(k);
-            let shared = twins[k].map(|t| &done[t].P);
-            pencil.fuse_into(&mut rest[0], &b[k], omega, shared);
+            let (done, rest) = P_a.split_at_mut(k);
+            let shared = twins[k].map(|t| &done[t]);
+            pencil.fuse_covariance_into(&mut rest[0], &P_b[k], omega, shared);
         }
     }
-    Ok(omega)
+    let mut plan = MeanPlan::with_blocks(P_a.len());
+    let slots: Vec<Option<usize>> = pencils
+        .into_iter()
+        .map(|p| p.map(|p| plan.push_pencil(p)))
+        .collect();
+    for k in 0..P_a.len() {
+        // Every source has its pencil (only twins have none).
+        plan.blocks.push(match slots[source(k)] {
+            Some(slot) => BlockMean::ci(omega, slot),
+            None => BlockMean::Keep,
+        });
+    }
+    Ok((omega, plan))
 }
 
 /// nmCI of block-stored estimates in place: each block fused by CI with its own `ω`, returned
-/// in block order. The endpoints are tested first from the criterion's derivative at `ω = 1`
-/// and `ω = 0` (one Cholesky factorization each); only an interior optimum needs the
-/// eigendecomposition of the pencil. In a fusion network most blocks of most fusions sit at an
-/// endpoint (one agent knows strictly more about that part of the state), so nmCI in block
-/// storage is mostly factorizations. Twin blocks ([`covariance_twins`]) share the work.
+/// in block order with the plan that fuses the means ([`MeanPlan`]). The endpoints are tested
+/// first from the criterion's derivative at `ω = 1` and `ω = 0` (one Cholesky factorization
+/// each); only an interior optimum needs the eigendecomposition of the pencil. In a fusion
+/// network most blocks of most fusions sit at an endpoint (one agent knows strictly more about
+/// that part of the state), so nmCI in block storage is mostly factorizations. Twin blocks
+/// ([`covariance_twins`]) share the work.
+#[allow(non_snake_case)]
 pub(crate) fn nmci_in_place(
-    a: &mut [Estimate],
-    b: &[Estimate],
+    P_a: &mut [DMatrix<f64>],
+    P_b: &[DMatrix<f64>],
     criterion: Criterion,
-) -> Result<Vec<f64>, InputError> {
-    let twins = covariance_twins(a, b);
-    let mut pencils: Vec<Option<Pencil>> = Vec::with_capacity(a.len());
-    let mut omegas: Vec<f64> = Vec::with_capacity(a.len());
+) -> Result<(Vec<f64>, MeanPlan), InputError> {
+    let twins = covariance_twins(P_a, P_b);
+    let mut plan = MeanPlan::with_blocks(P_a.len());
+    // The plan's pencil of each block, when its ω is interior.
+    let mut slots: Vec<Option<usize>> = Vec::with_capacity(P_a.len());
+    let mut omegas: Vec<f64> = Vec::with_capacity(P_a.len());
     for (k, twin) in twins.iter().enumerate() {
-        let (omega, pencil) = match *twin {
+        let (omega, slot) = match *twin {
             Some(t) => {
                 let omega = omegas[t];
-                match &pencils[t] {
-                    Some(p) => {
-                        let (done, rest) = a.split_at_mut(k);
-                        p.fuse_into(&mut rest[0], &b[k], omega, Some(&done[t].P));
+                match slots[t] {
+                    Some(slot) => {
+                        let (done, rest) = P_a.split_at_mut(k);
+                        plan.pencils[slot].fuse_covariance_into(
+                            &mut rest[0],
+                            &P_b[k],
+                            omega,
+                            Some(&done[t]),
+                        );
                     }
-                    None if omega == 0.0 => a[k].clone_from(&b[k]),
+                    None if omega == 0.0 => P_a[k].clone_from(&P_b[k]),
                     None => {} // ω = 1: keep a
                 }
-                (omega, None)
+                (omega, slots[t])
             }
-            None => ci_block_in_place(&mut a[k], &b[k], criterion)?,
+            None => {
+                let (omega, pencil) = ci_block_in_place(&mut P_a[k], &P_b[k], criterion)?;
+                (omega, pencil.map(|p| plan.push_pencil(p)))
+            }
         };
+        plan.blocks.push(match slot {
+            Some(slot) => BlockMean::ci(omega, slot),
+            None if omega == 0.0 => BlockMean::Take,
+            None => BlockMean::Keep,
+        });
         omegas.push(omega);
-        pencils.push(pencil);
+        slots.push(slot);
     }
-    Ok(omegas)
+    Ok((omegas, plan))
 }
 
-/// CI of one block in place (`a ← CI(a, b)`): `ω`, and the pencil when `ω` is interior.
+/// CI of one block's covariance in place (`P_a ← CI(P_a, P_b)`): `ω`, and the pencil when `ω`
+/// is interior.
+#[allow(non_snake_case)]
 fn ci_block_in_place(
-    a: &mut Estimate,
-    b: &Estimate,
+    P_a: &mut DMatrix<f64>,
+    P_b: &DMatrix<f64>,
     criterion: Criterion,
 ) -> Result<(f64, Option<Pencil>), InputError> {
-    let half = HalfPencil::new(&a.P, &b.P)?;
+    let half = HalfPencil::new(P_a, P_b)?;
     // g is non-decreasing (convex criterion): a clearly negative g(1) settles ω = 1 without
     // g(0); otherwise g(0) decides between ω = 0 (ties included, as in `optimal_omega`),
     // ω = 1 (a tie at 1) and an interior optimum.
-    let (g1, size1) = half.derivative_at_one(&a.P, criterion);
+    let (g1, size1) = half.derivative_at_one(P_a, criterion);
     if g1 < -ENDPOINT_TIE * size1 {
         return Ok((1.0, None));
     }
-    let (g0, size0) = half.derivative_at_zero(&a.P, &b.P, criterion)?;
+    let (g0, size0) = half.derivative_at_zero(P_a, P_b, criterion)?;
     if g0 >= -ENDPOINT_TIE * size0 {
-        a.clone_from(b);
+        P_a.clone_from(P_b);
         return Ok((0.0, None));
     }
     if g1 <= ENDPOINT_TIE * size1 {
         return Ok((1.0, None));
     }
-    let pencil = Pencil::from_half(half, &a.P)?;
+    let pencil = Pencil::from_half(half, P_a)?;
     let omega = optimal_omega(&[(&pencil, 1.0)], criterion);
-    pencil.fuse_into(a, b, omega, None);
+    pencil.fuse_covariance_into(P_a, P_b, omega, None);
     Ok((omega, Some(pencil)))
 }
 
@@ -628,6 +687,7 @@ fn ci_block_in_place(
 #[allow(non_snake_case)]
 mod tests {
     use super::*;
+    use crate::fusion::{fuse_estimates, Estimate};
     use crate::structure::CrossPattern;
 
     use crate::linalg::test_spd as spd;
@@ -646,6 +706,10 @@ mod tests {
             b.P.clone(),
             CrossPattern::fully_unknown(a.x.len()),
         )
+    }
+
+    fn covs(e: &[Estimate]) -> Vec<DMatrix<f64>> {
+        e.iter().map(|e| e.P.clone()).collect()
     }
 
     fn close(a: &DMatrix<f64>, b: &DMatrix<f64>) -> bool {
@@ -678,7 +742,7 @@ mod tests {
                 .zip(&b)
                 .map(|(a, b)| covariance_intersection(&problem(a, b), criterion).unwrap())
                 .collect();
-            let omegas = nmci_in_place(&mut a, &b, criterion).unwrap();
+            let omegas = fuse_estimates(&mut a, &b, |a, b| nmci_in_place(a, b, criterion)).unwrap();
             assert_eq!(omegas[1], 0.0);
             assert_eq!(omegas[2], 1.0);
             assert_eq!(omegas[3], omegas[0]);
@@ -702,7 +766,7 @@ mod tests {
                 a.iter().zip(&b).map(|(a, b)| problem(a, b)).collect();
             let (fused, omega_ref) =
                 covariance_intersection_independent(&problems, criterion).unwrap();
-            let omega = ci_in_place(&mut a, &b, criterion).unwrap();
+            let omega = fuse_estimates(&mut a, &b, |a, b| ci_in_place(a, b, criterion)).unwrap();
             assert!((omega - omega_ref).abs() < 1e-12);
             for (k, f) in fused.iter().enumerate() {
                 assert!(close(&a[k].P, &f.P), "{criterion:?} block {k}");
@@ -757,11 +821,8 @@ mod tests {
                     let pencil = Pencil::new(&(&a * c), &(&b * c)).unwrap();
                     let w = optimal_omega(&[(&pencil, 1.0)], criterion);
                     // The in-place rule decides the endpoints its own way: the same ω.
-                    let g = |P: &DMatrix<f64>| Estimate {
-                        x: DVector::zeros(P.nrows()),
-                        P: P * c,
-                    };
-                    let (w_in_place, _) = ci_block_in_place(&mut g(&a), &g(&b), criterion).unwrap();
+                    let (w_in_place, _) =
+                        ci_block_in_place(&mut (&a * c), &(&b * c), criterion).unwrap();
                     assert_eq!(w_in_place, w);
                     w
                 };
@@ -790,8 +851,8 @@ mod tests {
                 for criterion in [Criterion::Trace, Criterion::Logdet] {
                     let ci = covariance_intersection(&p, criterion).unwrap();
                     assert_eq!(ci.omega, 0.0, "CI 1e{k}, n = {n}, {criterion:?}");
-                    let mut a = g.clone();
-                    let (w, pencil) = ci_block_in_place(&mut a, &g, criterion).unwrap();
+                    let mut a = g.P.clone();
+                    let (w, pencil) = ci_block_in_place(&mut a, &g.P, criterion).unwrap();
                     assert_eq!(w, 0.0, "in place 1e{k}, n = {n}, {criterion:?}");
                     assert!(pencil.is_none());
                 }
@@ -806,8 +867,8 @@ mod tests {
         let (a, b) = blocks(7);
         for criterion in [Criterion::Trace, Criterion::Logdet] {
             for (k, expected) in [(1, Some(0.0)), (2, Some(1.0)), (0, None)] {
-                let mut fused = a[k].clone();
-                let (w, pencil) = ci_block_in_place(&mut fused, &b[k], criterion).unwrap();
+                let mut fused = a[k].P.clone();
+                let (w, pencil) = ci_block_in_place(&mut fused, &b[k].P, criterion).unwrap();
                 match expected {
                     Some(endpoint) => {
                         assert_eq!(w, endpoint, "{criterion:?} block {k}");
@@ -840,8 +901,9 @@ mod tests {
                     .fused;
                 let mut a = vec![a0[k].clone(), twin_a];
                 let b = vec![b0[k].clone(), twin_b.clone()];
-                assert_eq!(covariance_twins(&a, &b), vec![None, Some(0)]);
-                let omegas = nmci_in_place(&mut a, &b, criterion).unwrap();
+                assert_eq!(covariance_twins(&covs(&a), &covs(&b)), vec![None, Some(0)]);
+                let omegas =
+                    fuse_estimates(&mut a, &b, |a, b| nmci_in_place(a, b, criterion)).unwrap();
                 assert_eq!(omegas, vec![if k == 1 { 0.0 } else { 1.0 }; 2]);
                 assert_eq!(a[1].x, reference.x, "{criterion:?} block {k}");
                 assert_eq!(a[1].P, reference.P, "{criterion:?} block {k}");
@@ -853,7 +915,7 @@ mod tests {
     fn twins_are_exactly_equal_covariances_in_both() {
         let (a, b) = blocks(3);
         assert_eq!(
-            covariance_twins(&a, &b),
+            covariance_twins(&covs(&a), &covs(&b)),
             vec![None, None, None, Some(0), None]
         );
     }

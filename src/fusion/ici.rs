@@ -27,7 +27,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::ci::{minimise_convex, weighted, Pencil, Weighted};
-use super::{covariance_twins, Criterion, Estimate, Fused, FusionProblem};
+use super::{covariance_twins, BlockMean, Criterion, Fused, FusionProblem, MeanPlan};
 use crate::error::InputError;
 use crate::linalg::symmetrize_in_place;
 
@@ -146,63 +146,80 @@ pub fn inverse_covariance_intersection(
     })
 }
 
-/// Monolithic ICI of block-stored estimates in place: `a[k] ← ICI(a[k], b[k])` with one
+/// ICI's fused mean at an interior `ω`: `x = K_a x_a + K_b x_b = W (k ∘ W⁻¹x_a + (1 − k) ∘
+/// W⁻¹x_b)`, no gain matrix formed.
+pub(super) fn fused_mean(
+    pencil: &Pencil,
+    x_a: &DVector<f64>,
+    x_b: &DVector<f64>,
+    omega: f64,
+) -> DVector<f64> {
+    let (u_a, u_b) = (pencil.coordinates(x_a), pencil.coordinates(x_b));
+    let coords = DVector::from_iterator(
+        u_a.len(),
+        gain_scales(pencil, omega)
+            .zip(u_a.iter().zip(u_b.iter()))
+            .map(|(s, (ua, ub))| s * ua + (1.0 - s) * ub),
+    );
+    &pencil.basis * coords
+}
+
+/// Monolithic ICI of block-stored estimates in place: `P_a[k] ← ICI(P_a[k], P_b[k])` with one
 /// common `ω` minimising the criterion summed over the blocks (the blocks are independent
-/// parts of one state; the tracking study's `ici` agents). Blocks whose covariances equal an
-/// earlier block's in both estimates share its pencil, bound and gains. Returns `ω`.
+/// parts of one state; the tracking study's `ici` agents), and the plan that fuses the means
+/// ([`MeanPlan`]). Blocks whose covariances equal an earlier block's in both estimates share
+/// its pencil and bound. Returns `ω`.
 #[allow(non_snake_case)]
 pub(crate) fn ici_in_place(
-    a: &mut [Estimate],
-    b: &[Estimate],
+    P_a: &mut [DMatrix<f64>],
+    P_b: &[DMatrix<f64>],
     criterion: Criterion,
-) -> Result<f64, InputError> {
-    let twins = covariance_twins(a, b);
-    let mut pencils: Vec<Option<Pencil>> = Vec::with_capacity(a.len());
+) -> Result<(f64, MeanPlan), InputError> {
+    let twins = covariance_twins(P_a, P_b);
+    let mut pencils: Vec<Option<Pencil>> = Vec::with_capacity(P_a.len());
     for (k, twin) in twins.iter().enumerate() {
         pencils.push(match twin {
             Some(_) => None,
-            None => Some(Pencil::new(&a[k].P, &b[k].P)?),
+            None => Some(Pencil::new(&P_a[k], &P_b[k])?),
         });
     }
     let source = |k: usize| twins[k].unwrap_or(k);
     let omega = optimal_omega(&weighted(&pencils, &twins), criterion);
-    if omega == 0.0 {
-        return Ok(omega); // P = P_a, K_a = I: keep `a`
+    let mut plan = MeanPlan::with_blocks(P_a.len());
+    if omega == 0.0 || omega == 1.0 {
+        // ω = 0: P = P_a, K_a = I (keep `a`); ω = 1: P = P_b, K_a = 0.
+        if omega == 1.0 {
+            P_a.clone_from_slice(P_b);
+        }
+        let how = if omega == 0.0 {
+            BlockMean::Keep
+        } else {
+            BlockMean::Take
+        };
+        plan.blocks.resize(P_a.len(), how);
+        return Ok((omega, plan));
     }
-    if omega == 1.0 {
-        a.clone_from_slice(b); // P = P_b, K_a = 0
-        return Ok(omega);
-    }
-    let mut covariances: Vec<Option<DMatrix<f64>>> = vec![None; a.len()];
-    for k in 0..a.len() {
-        let fresh;
-        let pencil = match pencils[source(k)].as_ref() {
-            Some(p) => p,
+    let slots: Vec<Option<usize>> = pencils
+        .into_iter()
+        .map(|p| p.map(|p| plan.push_pencil(p)))
+        .collect();
+    for k in 0..P_a.len() {
+        let slot = match slots[source(k)] {
+            Some(slot) => slot,
             // Not reached (a block's source always has its pencil); kept total without a panic.
-            None => {
-                fresh = Pencil::new(&a[k].P, &b[k].P)?;
-                &fresh
-            }
+            None => plan.push_pencil(Pencil::new(&P_a[k], &P_b[k])?),
         };
-        let P = match twins[k].and_then(|t| covariances[t].clone()) {
-            Some(shared) => shared,
-            None => interior_covariance(pencil, omega),
+        // A twin's source t < k is fused already: its covariance is the twin's.
+        P_a[k] = match twins[k] {
+            Some(t) => P_a[t].clone(),
+            None => interior_covariance(&plan.pencils[slot], omega),
         };
-        // x = K_a x_a + K_b x_b = W (k ∘ W⁻¹x_a + (1 − k) ∘ W⁻¹x_b): no gain matrix formed.
-        let (u_a, u_b) = (pencil.coordinates(&a[k].x), pencil.coordinates(&b[k].x));
-        let coords = DVector::from_iterator(
-            u_a.len(),
-            gain_scales(pencil, omega)
-                .zip(u_a.iter().zip(u_b.iter()))
-                .map(|(s, (ua, ub))| s * ua + (1.0 - s) * ub),
-        );
-        a[k] = Estimate {
-            x: &pencil.basis * coords,
-            P: P.clone(),
-        };
-        covariances[k] = Some(P);
+        plan.blocks.push(BlockMean::Ici {
+            pencil: slot,
+            omega,
+        });
     }
-    Ok(omega)
+    Ok((omega, plan))
 }
 
 #[cfg(test)]

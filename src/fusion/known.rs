@@ -6,9 +6,9 @@
 //! covariance any linear unbiased rule can reach; the set of these `P*` over the admissible set
 //! is the "region of possible true fused covariances" of the paper's fig. 1.
 
-use nalgebra::{DMatrix, SymmetricEigen};
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
-use super::{covariance_twins, Estimate, Fused, FusionProblem};
+use super::{covariance_twins, BlockMean, Fused, FusionProblem, MeanPlan};
 use crate::linalg::{
     cholesky_of, solve_lower_in_place, solve_lower_rows, symmetrize, symmetrize_in_place,
 };
@@ -64,65 +64,85 @@ pub fn naive_fusion(problem: &FusionProblem) -> Fused {
     known_correlation_fusion(problem, &DMatrix::zeros(problem.dim(), problem.dim()))
 }
 
-/// Naive fusion of block-stored estimates in place (`a[k] ← naive(a[k], b[k])`), means and
-/// covariances only: with `S = P_a + P_b = L Lᵀ`, `x = x_b + P_b S⁻¹ (x_a − x_b)` and
+/// Naive fusion of block-stored estimates in place (`P_a[k] ← naive(P_a[k], P_b[k])`), and
+/// the plan that fuses the means ([`MeanPlan`]): with `S = P_a + P_b = L Lᵀ`,
+/// `x = x_b + P_b S⁻¹ (x_a − x_b)` ([`naive_mean`]) and
 /// `P = P_b − P_b S⁻¹ P_b = P_b − (L⁻¹P_b)ᵀ(L⁻¹P_b)` — [`naive_fusion`]'s formulas without the
 /// gains. Twin blocks ([`covariance_twins`]) share the factorization and the covariance. A
-/// block whose `S` is numerically singular falls back to [`naive_fusion`] (pseudo-inverse).
+/// block whose `S` is numerically singular falls back to [`naive_fusion`] (pseudo-inverse)
+/// and its gains.
 #[allow(non_snake_case)]
-pub(crate) fn naive_in_place(a: &mut [Estimate], b: &[Estimate]) {
-    let twins = covariance_twins(a, b);
-    let mut factors: Vec<Option<DMatrix<f64>>> = Vec::with_capacity(a.len());
-    for k in 0..a.len() {
-        let shared = twins[k].and_then(|t| factors[t].clone().map(|L| (L, a[t].P.clone())));
-        let (a, b) = (&mut a[k], &b[k]);
-        let (L, P) = match shared {
+pub(crate) fn naive_in_place(P_a: &mut [DMatrix<f64>], P_b: &[DMatrix<f64>]) -> MeanPlan {
+    let twins = covariance_twins(P_a, P_b);
+    let mut plan = MeanPlan::with_blocks(P_a.len());
+    // The plan's factor of each block (None: the fallback).
+    let mut slots: Vec<Option<usize>> = Vec::with_capacity(P_a.len());
+    for k in 0..P_a.len() {
+        let shared = twins[k].and_then(|t| slots[t].map(|slot| (slot, P_a[t].clone())));
+        let (slot, P) = match shared {
             Some(done) => done,
-            None => match cholesky_of(&a.P + &b.P) {
+            None => match cholesky_of(&P_a[k] + &P_b[k]) {
                 Some(c) => {
                     let L = c.unpack();
                     // P_b symmetric: the row solve leaves Z = L⁻¹P_b row-major, i.e. Zᵀ
                     // column-major; P_b S⁻¹ P_b = Zᵀ Z.
-                    let mut Zt = b.P.clone();
+                    let mut Zt = P_b[k].clone();
                     solve_lower_rows(&L, Zt.as_mut_slice());
                     let Z = Zt.transpose();
-                    let mut P = b.P.clone();
+                    let mut P = P_b[k].clone();
                     P.gemm_tr(-1.0, &Z, &Z, 1.0);
                     symmetrize_in_place(&mut P);
-                    (L, P)
+                    plan.factors.push((L, P_b[k].clone()));
+                    (plan.factors.len() - 1, P)
                 }
                 None => {
+                    let n = P_a[k].nrows();
                     let problem = FusionProblem::new_trusted(
-                        a.x.clone(),
-                        a.P.clone(),
-                        b.x.clone(),
-                        b.P.clone(),
-                        crate::structure::CrossPattern::fully_unknown(a.x.len()),
+                        DVector::zeros(n),
+                        P_a[k].clone(),
+                        DVector::zeros(n),
+                        P_b[k].clone(),
+                        crate::structure::CrossPattern::fully_unknown(n),
                     );
                     let f = naive_fusion(&problem);
-                    a.x = f.x;
-                    a.P = f.P;
-                    factors.push(None);
+                    P_a[k] = f.P;
+                    plan.gains.push((f.K_a, f.K_b));
+                    plan.blocks.push(BlockMean::Gains {
+                        gains: plan.gains.len() - 1,
+                    });
+                    slots.push(None);
                     continue;
                 }
             },
         };
-        // y = S⁻¹ (x_a − x_b) = L⁻ᵀ L⁻¹ (x_a − x_b)
-        let mut y = &a.x - &b.x;
-        solve_lower_in_place(&L, y.as_mut_slice());
-        L.tr_solve_lower_triangular_mut(&mut y);
-        a.x = &b.x + &b.P * y;
-        a.P = P;
-        factors.push(Some(L));
+        P_a[k] = P;
+        plan.blocks.push(BlockMean::Naive { factor: slot });
+        slots.push(Some(slot));
     }
+    plan
+}
+
+/// Naive fusion's mean `x_b + P_b S⁻¹ (x_a − x_b)` with `S = P_a + P_b = L Lᵀ`.
+#[allow(non_snake_case)]
+pub(super) fn naive_mean(
+    L: &DMatrix<f64>,
+    P_b: &DMatrix<f64>,
+    x_a: &DVector<f64>,
+    x_b: &DVector<f64>,
+) -> DVector<f64> {
+    // y = S⁻¹ (x_a − x_b) = L⁻ᵀ L⁻¹ (x_a − x_b)
+    let mut y = x_a - x_b;
+    solve_lower_in_place(L, y.as_mut_slice());
+    L.tr_solve_lower_triangular_mut(&mut y);
+    x_b + P_b * y
 }
 
 #[cfg(test)]
 #[allow(non_snake_case)]
 mod tests {
     use super::*;
+    use crate::fusion::{fuse_estimates, Estimate};
     use crate::structure::CrossPattern;
-    use nalgebra::DVector;
 
     #[test]
     fn naive_in_place_matches_naive_fusion_and_shares_twins() {
@@ -168,7 +188,7 @@ mod tests {
         ]
         .concat();
         let mut fused = a.clone();
-        naive_in_place(&mut fused, &b);
+        fuse_estimates(&mut fused, &b, |a, b| Ok(((), naive_in_place(a, b)))).unwrap();
         for k in 0..3 {
             let p = FusionProblem::new_trusted(
                 a[k].x.clone(),

@@ -278,19 +278,127 @@ impl Estimate {
     }
 }
 
-/// For each block of two block-stored estimates, the first earlier block whose covariances are
-/// equal to its own in *both* estimates (exactly), or `None`. Covariance recursions do not
+/// For each block of two block-stored covariances, the first earlier block whose covariances
+/// are equal to its own in *both* estimates (exactly), or `None`. Covariance recursions do not
 /// depend on the data, so a symmetric model gives bitwise-equal blocks (the study's x and y
 /// blocks of one group: same dynamics, same isotropic noises); twins have the same CI pencil,
 /// the same `ω` and the same fused covariance, and only their means differ.
-pub(crate) fn covariance_twins(a: &[Estimate], b: &[Estimate]) -> Vec<Option<usize>> {
+pub(crate) fn covariance_twins(a: &[DMatrix<f64>], b: &[DMatrix<f64>]) -> Vec<Option<usize>> {
     (0..a.len())
         .map(|k| {
-            (0..k).find(|&t| {
-                a[t].P.as_slice() == a[k].P.as_slice() && b[t].P.as_slice() == b[k].P.as_slice()
-            })
+            (0..k)
+                .find(|&t| a[t].as_slice() == a[k].as_slice() && b[t].as_slice() == b[k].as_slice())
         })
         .collect()
+}
+
+/// How the block-stored in-place rules (`ci_in_place`, `nmci_in_place`, `ici_in_place`,
+/// `naive_in_place`: the tracking study's fusions) fuse the *means*, decided by the
+/// covariances alone. A fusion of block-stored estimates is split in two: the covariance side
+/// updates the covariances and returns this plan; [`MeanPlan::apply`] then fuses any number of
+/// mean pairs with it. The weights, pencils and factorizations depend on the covariances only,
+/// so Monte Carlo runs that share their covariances (every run of the study: Kalman
+/// covariances do not depend on the measurements) share one plan per fusion, and each run's
+/// means are bit for bit what a fusion of that run alone gives (the same operations on the
+/// same numbers).
+#[allow(non_snake_case)]
+#[derive(Default)]
+pub(crate) struct MeanPlan {
+    /// The CI/ICI pencils the blocks refer to.
+    pencils: Vec<ci::Pencil>,
+    /// Naive fusion's `(L, P_b)` with `P_a + P_b = L Lᵀ`.
+    factors: Vec<(DMatrix<f64>, DMatrix<f64>)>,
+    /// Explicit gains `(K_a, K_b)` (naive fusion's fallback, dense storage).
+    gains: Vec<(DMatrix<f64>, DMatrix<f64>)>,
+    /// One entry per block.
+    blocks: Vec<BlockMean>,
+}
+
+/// How one block's mean is fused ([`MeanPlan`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum BlockMean {
+    /// `x_a` stays.
+    Keep,
+    /// `x_a ← x_b`.
+    Take,
+    /// CI at an interior `ω` with pencil `pencil`.
+    Ci { pencil: usize, omega: f64 },
+    /// ICI at an interior `ω` with pencil `pencil`.
+    Ici { pencil: usize, omega: f64 },
+    /// Naive fusion with factor `factor`.
+    Naive { factor: usize },
+    /// `K_a x_a + K_b x_b` with gains `gains`.
+    Gains { gains: usize },
+}
+
+#[allow(non_snake_case)]
+impl MeanPlan {
+    fn with_blocks(blocks: usize) -> Self {
+        Self {
+            blocks: Vec::with_capacity(blocks),
+            ..Self::default()
+        }
+    }
+
+    fn push_pencil(&mut self, pencil: ci::Pencil) -> usize {
+        self.pencils.push(pencil);
+        self.pencils.len() - 1
+    }
+
+    /// A plan fusing every block by explicit gains (one block: dense storage).
+    pub(crate) fn from_gains(K_a: DMatrix<f64>, K_b: DMatrix<f64>) -> Self {
+        Self {
+            gains: vec![(K_a, K_b)],
+            blocks: vec![BlockMean::Gains { gains: 0 }],
+            ..Self::default()
+        }
+    }
+
+    /// Fuses the means block by block: `a[k] ← fused(a[k], b[k])`.
+    pub(crate) fn apply(&self, a: &mut [DVector<f64>], b: &[DVector<f64>]) {
+        for ((x_a, x_b), how) in a.iter_mut().zip(b).zip(&self.blocks) {
+            match *how {
+                BlockMean::Keep => {}
+                BlockMean::Take => x_a.clone_from(x_b),
+                BlockMean::Ci { pencil, omega } => {
+                    *x_a = self.pencils[pencil].fused_mean(x_a, x_b, omega);
+                }
+                BlockMean::Ici { pencil, omega } => {
+                    *x_a = ici::fused_mean(&self.pencils[pencil], x_a, x_b, omega);
+                }
+                BlockMean::Naive { factor } => {
+                    let (L, P_b) = &self.factors[factor];
+                    *x_a = known::naive_mean(L, P_b, x_a, x_b);
+                }
+                BlockMean::Gains { gains } => {
+                    let (K_a, K_b) = &self.gains[gains];
+                    *x_a = K_a * &*x_a + K_b * x_b;
+                }
+            }
+        }
+    }
+}
+
+/// Test helper: a block-stored in-place rule on whole estimates — its covariance side, then
+/// its [`MeanPlan`] on the means.
+#[cfg(test)]
+#[allow(non_snake_case)]
+pub(crate) fn fuse_estimates<R>(
+    a: &mut [Estimate],
+    b: &[Estimate],
+    rule: impl FnOnce(&mut [DMatrix<f64>], &[DMatrix<f64>]) -> Result<(R, MeanPlan), InputError>,
+) -> Result<R, InputError> {
+    let mut P_a: Vec<DMatrix<f64>> = a.iter().map(|e| e.P.clone()).collect();
+    let P_b: Vec<DMatrix<f64>> = b.iter().map(|e| e.P.clone()).collect();
+    let (result, plan) = rule(&mut P_a, &P_b)?;
+    let mut x_a: Vec<DVector<f64>> = a.iter().map(|e| e.x.clone()).collect();
+    let x_b: Vec<DVector<f64>> = b.iter().map(|e| e.x.clone()).collect();
+    plan.apply(&mut x_a, &x_b);
+    for ((e, x), P) in a.iter_mut().zip(x_a).zip(P_a) {
+        e.x = x;
+        e.P = P;
+    }
+    Ok(result)
 }
 
 /// The skeleton of every rule that solves each independent block on its own (nmCI, the

@@ -47,7 +47,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::model::Model;
-use super::study::{exchange, fuse, BlockEstimate, Partition};
+use super::study::{exchange, fuse, BlockCovariance, Partition};
 use super::{Estimator, Rule, SimError, Storage};
 use crate::error::InputError;
 use crate::fusion::check::conservativeness_index;
@@ -61,7 +61,7 @@ pub struct ErrorPropagation {
     rule: Option<Rule>,
     neighbours: Vec<Vec<usize>>,
     /// The filters' covariances (means stay at zero: nothing here depends on them).
-    filters: Vec<BlockEstimate>,
+    filters: Vec<BlockCovariance>,
     /// Per model block, the joint covariance of all filters' errors (empty for a twin block).
     joint: Vec<DMatrix<f64>>,
     /// Per model block, an earlier block whose recursion is the same (equal transition, process
@@ -77,7 +77,7 @@ impl ErrorPropagation {
     pub fn new(model: &Model, estimator: Estimator) -> Self {
         let rule = estimator.rule();
         let part = Partition::new(model, Storage::Blocks);
-        let filters: Vec<BlockEstimate> = match rule {
+        let filters: Vec<BlockCovariance> = match rule {
             None => vec![part.prior(model)],
             Some(_) => (0..model.scenario.agents())
                 .map(|_| part.prior(model))
@@ -101,7 +101,7 @@ impl ErrorPropagation {
                 (0..k).find(|&t| {
                     part.F[t] == part.F[k]
                         && part.Q[t] == part.Q[k]
-                        && filters[0][t].P == filters[0][k].P
+                        && filters[0][t] == filters[0][k]
                         && local(t) == local(k)
                 })
             })
@@ -114,7 +114,7 @@ impl ErrorPropagation {
             .enumerate()
             .map(|(k, b)| {
                 let m = if twin[k].is_some() { 0 } else { b.len() };
-                let P0 = &filters[0][k].P;
+                let P0 = &filters[0][k];
                 DMatrix::from_fn(count * m, count * m, |i, j| P0[(i % m, j % m)])
             })
             .collect();
@@ -152,7 +152,7 @@ impl ErrorPropagation {
         // bit for bit). Checked, never assumed.
         for (k, twin) in self.twin.iter().enumerate() {
             if let Some(t) = *twin {
-                if self.filters.iter().any(|f| f[k].P != f[t].P) {
+                if self.filters.iter().any(|f| f[k] != f[t]) {
                     return Err(SimError::Diverged(format!(
                         "exact COIN: model blocks {t} and {k} no longer evolve identically"
                     )));
@@ -208,7 +208,7 @@ impl ErrorPropagation {
                 for m_index in 0..self.part.measurements[a].len() {
                     let (b, row, r) = &self.part.measurements[a][m_index];
                     // The filter's own update, which returns its gain K = P h / (hᵀ P h + r).
-                    let K = self.part.update(&mut self.filters[i], a, m_index, 0.0);
+                    let K = self.part.update(&mut self.filters[i], a, m_index);
                     if self.twin[*b].is_some() {
                         continue;
                     }
@@ -254,12 +254,12 @@ impl ErrorPropagation {
             &mut self.filters,
             &mut sent,
             &self.neighbours,
-            |a, b, mine: &mut BlockEstimate, theirs: &BlockEstimate| {
+            |a, b, mine: &mut BlockCovariance, theirs: &BlockCovariance| {
                 let coef = &mut coefficients[a];
-                let before: Vec<DMatrix<f64>> = mine.iter().map(|g| g.P.clone()).collect();
-                let omega = fuse(model, Storage::Blocks, rule, mine, theirs)?;
+                let before: Vec<DMatrix<f64>> = mine.clone();
+                let (omega, _) = fuse(model, Storage::Blocks, rule, mine, theirs)?;
                 for k in (0..blocks).filter(|&k| twin[k].is_none()) {
-                    let gain = gain_b(rule, &omega, k, &before[k], &theirs[k].P, &mine[k].P)?;
+                    let gain = gain_b(rule, &omega, k, &before[k], &theirs[k], &mine[k])?;
                     match gain {
                         Gain::Keep => {}
                         Gain::Take => coef[k] = vec![(b, None)],
@@ -311,7 +311,7 @@ impl ErrorPropagation {
     /// Filter `i`'s covariance (agent `i` of the rule, or `0` for the centralized filter),
     /// per model block.
     pub fn covariance(&self, i: usize) -> Vec<DMatrix<f64>> {
-        self.filters[i].iter().map(|g| g.P.clone()).collect()
+        self.filters[i].clone()
     }
 
     /// Filter `i`'s true error covariance, per model block.

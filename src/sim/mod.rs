@@ -35,8 +35,8 @@ pub use scenario::{ScalarMeasurement, Scenario};
 pub use shard::shard_files;
 pub use shard::{carries_coin, merge_shards, MergeError, Study, StudyShard, SHARD_FORMAT};
 pub use study::{
-    merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, Estimator, Rule, RunSpec,
-    RunState, RunTrace, Storage, RULES,
+    merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, simulate_runs_for_rule,
+    Estimator, Rule, RunBatch, RunSpec, RunState, RunTrace, Storage, RULES,
 };
 #[cfg(not(target_arch = "wasm32"))]
 pub use sweep::sweep;
@@ -312,43 +312,73 @@ impl StudyReport {
     }
 }
 
-/// The runs of a study, in parallel (rayon) over runs × rules ([`simulate_run_for_rule`]:
-/// 45 pieces of unequal size balance two cores better than 15 runs), calling `on_piece` after
-/// each piece (a progress bar of `runs × RULES.len()`). The traces are bit for bit those of
-/// [`simulate_run`] whatever the number of threads.
+/// The runs of a study, in parallel (rayon) over rules × slices of runs, each piece a
+/// [`RunBatch`] ([`simulate_runs_for_rule`]: the covariances once per piece, every run's means
+/// beside them), calling `on_piece` after each piece (a progress bar of
+/// [`run_pieces`]`(config.runs, RULES.len())`). The traces are bit for bit those of
+/// [`simulate_run`] whatever the number of threads or pieces.
 #[cfg(not(target_arch = "wasm32"))]
 pub fn simulate_runs_parallel(
     config: &StudyConfig,
     model: &Model,
     on_piece: impl Fn() + Sync,
 ) -> Result<Vec<RunTrace>, SimError> {
-    simulate_run_range_parallel(config, model, 0, on_piece)
+    simulate_rules_parallel(config, model, &RULES, 0, on_piece)
 }
 
-/// Runs `first_run..first_run + config.runs` as [`simulate_runs_parallel`] runs `0..runs`.
+/// How many slices the runs of a study are cut into per rule: each slice repeats the
+/// covariance work once, so as few as keep every core busy — two per rule while the rules
+/// alone are fewer than twice the threads (their costs differ: naive fusion is cheap), at most
+/// one per run.
 #[cfg(not(target_arch = "wasm32"))]
-fn simulate_run_range_parallel(
+fn run_slices(runs: usize, rules: usize) -> usize {
+    let threads = rayon::current_num_threads();
+    (threads.div_ceil(rules.max(1)) * 2).clamp(1, runs.max(1))
+}
+
+/// The pieces [`simulate_rules_parallel`] cuts `runs` runs of `rules` rules into (rules ×
+/// slices).
+#[cfg(not(target_arch = "wasm32"))]
+pub fn run_pieces(runs: usize, rules: usize) -> usize {
+    rules * run_slices(runs, rules)
+}
+
+/// Runs `first_run..first_run + config.runs` of a study for the agents of `rules` (with the
+/// centralized filter), as [`simulate_runs_parallel`] runs `0..runs` for all of [`RULES`]: the
+/// traces have `central` and one series per rule, in the order given.
+#[cfg(not(target_arch = "wasm32"))]
+pub fn simulate_rules_parallel(
     config: &StudyConfig,
     model: &Model,
+    rules: &[Rule],
     first_run: usize,
     on_piece: impl Fn() + Sync,
 ) -> Result<Vec<RunTrace>, SimError> {
     use rayon::prelude::*;
     config.validate()?;
-    let pieces: Vec<(u64, Rule)> = (first_run as u64..(first_run + config.runs) as u64)
-        .flat_map(|r| RULES.iter().map(move |&rule| (r, rule)))
+    let slices = run_slices(config.runs, rules.len());
+    let (first, runs) = (first_run as u64, config.runs as u64);
+    let bounds = |s: usize| first + runs * s as u64 / slices as u64;
+    let pieces: Vec<(Rule, std::ops::Range<u64>)> = rules
+        .iter()
+        .flat_map(|&rule| (0..slices).map(move |s| (rule, bounds(s)..bounds(s + 1))))
         .collect();
-    let mut traces = pieces
+    let spec = config.run_spec(first, Storage::Blocks);
+    let traces = pieces
         .par_iter()
-        .map(|&(r, rule)| {
-            let trace = simulate_run_for_rule(model, &config.run_spec(r, Storage::Blocks), rule);
+        .map(|(rule, runs)| {
+            let traces = simulate_runs_for_rule(model, &spec, runs.clone(), *rule);
             on_piece();
-            trace
+            traces
         })
-        .collect::<Result<Vec<_>, _>>()?
-        .into_iter();
+        .collect::<Result<Vec<_>, _>>()?;
+    // Per rule, its slices' traces in run order.
+    let mut by_rule: Vec<std::vec::IntoIter<RunTrace>> = traces
+        .chunks(slices)
+        .map(|slices| slices.concat().into_iter())
+        .collect();
     Ok((0..config.runs)
-        .map(|_| merge_rule_traces(traces.by_ref().take(RULES.len()).collect()))
+        .map(|_| merge_rule_traces(by_rule.iter_mut().filter_map(Iterator::next).collect()))
         .collect())
 }
 
@@ -381,7 +411,7 @@ pub fn coin_parallel(
 /// Runs `first_run..first_run + config.runs` of a study on every core as a [`StudyShard`]
 /// (see [`merge_shards`]): the Monte Carlo runs and — in the shard holding run 0, when
 /// `config.coin` — every estimator's exact COIN ([`coin_parallel`]) side by side; `on_piece`
-/// is called after each piece (`runs × RULES.len()` run pieces, plus one per estimator with
+/// is called after each piece ([`run_pieces`] run pieces, plus one per estimator with
 /// COIN).
 #[cfg(not(target_arch = "wasm32"))]
 pub fn run_shard(
@@ -398,7 +428,7 @@ pub fn run_shard(
         )));
     }
     let (traces, coin) = rayon::join(
-        || simulate_run_range_parallel(config, model, first_run, &on_piece),
+        || simulate_rules_parallel(config, model, &RULES, first_run, &on_piece),
         || {
             carries_coin(config, first_run)
                 .then(|| coin_parallel(config, model, &on_piece))
@@ -425,13 +455,17 @@ pub fn study_parallel(
     Ok(shard::study_of(config.clone(), shard.traces, shard.coin))
 }
 
-/// Runs a whole study sequentially (the CLI runs the same runs in parallel).
+/// Runs a whole study on one thread, its runs as one [`RunBatch`] (the CLI runs the same runs
+/// in parallel).
 pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), SimError> {
     config.validate()?;
     let model = Model::new(&config.scenario)?;
-    let traces = (0..config.runs as u64)
-        .map(|r| simulate_run(&model, &config.run_spec(r, Storage::Blocks)))
-        .collect::<Result<Vec<_>, _>>()?;
+    let spec = config.run_spec(0, Storage::Blocks);
+    let mut batch = RunBatch::new(&model, &spec, 0..config.runs as u64, &RULES);
+    while !batch.finished() {
+        batch.step(&model)?;
+    }
+    let traces = batch.into_traces();
     let mut summary = summarize(&traces, model.dim());
     if config.coin {
         let coin = estimators()

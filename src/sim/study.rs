@@ -21,7 +21,7 @@ use crate::fusion::ici::{ici_in_place, inverse_covariance_intersection};
 use crate::fusion::known::{naive_fusion, naive_in_place};
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::rules::{Guarantee, Method};
-use crate::fusion::{Criterion, Estimate, FusionProblem};
+use crate::fusion::{Criterion, FusionProblem, MeanPlan};
 use crate::linalg::{cholesky, symmetrize_in_place};
 
 /// The decentralized fusion rules of the study.
@@ -131,9 +131,13 @@ pub enum Storage {
     Dense,
 }
 
-/// A filter state stored in blocks: one [`Estimate`] per storage block (not a type of its
-/// own).
-pub(super) type BlockEstimate = Vec<Estimate>;
+/// The covariance side of a filter state stored in blocks: one covariance per storage block.
+/// Kalman and fusion covariances do not depend on the data, so the runs of a study share it
+/// ([`RunBatch`]); each run keeps only its means ([`BlockMeans`]).
+pub(super) type BlockCovariance = Vec<DMatrix<f64>>;
+
+/// The mean side of a filter state stored in blocks: one mean per storage block.
+pub(super) type BlockMeans = Vec<DVector<f64>>;
 
 /// One scalar measurement in block coordinates: `(block, local sparse row, noise variance)`.
 pub(super) type LocalMeasurement = (usize, Vec<(usize, f64)>, f64);
@@ -220,84 +224,103 @@ impl Partition {
         }
     }
 
-    pub(super) fn prior(&self, model: &Model) -> BlockEstimate {
+    /// The common prior's covariance, block by block (its mean is zero).
+    pub(super) fn prior(&self, model: &Model) -> BlockCovariance {
         self.blocks
             .iter()
-            .map(|b| Estimate {
-                x: DVector::zeros(b.len()),
-                P: DMatrix::from_fn(b.len(), b.len(), |i, j| model.P0[(b[i], b[j])]),
-            })
+            .map(|b| DMatrix::from_fn(b.len(), b.len(), |i, j| model.P0[(b[i], b[j])]))
+            .collect()
+    }
+
+    /// The common prior's mean (zero), block by block.
+    fn prior_mean(&self) -> BlockMeans {
+        self.blocks
+            .iter()
+            .map(|b| DVector::zeros(b.len()))
             .collect()
     }
 
     /// The mean 2σ of the position coordinates: `2·√(mean of P_ii)` over every target's `x`
     /// and `y` (blocks in order, positions in order within a block). Depends on `P` only.
-    pub(super) fn two_sigma(&self, e: &BlockEstimate) -> f64 {
+    pub(super) fn two_sigma(&self, e: &[DMatrix<f64>]) -> f64 {
         let mut var = 0.0;
         let mut count = 0usize;
-        for (k, g) in e.iter().enumerate() {
+        for (k, P) in e.iter().enumerate() {
             for &i in &self.positions[k] {
-                var += g.P[(i, i)];
+                var += P[(i, i)];
                 count += 1;
             }
         }
         2.0 * (var / count as f64).sqrt()
     }
 
-    /// `x ← F x`, `P ← F P Fᵀ + Q` block by block, with the sparse rows of `F`.
-    pub(super) fn predict(&self, e: &mut BlockEstimate) {
-        for (k, g) in e.iter_mut().enumerate() {
+    /// `P ← F P Fᵀ + Q` block by block, with the sparse rows of `F`.
+    pub(super) fn predict(&self, e: &mut [DMatrix<f64>]) {
+        for (k, P) in e.iter_mut().enumerate() {
             let F = &self.F[k];
-            let n = g.x.len();
-            let x = DVector::from_fn(n, |i, _| F[i].iter().map(|&(j, f)| f * g.x[j]).sum());
+            let n = P.nrows();
             // FP = F P (row i of FP combines the rows of P that row i of F names) …
             let mut FP = DMatrix::<f64>::zeros(n, n);
             for (i, row) in F.iter().enumerate() {
                 for &(l, f) in row {
                     for j in 0..n {
-                        FP[(i, j)] += f * g.P[(l, j)];
+                        FP[(i, j)] += f * P[(l, j)];
                     }
                 }
             }
             // … then P = FP Fᵀ + Q (column j of the result combines the columns of FP that row
             // j of F names).
-            let mut P = self.Q[k].clone();
+            let mut next = self.Q[k].clone();
             for (j, row) in F.iter().enumerate() {
                 for &(l, f) in row {
                     for i in 0..n {
-                        P[(i, j)] += f * FP[(i, l)];
+                        next[(i, j)] += f * FP[(i, l)];
                     }
                 }
             }
-            g.x = x;
-            g.P = P;
+            *P = next;
         }
     }
 
-    /// Joseph-form scalar update with agent `a`'s measurement `m` and value `z`:
+    /// `x ← F x` block by block (the mean side of [`Partition::predict`]).
+    fn predict_mean(&self, x: &mut [DVector<f64>]) {
+        for (k, g) in x.iter_mut().enumerate() {
+            let F = &self.F[k];
+            *g = DVector::from_fn(g.len(), |i, _| F[i].iter().map(|&(j, f)| f * g[j]).sum());
+        }
+    }
+
+    /// Joseph-form scalar update of the covariance with agent `a`'s measurement `m`:
     /// `P ← (I − K hᵀ) P (I − K hᵀ)ᵀ + r K Kᵀ`, evaluated exactly through its rank-one factors
     /// (`(I − K hᵀ) P = P − K (P h)ᵀ`, then `Y (I − h Kᵀ) = Y − (Y h) Kᵀ`): O(n²) instead of
-    /// two dense products. Returns the gain `K` (the exact COIN propagation applies it to the
-    /// joint error covariance).
-    pub(super) fn update(&self, e: &mut BlockEstimate, a: usize, m: usize, z: f64) -> DVector<f64> {
+    /// two dense products. Returns the gain `K` (of the measurement's block), which the means
+    /// take ([`Partition::update_mean`]) and the exact COIN propagation applies to the joint
+    /// error covariance.
+    pub(super) fn update(&self, e: &mut [DMatrix<f64>], a: usize, m: usize) -> DVector<f64> {
         let (b, row, r) = &self.measurements[a][m];
-        let Estimate { x, P } = &mut e[*b];
+        let P = &mut e[*b];
         let sparse_dot = |v: &DMatrix<f64>, col: usize| -> f64 {
             row.iter().map(|&(i, c)| c * v[(col, i)]).sum()
         };
-        let n = x.len();
+        let n = P.nrows();
         // P h (P symmetric: row `i` of P dotted with h).
         let Ph = DVector::from_fn(n, |i, _| sparse_dot(P, i));
         let s = row.iter().map(|&(i, c)| c * Ph[i]).sum::<f64>() + r;
         let K = Ph.unscale(s);
-        let innovation = z - row.iter().map(|&(i, c)| c * x[i]).sum::<f64>();
-        x.axpy(innovation, &K, 1.0);
         P.ger(-1.0, &K, &Ph, 1.0); // Y = (I − K hᵀ) P
         let Yh = DVector::from_fn(n, |i, _| sparse_dot(P, i));
         P.ger(-1.0, &Yh, &K, 1.0); // Y (I − h Kᵀ)
         P.ger(*r, &K, &K, 1.0);
         symmetrize_in_place(P);
         K
+    }
+
+    /// The mean side of [`Partition::update`]: `x ← x + K (z − hᵀx)` with its gain `K`.
+    fn update_mean(&self, x: &mut [DVector<f64>], a: usize, m: usize, z: f64, K: &DVector<f64>) {
+        let (b, row, _) = &self.measurements[a][m];
+        let x = &mut x[*b];
+        let innovation = z - row.iter().map(|&(i, c)| c * x[i]).sum::<f64>();
+        x.axpy(innovation, K, 1.0);
     }
 }
 
@@ -328,30 +351,37 @@ pub(super) fn exchange<E: Clone>(
     Ok(())
 }
 
-/// Fuses `b` into `a` with `rule`; returns the weights used (CI: one; nmCI: one per model block).
+/// Fuses the covariances of `b` into those of `a` with `rule`; returns the weights used (CI:
+/// one; nmCI: one per model block) and the plan that fuses the means ([`MeanPlan`]).
 pub(super) fn fuse(
     model: &Model,
     storage: Storage,
     rule: Rule,
-    a: &mut BlockEstimate,
-    b: &BlockEstimate,
-) -> Result<Vec<f64>, SimError> {
+    a: &mut [DMatrix<f64>],
+    b: &[DMatrix<f64>],
+) -> Result<(Vec<f64>, MeanPlan), SimError> {
     match storage {
         Storage::Blocks => Ok(match rule {
-            Rule::Ci => vec![ci_in_place(a, b, Criterion::Trace)?],
-            Rule::Nmci => nmci_in_place(a, b, Criterion::Trace)?,
-            Rule::Naive => {
-                naive_in_place(a, b);
-                vec![]
+            Rule::Ci => {
+                let (omega, plan) = ci_in_place(a, b, Criterion::Trace)?;
+                (vec![omega], plan)
             }
-            Rule::Ici => vec![ici_in_place(a, b, Criterion::Trace)?],
+            Rule::Nmci => nmci_in_place(a, b, Criterion::Trace)?,
+            Rule::Naive => (vec![], naive_in_place(a, b)),
+            Rule::Ici => {
+                let (omega, plan) = ici_in_place(a, b, Criterion::Trace)?;
+                (vec![omega], plan)
+            }
         }),
         Storage::Dense => {
+            // The generic dense rules; the means follow from their gains,
+            // `x = K_a x_a + K_b x_b`, as the rules compute it.
+            let n = a[0].nrows();
             let p = FusionProblem::new_trusted(
-                a[0].x.clone(),
-                a[0].P.clone(),
-                b[0].x.clone(),
-                b[0].P.clone(),
+                DVector::zeros(n),
+                a[0].clone(),
+                DVector::zeros(n),
+                b[0].clone(),
                 model.cross_pattern.clone(),
             );
             let (fused, omega) = match rule {
@@ -369,11 +399,8 @@ pub(super) fn fuse(
                     (ici.fused, vec![ici.omega])
                 }
             };
-            a[0] = Estimate {
-                x: fused.x,
-                P: fused.P,
-            };
-            Ok(omega)
+            a[0] = fused.P;
+            Ok((omega, MeanPlan::from_gains(fused.K_a, fused.K_b)))
         }
     }
 }
@@ -442,6 +469,22 @@ pub fn simulate_run_for_rule(
     Ok(run.into_trace())
 }
 
+/// Simulates runs `runs` of `spec` (its `run` replaced by each) for one rule, as one
+/// [`RunBatch`]: the covariance work once, the means of every run beside it. Each trace is bit
+/// for bit [`simulate_run_for_rule`]'s for its run.
+pub fn simulate_runs_for_rule(
+    model: &Model,
+    spec: &RunSpec,
+    runs: std::ops::Range<u64>,
+    rule: Rule,
+) -> Result<Vec<RunTrace>, SimError> {
+    let mut batch = RunBatch::new(model, spec, runs, &[rule]);
+    while !batch.finished() {
+        batch.step(model)?;
+    }
+    Ok(batch.into_traces())
+}
+
 /// Assembles the per-rule traces of one run (from [`simulate_run_for_rule`], in [`RULES`]
 /// order) into the trace [`simulate_run`] gives.
 pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
@@ -477,80 +520,147 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
     merged
 }
 
-/// One Monte Carlo run in progress, advanced a step at a time ([`RunState::step`]) — what a
-/// page needs to plot a run live. [`simulate_run`] is `new` + `step` until `finished`.
+/// Monte Carlo runs advanced together, a step at a time: the runs of one study (one seed,
+/// length, headline agent and storage; any run indices) for the agents of some rules.
+///
+/// Every covariance of the study is the same in every run — Kalman covariances do not depend
+/// on the measurements, and the fusion rules choose their weights from covariances only (the
+/// argument of the exact COIN, [`super::coin`]) — so the batch keeps *one* covariance per
+/// filter and block, and each run only its truth, its measurements and its means. Per step, the
+/// covariance side predicts, updates and fuses once, returning each update's gain and each
+/// fusion's [`MeanPlan`]; every run then applies them to its own means. A run's numbers are
+/// therefore bit for bit those of the run alone (the same operations on the same numbers, in
+/// the same order; tested), and the `O(n³)` work of a step (factorizations,
+/// eigendecompositions, fused covariances) is done once per batch instead of once per run.
 #[allow(non_snake_case)]
-pub struct RunState {
+pub struct RunBatch {
     spec: RunSpec,
     part: Partition,
     neighbours: Vec<Vec<usize>>,
-    rng: ChaCha8Rng,
-    truth: DVector<f64>,
     /// Cholesky factor `[[l11, 0], [l21, l22]]` of one axis' process noise.
     noise_factor: (f64, f64, f64),
-    central: BlockEstimate,
-    /// The rules simulated (all of [`RULES`] unless built by [`RunState::with_rules`]).
+    /// The rules simulated.
     rules: Vec<Rule>,
-    /// `agents[rule][agent]`, rules as in `rules`.
-    agents: Vec<Vec<BlockEstimate>>,
+    /// The centralized filter's covariances.
+    central: BlockCovariance,
+    /// `agents[rule][agent]`: the agents' covariances, rules as in `rules`.
+    agents: Vec<Vec<BlockCovariance>>,
     /// What the agents sent this step (a reused buffer).
-    sent: Vec<BlockEstimate>,
-    trace: RunTrace,
+    sent: Vec<BlockCovariance>,
+    runs: Vec<RunMeans>,
     done: usize,
 }
 
+/// What one run of a [`RunBatch`] keeps of its own: its random stream, truth and means.
+struct RunMeans {
+    rng: ChaCha8Rng,
+    truth: DVector<f64>,
+    central: BlockMeans,
+    /// `agents[rule][agent]`.
+    agents: Vec<Vec<BlockMeans>>,
+    sent: Vec<BlockMeans>,
+    trace: RunTrace,
+}
+
+/// `eᵀ P⁻¹ e` for one covariance and any number of errors `e`: the factorization once.
+/// Naive fusion double counts until its covariance is numerically singular (the biases have
+/// no process noise); then the eigenvalues are floored at `λ_max · ε` (machine precision) so
+/// the NEES is reported as the huge finite number it is, not as a failure.
+enum Nees {
+    Cholesky(nalgebra::Cholesky<f64, nalgebra::Dyn>),
+    Floored(nalgebra::SymmetricEigen<f64, nalgebra::Dyn>, f64),
+}
+
 #[allow(non_snake_case)]
-impl RunState {
-    /// Draws the truth from the common prior and starts every filter at it.
-    pub fn new(model: &Model, spec: &RunSpec) -> Self {
-        Self::with_rules(model, spec, &RULES)
+impl Nees {
+    fn new(P: &DMatrix<f64>) -> Self {
+        match cholesky(P) {
+            Some(c) => Nees::Cholesky(c),
+            None => {
+                let eig = nalgebra::SymmetricEigen::new(P.clone());
+                let floor = eig.eigenvalues.amax() * f64::EPSILON;
+                Nees::Floored(eig, floor)
+            }
+        }
     }
 
-    /// As [`RunState::new`] for the agents of `rules` only (the trace has `central` and one
-    /// series per rule, in the order given).
-    pub fn with_rules(model: &Model, spec: &RunSpec, rules: &[Rule]) -> Self {
+    fn of(&self, err: &DVector<f64>) -> f64 {
+        match self {
+            Nees::Cholesky(c) => err.dot(&c.solve(err)),
+            Nees::Floored(eig, floor) => {
+                let proj = eig.eigenvectors.transpose() * err;
+                proj.iter()
+                    .zip(eig.eigenvalues.iter())
+                    .map(|(p, l)| p * p / l.max(*floor))
+                    .sum()
+            }
+        }
+    }
+}
+
+#[allow(non_snake_case)]
+impl RunBatch {
+    /// Runs `runs` of `spec` (its `run` is replaced by each), each drawing its truth from the
+    /// common prior and starting every filter at it, for the agents of `rules` (the traces
+    /// have `central` and one series per rule, in the order given).
+    pub fn new(
+        model: &Model,
+        spec: &RunSpec,
+        runs: impl IntoIterator<Item = u64>,
+        rules: &[Rule],
+    ) -> Self {
         let sc = &model.scenario;
         let part = Partition::new(model, spec.storage);
-        let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
-        rng.set_stream(spec.run);
-        // Truth from the common prior (diagonal P0).
-        let truth = DVector::from_fn(model.dim(), |i, _| {
-            let u: f64 = StandardNormal.sample(&mut rng);
-            model.P0[(i, i)].sqrt() * u
-        });
         let (dt, q) = (sc.dt, sc.q);
         // Cholesky of one axis' process noise [[q dt³/3, q dt²/2], [q dt²/2, q dt]].
         let l11 = (q * dt.powi(3) / 3.0).sqrt();
         let l21 = q * dt.powi(2) / 2.0 / l11;
         let l22 = (q * dt - l21 * l21).sqrt();
-        let central = part.prior(model);
-        let agents: Vec<Vec<BlockEstimate>> = rules
-            .iter()
-            .map(|_| (0..sc.agents()).map(|_| part.prior(model)).collect())
-            .collect();
-        let sent = (0..sc.agents()).map(|_| part.prior(model)).collect();
         let series = rules.len() + 1;
-        let trace = RunTrace {
-            nees: vec![Vec::with_capacity(spec.steps); series],
-            rmse: vec![Vec::with_capacity(spec.steps); series],
-            two_sigma: vec![Vec::with_capacity(spec.steps); series],
-            omega_ci: Vec::with_capacity(spec.steps),
-            omega_nmci: Vec::with_capacity(spec.steps),
-            omega_ici: Vec::with_capacity(spec.steps),
-            group_sums: vec![vec![[0.0; 2]; sc.groups]; series],
-        };
+        let runs = runs
+            .into_iter()
+            .map(|run| {
+                let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+                rng.set_stream(run);
+                // Truth from the common prior (diagonal P0).
+                let truth = DVector::from_fn(model.dim(), |i, _| {
+                    let u: f64 = StandardNormal.sample(&mut rng);
+                    model.P0[(i, i)].sqrt() * u
+                });
+                RunMeans {
+                    rng,
+                    truth,
+                    central: part.prior_mean(),
+                    agents: rules
+                        .iter()
+                        .map(|_| (0..sc.agents()).map(|_| part.prior_mean()).collect())
+                        .collect(),
+                    sent: Vec::new(),
+                    trace: RunTrace {
+                        nees: vec![Vec::with_capacity(spec.steps); series],
+                        rmse: vec![Vec::with_capacity(spec.steps); series],
+                        two_sigma: vec![Vec::with_capacity(spec.steps); series],
+                        omega_ci: Vec::with_capacity(spec.steps),
+                        omega_nmci: Vec::with_capacity(spec.steps),
+                        omega_ici: Vec::with_capacity(spec.steps),
+                        group_sums: vec![vec![[0.0; 2]; sc.groups]; series],
+                    },
+                }
+            })
+            .collect();
         Self {
             spec: *spec,
             neighbours: sc.neighbours(),
-            part,
-            rng,
-            truth,
             noise_factor: (l11, l21, l22),
-            central,
+            central: part.prior(model),
+            agents: rules
+                .iter()
+                .map(|_| (0..sc.agents()).map(|_| part.prior(model)).collect())
+                .collect(),
+            sent: Vec::new(),
+            part,
             rules: rules.to_vec(),
-            agents,
-            sent,
-            trace,
+            runs,
             done: 0,
         }
     }
@@ -565,124 +675,146 @@ impl RunState {
         self.done >= self.spec.steps
     }
 
-    /// The current error `x − x̂` (truth minus estimate, in state order) of series `series`:
-    /// `0` is the centralized filter (`agent` ignored), `1 + r` agent `agent` (0-based) of the
-    /// `r`-th rule simulated. `None` for a series or agent that does not exist.
-    pub fn error(&self, series: usize, agent: usize) -> Option<DVector<f64>> {
-        let estimate = match series {
-            0 => &self.central,
-            s => self.agents.get(s - 1)?.get(agent)?,
-        };
-        let mut err = self.truth.clone();
-        for (block, g) in self.part.blocks.iter().zip(estimate) {
-            for (k, &i) in block.iter().enumerate() {
-                err[i] -= g.x[k];
-            }
-        }
-        Some(err)
+    /// The per-step results of every run, in the order given.
+    pub fn into_traces(self) -> Vec<RunTrace> {
+        self.runs.into_iter().map(|r| r.trace).collect()
     }
 
-    /// The per-step results so far.
-    pub fn trace(&self) -> &RunTrace {
-        &self.trace
-    }
-
-    /// The per-step results.
-    pub fn into_trace(self) -> RunTrace {
-        self.trace
-    }
-
-    /// One time step: truth, measurements, every filter's prediction and update, the
-    /// exchange and fusion of every rule, and the headline agent's metrics. `model` must be the
-    /// one the run was created with.
+    /// One time step of every run: truth, measurements, every filter's prediction and update,
+    /// the exchange and fusion of every rule, and the headline agent's metrics. `model` must be
+    /// the one the batch was created with.
     pub fn step(&mut self, model: &Model) -> Result<(), SimError> {
         let sc = &model.scenario;
         let spec = self.spec;
         let part = &self.part;
-        let rng = &mut self.rng;
-        let mut normal = || -> f64 { StandardNormal.sample(&mut *rng) };
         let (l11, l21, l22) = self.noise_factor;
-        // Truth.
-        let mut truth = &model.F * &self.truth;
-        for t in 0..sc.targets() {
-            for axis in 0..2 {
-                let (u, v) = (normal(), normal());
-                truth[sc.target_index(t, 2 * axis)] += l11 * u;
-                truth[sc.target_index(t, 2 * axis + 1)] += l21 * u + l22 * v;
-            }
-        }
-        self.truth = truth;
-        let truth = &self.truth;
-        // Measurements (the same realisations for every filter).
-        let z: Vec<Vec<f64>> = model
-            .measurements
-            .iter()
-            .map(|ms| {
-                ms.iter()
-                    .map(|m| {
-                        m.row.iter().map(|&(i, c)| c * truth[i]).sum::<f64>()
-                            + m.variance.sqrt() * normal()
+        // Each run's truth and measurements (the same realisations for every filter).
+        let z: Vec<Vec<Vec<f64>>> = self
+            .runs
+            .iter_mut()
+            .map(|run| {
+                let rng = &mut run.rng;
+                let mut normal = || -> f64 { StandardNormal.sample(&mut *rng) };
+                let mut truth = &model.F * &run.truth;
+                for t in 0..sc.targets() {
+                    for axis in 0..2 {
+                        let (u, v) = (normal(), normal());
+                        truth[sc.target_index(t, 2 * axis)] += l11 * u;
+                        truth[sc.target_index(t, 2 * axis + 1)] += l21 * u + l22 * v;
+                    }
+                }
+                run.truth = truth;
+                let truth = &run.truth;
+                model
+                    .measurements
+                    .iter()
+                    .map(|ms| {
+                        ms.iter()
+                            .map(|m| {
+                                m.row.iter().map(|&(i, c)| c * truth[i]).sum::<f64>()
+                                    + m.variance.sqrt() * normal()
+                            })
+                            .collect()
                     })
                     .collect()
             })
             .collect();
-        part.predict(&mut self.central);
-        for (a, za) in z.iter().enumerate() {
-            for (m, &value) in za.iter().enumerate() {
-                part.update(&mut self.central, a, m, value);
+        let runs = &mut self.runs;
+        predict_update(
+            part,
+            &mut self.central,
+            runs.iter_mut()
+                .zip(&z)
+                .map(|(run, z)| (&mut run.central, z)),
+            0..sc.agents(),
+        );
+        for (r, &rule) in self.rules.iter().enumerate() {
+            for a in 0..sc.agents() {
+                predict_update(
+                    part,
+                    &mut self.agents[r][a],
+                    runs.iter_mut()
+                        .zip(&z)
+                        .map(|(run, z)| (&mut run.agents[r][a], z)),
+                    a..a + 1,
+                );
             }
-        }
-        let trace = &mut self.trace;
-        for (r, rule) in self.rules.iter().enumerate() {
-            let agents = &mut self.agents[r];
-            for (a, za) in z.iter().enumerate() {
-                part.predict(&mut agents[a]);
-                for (m, &value) in za.iter().enumerate() {
-                    part.update(&mut agents[a], a, m, value);
-                }
-            }
+            // The covariances' exchange: each fusion's weights and mean plan, in order.
+            let mut plans = Vec::new();
+            let mut watched = Vec::new();
             exchange(
-                agents,
+                &mut self.agents[r],
                 &mut self.sent,
                 &self.neighbours,
                 |a, b, mine, theirs| {
-                    let omega = fuse(model, spec.storage, *rule, mine, theirs)?;
+                    let (omega, plan) = fuse(model, spec.storage, rule, mine, theirs)?;
                     if a == spec.agent && b == spec.watched {
-                        match rule {
-                            Rule::Ci => trace.omega_ci.push(omega[0]),
-                            Rule::Nmci => trace.omega_nmci.push(omega),
-                            Rule::Ici => trace.omega_ici.push(omega[0]),
-                            Rule::Naive => {}
-                        }
+                        watched.push(omega);
                     }
+                    plans.push(plan);
                     Ok(())
                 },
             )?;
-        }
-        // Metrics of the headline agent, block by block (the covariance is block-diagonal).
-        let estimates =
-            std::iter::once(&self.central).chain(self.agents.iter().map(|r| &r[spec.agent]));
-        for (s, e) in estimates.enumerate() {
-            let (mut nees_sum, mut se) = (0.0, 0.0);
-            // Per target group: squared error, position variance, coordinates.
-            let mut group = vec![(0.0, 0.0, 0usize); sc.groups];
-            for (k, block) in part.blocks.iter().enumerate() {
-                let err = DVector::from_fn(block.len(), |i, _| truth[block[i]] - e[k].x[i]);
-                nees_sum += nees(&e[k].P, &err);
-                for (&i, &g) in part.positions[k].iter().zip(&part.position_groups[k]) {
-                    se += err[i] * err[i];
-                    group[g].0 += err[i] * err[i];
-                    group[g].1 += e[k].P[(i, i)];
-                    group[g].2 += 1;
+            // Each run's means: the same schedule, the same plans.
+            for run in runs.iter_mut() {
+                let mut plan = plans.iter();
+                exchange(
+                    &mut run.agents[r],
+                    &mut run.sent,
+                    &self.neighbours,
+                    |_, _, mine, theirs| {
+                        if let Some(plan) = plan.next() {
+                            plan.apply(mine, theirs);
+                        }
+                        Ok(())
+                    },
+                )?;
+                for omega in &watched {
+                    let trace = &mut run.trace;
+                    match rule {
+                        Rule::Ci => trace.omega_ci.push(omega[0]),
+                        Rule::Nmci => trace.omega_nmci.push(omega.clone()),
+                        Rule::Ici => trace.omega_ici.push(omega[0]),
+                        Rule::Naive => {}
+                    }
                 }
             }
-            trace.nees[s].push(nees_sum);
-            trace.rmse[s].push((se / sc.targets() as f64).sqrt());
-            trace.two_sigma[s].push(part.two_sigma(e));
-            for (sums, (se, var, count)) in trace.group_sums[s].iter_mut().zip(group) {
-                // `count` coordinates are `count / 2` targets (x and y each).
-                sums[0] += (se / (count / 2).max(1) as f64).sqrt();
-                sums[1] += 2.0 * (var / count.max(1) as f64).sqrt();
+        }
+        // Metrics of the headline agent, block by block (the covariance is block-diagonal).
+        let covariances =
+            std::iter::once(&self.central).chain(self.agents.iter().map(|r| &r[spec.agent]));
+        for (s, P) in covariances.enumerate() {
+            let factors: Vec<Nees> = P.iter().map(Nees::new).collect();
+            let two_sigma = part.two_sigma(P);
+            for run in runs.iter_mut() {
+                let x = if s == 0 {
+                    &run.central
+                } else {
+                    &run.agents[s - 1][spec.agent]
+                };
+                let truth = &run.truth;
+                let (mut nees_sum, mut se) = (0.0, 0.0);
+                // Per target group: squared error, position variance, coordinates.
+                let mut group = vec![(0.0, 0.0, 0usize); sc.groups];
+                for (k, block) in part.blocks.iter().enumerate() {
+                    let err = DVector::from_fn(block.len(), |i, _| truth[block[i]] - x[k][i]);
+                    nees_sum += factors[k].of(&err);
+                    for (&i, &g) in part.positions[k].iter().zip(&part.position_groups[k]) {
+                        se += err[i] * err[i];
+                        group[g].0 += err[i] * err[i];
+                        group[g].1 += P[k][(i, i)];
+                        group[g].2 += 1;
+                    }
+                }
+                let trace = &mut run.trace;
+                trace.nees[s].push(nees_sum);
+                trace.rmse[s].push((se / sc.targets() as f64).sqrt());
+                trace.two_sigma[s].push(two_sigma);
+                for (sums, (se, var, count)) in trace.group_sums[s].iter_mut().zip(group) {
+                    // `count` coordinates are `count / 2` targets (x and y each).
+                    sums[0] += (se / (count / 2).max(1) as f64).sqrt();
+                    sums[1] += 2.0 * (var / count.max(1) as f64).sqrt();
+                }
             }
         }
         self.done += 1;
@@ -690,21 +822,92 @@ impl RunState {
     }
 }
 
-/// `eᵀ P⁻¹ e`. Naive fusion double counts until its covariance is numerically singular (the
-/// biases have no process noise); then the eigenvalues are floored at `λ_max · ε` (machine
-/// precision) so the NEES is reported as the huge finite number it is, not as a failure.
+/// A filter's prediction and its updates with the measurements of `agents` (all of them for
+/// the centralized filter): the covariance once, and each run's mean (with its measurements,
+/// `z[agent][measurement]`) with the same gains.
 #[allow(non_snake_case)]
-fn nees(P: &DMatrix<f64>, err: &DVector<f64>) -> f64 {
-    if let Some(c) = cholesky(P) {
-        return err.dot(&c.solve(err));
+fn predict_update<'a>(
+    part: &Partition,
+    P: &mut BlockCovariance,
+    runs: impl Iterator<Item = (&'a mut BlockMeans, &'a Vec<Vec<f64>>)>,
+    agents: std::ops::Range<usize>,
+) {
+    let mut runs: Vec<_> = runs.collect();
+    part.predict(P);
+    for (x, _) in runs.iter_mut() {
+        part.predict_mean(x);
     }
-    let eig = nalgebra::SymmetricEigen::new(P.clone());
-    let floor = eig.eigenvalues.amax() * f64::EPSILON;
-    let proj = eig.eigenvectors.transpose() * err;
-    proj.iter()
-        .zip(eig.eigenvalues.iter())
-        .map(|(p, l)| p * p / l.max(floor))
-        .sum()
+    for a in agents {
+        for m in 0..part.measurements[a].len() {
+            let K = part.update(P, a, m);
+            for (x, z) in runs.iter_mut() {
+                part.update_mean(x, a, m, z[a][m], &K);
+            }
+        }
+    }
+}
+
+/// One Monte Carlo run in progress, advanced a step at a time ([`RunState::step`]) — what a
+/// page needs to plot a run live. [`simulate_run`] is `new` + `step` until `finished`; it is a
+/// [`RunBatch`] of one run.
+pub struct RunState(RunBatch);
+
+impl RunState {
+    /// Draws the truth from the common prior and starts every filter at it.
+    pub fn new(model: &Model, spec: &RunSpec) -> Self {
+        Self::with_rules(model, spec, &RULES)
+    }
+
+    /// As [`RunState::new`] for the agents of `rules` only (the trace has `central` and one
+    /// series per rule, in the order given).
+    pub fn with_rules(model: &Model, spec: &RunSpec, rules: &[Rule]) -> Self {
+        Self(RunBatch::new(model, spec, [spec.run], rules))
+    }
+
+    /// Steps done so far.
+    pub fn steps_done(&self) -> usize {
+        self.0.steps_done()
+    }
+
+    /// Whether all `spec.steps` steps are done.
+    pub fn finished(&self) -> bool {
+        self.0.finished()
+    }
+
+    /// The current error `x − x̂` (truth minus estimate, in state order) of series `series`:
+    /// `0` is the centralized filter (`agent` ignored), `1 + r` agent `agent` (0-based) of the
+    /// `r`-th rule simulated. `None` for a series or agent that does not exist.
+    pub fn error(&self, series: usize, agent: usize) -> Option<DVector<f64>> {
+        let run = self.0.runs.first()?;
+        let estimate = match series {
+            0 => &run.central,
+            s => run.agents.get(s - 1)?.get(agent)?,
+        };
+        let mut err = run.truth.clone();
+        for (block, x) in self.0.part.blocks.iter().zip(estimate) {
+            for (k, &i) in block.iter().enumerate() {
+                err[i] -= x[k];
+            }
+        }
+        Some(err)
+    }
+
+    /// The per-step results so far.
+    pub fn trace(&self) -> &RunTrace {
+        &self.0.runs[0].trace
+    }
+
+    /// The per-step results.
+    pub fn into_trace(self) -> RunTrace {
+        self.0.into_traces().swap_remove(0)
+    }
+
+    /// One time step: truth, measurements, every filter's prediction and update, the
+    /// exchange and fusion of every rule, and the headline agent's metrics. `model` must be the
+    /// one the run was created with.
+    pub fn step(&mut self, model: &Model) -> Result<(), SimError> {
+        self.0.step(model)
+    }
 }
 
 /// Two-sided 95 % bounds of the mean NEES of `runs` runs for `dof` degrees of freedom

@@ -55,7 +55,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::model::Model;
-use super::study::{exchange, fuse, BlockEstimate, Partition};
+use super::study::{exchange, fuse, BlockCovariance, Partition};
 use super::{Rule, Scenario, SimError, Storage, StudyConfig};
 
 /// The paper's steady-state CI ω of agent 7 fusing agent 11.
@@ -231,14 +231,14 @@ fn for_each_subset(n: usize, size: usize, f: &mut dyn FnMut(&[usize])) {
     go(0, n, size, &mut Vec::with_capacity(size), f)
 }
 
-/// The study's recursion on covariances alone for the agents of one rule (means stay at zero
-/// and are never read): what decides ω and 2σ.
+/// The study's recursion on covariances alone for the agents of one rule (no means): what
+/// decides ω and 2σ.
 pub struct CovarianceRun {
     part: Partition,
     rule: Rule,
     neighbours: Vec<Vec<usize>>,
-    agents: Vec<BlockEstimate>,
-    sent: Vec<BlockEstimate>,
+    agents: Vec<BlockCovariance>,
+    sent: Vec<BlockCovariance>,
 }
 
 impl CovarianceRun {
@@ -270,7 +270,7 @@ impl CovarianceRun {
             part.predict(e);
             for m in 0..part.measurements[a].len() {
                 // The gain and the covariance do not depend on the measured value.
-                part.update(e, a, m, 0.0);
+                part.update(e, a, m);
             }
         }
         let rule = self.rule;
@@ -280,7 +280,7 @@ impl CovarianceRun {
             &mut self.sent,
             &self.neighbours,
             |a, b, mine, theirs| {
-                let omega = fuse(model, Storage::Blocks, rule, mine, theirs)?;
+                let (omega, _) = fuse(model, Storage::Blocks, rule, mine, theirs)?;
                 if (a, b) == (agent, watched) {
                     watched_omega = omega;
                 }
