@@ -512,8 +512,9 @@ fn distance(c: &Candidate, groups: &[usize]) -> f64 {
 
 /// Runs the sweep on every core (rayon): the covariance-only recursion of CI and nmCI for
 /// every fitting network and reference, then the Monte Carlo runs of CI and nmCI for the
-/// short list and the references. `on_piece(done, total)` is called after each piece (one
-/// rule of one network, or one rule of one Monte Carlo run).
+/// short list and the references (all runs of one network and rule as one [`super::RunBatch`]).
+/// `on_piece(done, total)` is called after each piece (one rule of one network: its
+/// covariance-only series, then its Monte Carlo runs).
 #[cfg(not(target_arch = "wasm32"))]
 pub fn sweep(
     config: &SweepConfig,
@@ -525,7 +526,7 @@ pub fn sweep(
     let networks = candidate_networks(&config.study.scenario, config.family);
     let everything: Vec<&Vec<(usize, usize)>> = networks.iter().chain(&config.references).collect();
     let short = config.short_list.min(networks.len());
-    let total = 2 * everything.len() + 2 * config.study.runs * (short + config.references.len());
+    let total = 2 * everything.len() + 2 * (short + config.references.len());
     let done = AtomicUsize::new(0);
     let tick = || on_piece(done.fetch_add(1, Ordering::Relaxed) + 1, total);
     let series = everything
@@ -553,32 +554,28 @@ pub fn sweep(
         .take(short)
         .chain(references.iter_mut())
         .collect();
-    let pieces: Vec<(usize, u64, Rule)> = (0..full.len())
-        .flat_map(|c| {
-            (0..config.study.runs as u64).flat_map(move |r| [(c, r, Rule::Ci), (c, r, Rule::Nmci)])
-        })
+    let pieces: Vec<(usize, Rule)> = (0..full.len())
+        .flat_map(|c| [(c, Rule::Ci), (c, Rule::Nmci)])
         .collect();
     let configs: Vec<StudyConfig> = full.iter().map(|c| config.network(&c.links)).collect();
     let models = configs
         .iter()
         .map(|c| Model::new(&c.scenario))
         .collect::<Result<Vec<_>, _>>()?;
+    let runs = config.study.runs;
+    // traces[2 c + rule][run]
     let traces = pieces
         .par_iter()
-        .map(|&(c, r, rule)| {
-            let spec = configs[c].run_spec(r, Storage::Blocks);
-            let trace = super::simulate_run_for_rule(&models[c], &spec, rule);
+        .map(|&(c, rule)| {
+            let spec = configs[c].run_spec(0, Storage::Blocks);
+            let traces = super::simulate_runs_for_rule(&models[c], &spec, 0..runs as u64, rule);
             tick();
-            trace
+            traces
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let runs = config.study.runs;
     for (k, c) in full.into_iter().enumerate() {
         let rmse_of = |rule: usize| {
-            let traces: Vec<_> = (0..runs)
-                .map(|r| traces[(k * runs + r) * 2 + rule].clone())
-                .collect();
-            super::summarize(&traces, models[k].dim()).estimators[1]
+            super::summarize(&traces[k * 2 + rule], models[k].dim()).estimators[1]
                 .1
                 .rmse_mean
         };
