@@ -12,10 +12,11 @@
 //! `P_ab` unknown with probability 0.6: no independent blocks); the certified rule per level
 //! `certified/<level>/paper_one_zero`, `certified/<level>/random3`, `certified/1/random4`, and
 //! on sectors `certified/sectors<count>/paper_one_zero`.
-//! Issue 17: `explore/{paper,twoblock,twoblock_full}`, the explorer's computation natively (the
-//! page runs it in wasm): every rule, the bracket and 300 region samples, for the page's
-//! opening example (n = 2), its two-block preset (n = 4, two 2 × 2 blocks) and the same
-//! covariances with `P_ab` fully unknown (the presets' values, as `www/state.js` sets them).
+//! Issue 17: `explore/{paper,twoblock,twoblock_full,twoblock_one_zero}`, the explorer's
+//! computation natively (the page runs it in wasm): every rule, the bracket and 300 region
+//! samples, for the page's opening example (n = 2), its two-block preset (n = 4, two 2 × 2
+//! blocks), the same covariances with `P_ab` fully unknown, and with one known zero in each
+//! block's cross block (the presets' values, as `www/state.js` sets them).
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
@@ -305,6 +306,19 @@ fn explorer_benches(c: &mut Bench) {
                 .collect(),
         ),
         ("twoblock_full", twoblock, vec![vec![t; 4]; 4]),
+        // One known zero in each block's cross block (P_ab[1][0], P_ab[3][2]): the blocks
+        // stay two 2 × 2 blocks, partially known, so each needs the 24-sector proof.
+        (
+            "twoblock_one_zero",
+            twoblock,
+            (0..4)
+                .map(|i| {
+                    (0..4)
+                        .map(|j| i / 2 == j / 2 && !(i % 2 == 1 && j % 2 == 0))
+                        .collect()
+                })
+                .collect(),
+        ),
     ];
     for (name, covariances, unknown) in requests {
         let json = format!(

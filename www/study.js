@@ -107,8 +107,9 @@ function render() {
   // per estimator (5).
   const coinTotal = coinOn ? ESTIMATORS.length * view.steps : 0;
   const coinDone = c ? ESTIMATORS.length * c.coin_len : 0;
+  // The runs advance together (the covariances they share computed once per step).
   const runsDone = view.runs_done >= view.runs;
-  const runWork = runsDone ? view.runs * view.steps : view.runs_done * view.steps + view.step;
+  const runWork = view.runs * view.step;
   const total = view.runs * view.steps + coinTotal;
   $("#study-bar").style.width = `${(100 * (runWork + coinDone)) / total}%`;
   const runSeconds = view.run_ms.length ? ` · ${(view.run_ms.reduce((a, b) => a + b, 0) / view.run_ms.length / 1000).toFixed(2)} s per run` : "";
@@ -120,7 +121,7 @@ function render() {
       ? `done: ${view.runs} run${view.runs === 1 ? "" : "s"} × ${view.steps} steps${coinOn ? " and the exact COIN" : ""} in ${elapsed}${runSeconds}`
       : runsDone
         ? `runs done${runSeconds}${coinText} · ${elapsed}`
-        : `run ${Math.min(view.runs_done + 1, view.runs)} of ${view.runs}, step ${view.step} of ${view.steps}${coinText} · ${elapsed}${runSeconds}`;
+        : `${view.runs} run${view.runs === 1 ? "" : "s"}, step ${view.step} of ${view.steps}${coinText} · ${elapsed}`;
   const coinOf = Object.fromEntries((c ? c.estimators : []).map((e) => [e.name, e]));
   const body = $("#study-table tbody");
   body.replaceChildren();

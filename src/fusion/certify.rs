@@ -139,6 +139,12 @@
 //! certified trace is **never above nmCI's or CI's beyond rounding** (relative `10⁻¹⁴`,
 //! tested), whatever the solver's tolerance.
 //!
+//! **Wholly unknown blocks.** Where a block's cross block is wholly unknown (and the gain is
+//! free), CI is the robust optimum (Reinhardt et al., above), so the program's optimum at any
+//! level or number of sectors is CI's trace and no solve can do better than CI's proven bound
+//! beyond rounding: that bound is taken without a solve (`levels` 1, `sectors` 0,
+//! `ci_blocks` true, no iterations).
+//!
 //! When `P_a`, `P_b` and the pattern split the state into independent blocks, each block is
 //! certified on its own (the joint covariance is block diagonal, so a block-diagonal gain's
 //! `K J Kᵀ` is too). Blocks above [`CertifySettings::max_block_dim`] states, or whose cone
@@ -523,14 +529,16 @@ pub struct CertifiedResult {
     /// The independent blocks certified separately.
     pub blocks: Vec<Vec<usize>>,
     /// The level used on each block: the requested one, or a lower one where the solver
-    /// broke down numerically on it (1 on a block certified by sectors).
+    /// broke down numerically on it (1 on a block certified by sectors, and on a block whose
+    /// cross block is wholly unknown: CI's certificate, no solve).
     pub levels: Vec<u32>,
     /// The number of sectors or cones used on each block (0: one certificate for every direction).
     pub sectors: Vec<u32>,
     /// Per block: whether CI's proven bound (for the block's CI gain, or for the given gain
-    /// with its best `ω`) was tighter than the solver's certificate and was taken instead —
-    /// the solver can end looser than CI where CI is optimal (`AlmostSolved` at high levels),
-    /// or fail at every level (then the block's `status` is `AlmostSolved`).
+    /// with its best `ω`) was taken — without a solve where the block's cross block is wholly
+    /// unknown (CI is the robust optimum there), or because it was tighter than the solver's
+    /// certificate: the solver can end looser than CI where CI is optimal (`AlmostSolved` at
+    /// high levels), or fail at every level (then the block's `status` is `AlmostSolved`).
     pub ci_blocks: Vec<bool>,
 }
 
@@ -641,6 +649,18 @@ fn certify(
     let fused = per_block(problem, &blocks, |block, sub| {
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
+        // A block whose cross block is wholly unknown: CI is the robust optimum there (module
+        // docs), so no certificate of any family is tighter than CI's own beyond rounding; its
+        // proven bound is taken without a solve.
+        if sub_gain.is_none() && sub.cross_pattern.unknown_count() == block.len() * block.len() {
+            let ci = covariance_intersection(&sub, Criterion::Trace)?;
+            if let Some(bound) = young_bound(&sub.P_a, &sub.P_b, &ci.fused.K_a, ci.omega) {
+                ci_blocks.push(true);
+                levels.push(1);
+                sectors.push(0);
+                return Ok((ci.fused.K_a, bound.dominating()));
+            }
+        }
         // The requested family, or — where the solver breaks down numerically on it — the
         // next lower one that solves (`Family::lower`); CI's proven bound when none does.
         let mut family = settings.family_for(block.len());

@@ -4,18 +4,18 @@
 use serde::Serialize;
 
 use super::{
-    estimators, summarize, ErrorPropagation, Model, RunState, RunTrace, SimError, Storage,
-    StudyConfig, StudyReport, StudySummary,
+    estimators, summarize, ErrorPropagation, Model, RunBatch, SimError, Storage, StudyConfig,
+    StudyReport, StudySummary, RULES,
 };
 
-/// The runs of a study, run one after the other and advanced in chunks of steps. The numbers
-/// are those of [`super::simulate_run`] for each run (same seeds and streams), so a finished
-/// live study equals the CLI's.
+/// The runs of a study, advanced together a step at a time ([`RunBatch`]: the covariance work
+/// of a step once, every run's means beside it), in chunks of steps. The numbers are those of
+/// [`super::simulate_run`] for each run (same seeds and streams), so a finished live study
+/// equals the CLI's.
 pub struct LiveStudy {
     config: StudyConfig,
     model: Model,
-    done: Vec<RunTrace>,
-    current: Option<RunState>,
+    runs: RunBatch,
     /// With `config.coin`: the exact COIN, advanced after the runs (the paper's numbers come
     /// first; a page runs [`LiveCoin`] beside the runs instead).
     coin: Option<LiveCoin>,
@@ -139,11 +139,11 @@ impl LiveCoin {
 /// progress counts for the steps it reached) and the run-averaged series.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StudyView {
-    /// Finished runs.
+    /// Finished runs (the runs advance together: `0`, then all of them).
     pub runs_done: usize,
     /// Runs in the study.
     pub runs: usize,
-    /// Steps done in the run in progress (`steps` once finished).
+    /// Steps done by every run (`steps` once finished).
     pub step: usize,
     /// Steps per run.
     pub steps: usize,
@@ -189,64 +189,52 @@ impl LiveStudy {
             .coin
             .then(|| LiveCoin::new(config.clone()))
             .transpose()?;
+        let runs = RunBatch::new(
+            &model,
+            &config.run_spec(0, Storage::Blocks),
+            0..config.runs as u64,
+            &RULES,
+        );
         Ok(Self {
             config,
             model,
-            done: Vec::new(),
-            current: None,
+            runs,
             coin,
         })
     }
 
     /// Whether every run is done, and then the COIN series.
     pub fn finished(&self) -> bool {
-        self.done.len() >= self.config.runs && self.coin_finished()
+        self.runs.finished() && self.coin_finished()
     }
 
     fn coin_finished(&self) -> bool {
         self.coin.as_ref().is_none_or(LiveCoin::finished)
     }
 
-    /// Advances by up to `steps` units of work: a time step of the run in progress (across run
-    /// boundaries) or, once every run is done, a time step of one estimator's exact COIN (the
-    /// one furthest behind); returns whether the study is finished.
+    /// Advances by up to `steps` units of work: a time step of every run or, once the runs are
+    /// done, a time step of one estimator's exact COIN (the one furthest behind); returns
+    /// whether the study is finished.
     pub fn advance(&mut self, steps: usize) -> Result<bool, SimError> {
         for _ in 0..steps {
             if self.finished() {
                 break;
             }
-            if self.done.len() >= self.config.runs {
+            if self.runs.finished() {
                 if let Some(coin) = &mut self.coin {
                     coin.advance(1)?;
                 }
                 continue;
             }
-            let run = match &mut self.current {
-                Some(run) => run,
-                None => {
-                    let spec = self
-                        .config
-                        .run_spec(self.done.len() as u64, Storage::Blocks);
-                    self.current.insert(RunState::new(&self.model, &spec))
-                }
-            };
-            run.step(&self.model)?;
-            if run.finished() {
-                if let Some(run) = self.current.take() {
-                    self.done.push(run.into_trace());
-                }
-            }
+            self.runs.step(&self.model)?;
         }
         Ok(self.finished())
     }
 
-    /// The summary of the runs so far (the run in progress included) and how many runs it
-    /// averages, with every estimator's COIN up to the step all of them reached.
+    /// The summary of the runs so far (every run, up to the step they reached) and how many
+    /// runs it averages, with every estimator's COIN up to the step all of them reached.
     fn summary(&self) -> (StudySummary, usize) {
-        let mut traces = self.done.clone();
-        if let Some(run) = &self.current {
-            traces.push(run.trace().clone());
-        }
+        let traces = self.runs.traces();
         let mut summary = summarize(&traces, self.model.dim());
         if let Some(coin) = &self.coin {
             summary.attach_coin(coin.series());
@@ -273,13 +261,13 @@ impl LiveStudy {
         omega.extend(flat(&summary.omega_nmci_series));
         omega.extend(&summary.omega_ici_series);
         StudyView {
-            runs_done: self.done.len(),
-            runs: self.config.runs,
-            step: match &self.current {
-                Some(run) => run.steps_done(),
-                None if self.finished() => self.config.steps,
-                None => 0,
+            runs_done: if self.runs.finished() {
+                self.config.runs
+            } else {
+                0
             },
+            runs: self.config.runs,
+            step: self.runs.steps_done(),
             steps: self.config.steps,
             dt: self.config.scenario.dt,
             finished: self.finished(),

@@ -675,6 +675,11 @@ impl RunBatch {
         self.done >= self.spec.steps
     }
 
+    /// The per-step results of every run so far, in the order given.
+    pub fn traces(&self) -> Vec<RunTrace> {
+        self.runs.iter().map(|r| r.trace.clone()).collect()
+    }
+
     /// The per-step results of every run, in the order given.
     pub fn into_traces(self) -> Vec<RunTrace> {
         self.runs.into_iter().map(|r| r.trace).collect()

@@ -408,17 +408,27 @@ test("an ellipse drawn is the 1σ ellipse of its covariance, every one in the sa
   assert.equal(new Set(results.map((r) => r.direction)).size, 1, `directions ${results.map((r) => r.direction)}`);
 });
 
-test("interaction cost at n = 4: each of 10 edits of the two-block preset (every rule; the certified rule closes two 2-D blocks) is recomputed once, to the CLI's numbers", async () => {
+test("interaction cost at n = 4: 10 edits of the two-block preset (each cross block wholly unknown: CI's bound, proven without a solve), then 10 with one known zero in each (two 24-sector proofs), each recomputed once, to the CLI's numbers", async () => {
   await page.selectOption("#preset", "twoblock");
   await settle();
   assert.equal(await page.locator("#dim").inputValue(), "4");
-  await measureEdits(10, async (k) => {
+  const edits = async (k) => {
     // P_a[1,1] = 3 in the preset: 3.1 … 3.5 in turn, never the value already shown.
     await cell("pa", 1, 1).fill(`3.${1 + (k % 5)}`);
     await settle();
     await assertRulesMatchCli(page, `edit ${k}`);
     assert.match((await text("#row-certified .trace")).trim(), /^\d+\.\d{3}$/, `edit ${k}: the certified rule is shown`);
-  }, "interaction-n4.json", "interaction cost at n = 4", "n = 4, two 2 × 2 blocks: edit → all rules (the certified rule on both blocks) + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone");
+  };
+  await measureEdits(10, edits, "interaction-n4.json", "interaction cost at n = 4", "n = 4, two 2 × 2 blocks, each cross block wholly unknown: edit → all rules (the certified rule: CI's proven bound on both blocks, no solve) + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone");
+  // The same covariances with P_ab[2,1] and P_ab[4,3] known zero: still two blocks, each
+  // partially known, so the certified rule solves a 24-sector program on each.
+  for (const label of ["P_ab[2,1]", "P_ab[4,3]"]) {
+    await page.locator(`#grid-pattern button[aria-label="${label}"]`).click();
+    await settle();
+  }
+  assert.match(await text("#blocks"), /nmCI blocks \(2\)/);
+  assert.match(await text("#certified-status"), /level 1 on 24 sectors, status \w+, [1-9]\d* iterations/);
+  await measureEdits(10, edits, "interaction-n4-one-zero.json", "interaction cost at n = 4, one known zero per block", "n = 4, two 2 × 2 blocks, one known zero in each cross block: edit → all rules (the certified rule: a 24-sector proof on each block) + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone");
 });
 
 test("a panic in the worker is reported, the worker replaced, and the next edit computed", async () => {
@@ -519,14 +529,15 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
     new MutationObserver(() => window.studyProgress.push(document.querySelector("#study-progress").textContent)).observe(document.querySelector("#study-progress"), { childList: true, characterData: true, subtree: true });
   });
   await page.click("#study-start");
-  // Live: a view arrives before the end (progress text shows a step of the first run).
-  await page.waitForFunction(() => /run 1 of 2, step \d+/.test(document.querySelector("#study-progress").textContent), null, { timeout: 60_000 });
+  // Live: a view arrives before the end (progress text shows a step of the two runs, which
+  // advance together).
+  await page.waitForFunction(() => /^2 runs, step \d+ of 80/.test(document.querySelector("#study-progress").textContent), null, { timeout: 60_000 });
   await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 120_000 });
   assert.match(await text("#study-progress"), /^done: 2 runs × 80 steps/);
   // The exact COIN runs in its own worker beside the runs, not after them: it had steps done
   // while a run was still in progress.
   const progress = await page.evaluate(() => window.studyProgress);
-  assert.ok(progress.some((p) => /^run \d of 2, step \d+ of 80; exact COIN: step [1-9]\d* of 80/.test(p)), progress.join("\n"));
+  assert.ok(progress.some((p) => /^2 runs, step \d+ of 80; exact COIN: step [1-9]\d* of 80/.test(p)), progress.join("\n"));
   const rows = await page.evaluate(() => Object.fromEntries([...document.querySelectorAll("#study-table tbody tr")].map((tr) => [tr.dataset.estimator, [...tr.children].map((td) => td.textContent)])));
   assert.deepEqual(Object.keys(rows), ["central", "ci", "nmci", "naive", "ici"]);
   assert.match(rows.naive[0], /not guaranteed conservative/);
@@ -604,7 +615,7 @@ test("the study tab rejects bad settings inline and can be stopped", async () =>
   await page.fill("#study-steps", "400");
   await page.click("#study-start");
   assert.equal(await text("#err-study"), "");
-  await page.waitForFunction(() => /run 1 of 3, step \d+/.test(document.querySelector("#study-progress").textContent), null, { timeout: 60_000 });
+  await page.waitForFunction(() => /^3 runs, step \d+ of 400/.test(document.querySelector("#study-progress").textContent), null, { timeout: 60_000 });
   await page.click("#study-stop");
   await page.waitForFunction(() => document.body.dataset.study === "stopped", null, { timeout: 60_000 });
   assert.equal(await page.locator("#study-start").isEnabled(), true);

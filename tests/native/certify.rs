@@ -54,6 +54,27 @@ fn fully_unknown_gives_ci_and_separable_gives_nmci() {
             c >= t * (1.0 - 1e-12) && c <= t * (1.0 + 1e-14),
             "n={n}: certified {c} vs CI {t}"
         );
+        // ... and is CI's own bound, proven without a solve (module docs: wholly unknown
+        // blocks), rounded up: it dominates CI's computed bound and every fresh sample.
+        assert_eq!(cert.iterations, 0, "n={n}: a solve ran");
+        assert_eq!(cert.ci_blocks, vec![true]);
+        assert_eq!(
+            (cert.levels.clone(), cert.sectors.clone()),
+            (vec![1], vec![0])
+        );
+        let excess = (&cert.fused.P - &ci.fused.P).symmetric_eigenvalues().min();
+        assert!(excess >= -1e-14 * t, "n={n}: below CI's bound by {excess}");
+        let margin = fresh_margin(&p, &cert.fused);
+        assert!(margin >= -1e-12 * c, "n={n}: margin {margin}");
+        // A block with one known zero is not wholly unknown: it is solved for.
+        let one_zero = CrossPattern::from_fn(n, |i, j| (i, j) != (1, 0));
+        let q = FusionProblem::from_covariances(p.P_a.clone(), p.P_b.clone(), one_zero).unwrap();
+        let solved = certified_fusion(&q, &CertifySettings::default()).unwrap();
+        assert_eq!(solved.blocks.len(), 1);
+        assert!(
+            solved.iterations > 0,
+            "n={n}: no solve on a partially known block"
+        );
     }
     // Two independent 2-state blocks with a fully unknown cross term inside each.
     let groups = vec![vec![0, 2], vec![1, 3]];
