@@ -325,8 +325,11 @@ def test_bad_input_raises_the_right_exception_with_its_message(call, error, need
 def test_a_time_limit_raises_time_limit_error():
     rng = np.random.default_rng(7)
     a, b = spd(rng, 4), spd(rng, 4)
+    # One known zero: a wholly unknown P_ab would take CI's bound without a solve.
+    unknown = np.ones((4, 4), dtype=bool)
+    unknown[1, 0] = False
     with pytest.raises(nmci.TimeLimitError) as raised:
-        nmci.certified(a, b, level=2, time_limit=1e-6)
+        nmci.certified(a, b, pab_unknown=unknown, level=2, time_limit=1e-6)
     assert isinstance(raised.value, nmci.SolveError) and isinstance(raised.value, RuntimeError)
     assert "time limit" in str(raised.value)
 

@@ -301,7 +301,6 @@ pub(crate) fn covariance_twins(a: &[DMatrix<f64>], b: &[DMatrix<f64>]) -> Vec<Op
 /// covariances do not depend on the measurements) share one plan per fusion, and each run's
 /// means are bit for bit what a fusion of that run alone gives (the same operations on the
 /// same numbers).
-#[allow(non_snake_case)]
 #[derive(Default)]
 pub(crate) struct MeanPlan {
     /// The CI/ICI pencils the blocks refer to.
