@@ -129,7 +129,8 @@ impl Study {
         })
     }
 
-    /// Advances by up to `steps` time steps; returns whether the study is finished.
+    /// Advances by up to `steps` time steps (of every run together, then of the exact COIN);
+    /// returns whether the study is finished.
     pub fn advance(&mut self, steps: usize) -> Result<bool, JsError> {
         Ok(self.inner.advance(steps)?)
     }

@@ -253,8 +253,8 @@ impl FusionProblem {
 }
 
 /// An estimate `(x, P)`: a mean and its error covariance — the one estimate type of the crate:
-/// an input of N-way fusion ([`Estimate::new`] validates it), and a block of the tracking
-/// study's block-stored filter states.
+/// an input of N-way fusion ([`Estimate::new`] validates it). (The tracking study keeps its
+/// covariances, shared by its runs, apart from each run's means: `MeanPlan`.)
 #[allow(non_snake_case)]
 #[derive(Debug, Clone, PartialEq)]
 pub struct Estimate {

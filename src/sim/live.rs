@@ -135,8 +135,8 @@ impl LiveCoin {
     }
 }
 
-/// A snapshot of a [`LiveStudy`]: progress, the headline numbers over the runs so far (a run in
-/// progress counts for the steps it reached) and the run-averaged series.
+/// A snapshot of a [`LiveStudy`]: progress, the headline numbers over the runs (which advance
+/// together: every run counts for the steps reached) and the run-averaged series.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StudyView {
     /// Finished runs (the runs advance together: `0`, then all of them).

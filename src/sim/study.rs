@@ -525,11 +525,11 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
 ///
 /// Every covariance of the study is the same in every run — Kalman covariances do not depend
 /// on the measurements, and the fusion rules choose their weights from covariances only (the
-/// argument of the exact COIN, [`super::coin`]) — so the batch keeps *one* covariance per
-/// filter and block, and each run only its truth, its measurements and its means. Per step, the
-/// covariance side predicts, updates and fuses once, returning each update's gain and each
-/// fusion's [`MeanPlan`]; every run then applies them to its own means. A run's numbers are
-/// therefore bit for bit those of the run alone (the same operations on the same numbers, in
+/// argument of the exact COIN, [`super::ErrorPropagation`]) — so the batch keeps *one*
+/// covariance per filter and block, and each run only its truth, its measurements and its
+/// means. Per step, the covariance side predicts, updates and fuses once, returning each
+/// update's gain and each fusion's `fusion::MeanPlan`; every run then applies them to its own
+/// means. A run's numbers are therefore bit for bit those of the run alone (the same operations on the same numbers, in
 /// the same order; tested), and the `O(n³)` work of a step (factorizations,
 /// eigendecompositions, fused covariances) is done once per batch instead of once per run.
 #[allow(non_snake_case)]
