@@ -193,7 +193,7 @@ mod cli {
         config.validate().map_err(|e| e.to_string())?;
         let bar = ProgressBar::new(0).with_style(
             ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} pieces (networks × rules, then the short list's Monte Carlo runs × rules), {elapsed} (eta {eta})",
+                "{bar:40} {pos}/{len} pieces (networks × rules, then the short list's Monte Carlo runs, networks × rules), {elapsed} (eta {eta})",
             )
             .map_err(|e| e.to_string())?,
         );
