@@ -3,8 +3,9 @@
 //! [`Scenario`] holds the parameters (every value the paper omits is stated there),
 //! [`Model`] the linear-Gaussian model and the independent blocks derived from it, and
 //! [`simulate_run`] one Monte Carlo run of the centralized filter and of the decentralized
-//! agents fusing with CI, nmCI, naive fusion and ICI. [`summarize`] averages runs into the
-//! study's headline numbers; [`ErrorPropagation`] propagates every estimator's *true* error
+//! agents fusing with CI, nmCI, naive fusion and ICI; [`RunBatch`] advances many runs together,
+//! their covariances (which do not depend on the data) computed once. [`summarize`] averages
+//! runs into the study's headline numbers; [`ErrorPropagation`] propagates every estimator's *true* error
 //! covariance exactly (no Monte Carlo: all covariances and gains are deterministic), giving
 //! each estimator's conservativeness index (COIN) per step next to its NEES;
 //! [`LiveStudy`] advances a study a few steps at a time (the page's live Study tab) and
