@@ -283,6 +283,13 @@ fn certified_benches(c: &mut Bench) {
         CrossPattern::from_matrix(unknown).unwrap(),
     )
     .unwrap();
+    // The row's premise: one 4-D block, partially known (else the rule would split it, or
+    // take CI's bound without a solve).
+    assert_eq!(
+        independent_blocks(&random4.P_a, &random4.P_b, &random4.cross_pattern).len(),
+        1
+    );
+    assert!(random4.cross_pattern.unknown_count() < 16);
     c.bench_function("certified/1/random4", |b| {
         b.iter(|| certified_fusion(black_box(&random4), &level(1)).unwrap())
     });

@@ -373,10 +373,13 @@ pub fn simulate_rules_parallel(
             traces
         })
         .collect::<Result<Vec<_>, _>>()?;
-    // Per rule, its slices' traces in run order.
-    let mut by_rule: Vec<std::vec::IntoIter<RunTrace>> = traces
-        .chunks(slices)
-        .map(|slices| slices.concat().into_iter())
+    // Per rule, its slices' traces in run order (moved, not copied).
+    let mut pieces = traces.into_iter();
+    let mut by_rule: Vec<std::vec::IntoIter<RunTrace>> = (0..rules.len())
+        .map(|_| {
+            let rule: Vec<RunTrace> = pieces.by_ref().take(slices).flatten().collect();
+            rule.into_iter()
+        })
         .collect();
     Ok((0..config.runs)
         .map(|_| merge_rule_traces(by_rule.iter_mut().filter_map(Iterator::next).collect()))

@@ -267,3 +267,26 @@ fn the_certified_rule_in_the_explorer() {
         .contains("at most 4 states"));
     assert_ne!(a.gap.unwrap().upper_rule, Method::Certified);
 }
+
+#[test]
+fn the_two_block_preset_is_certified_by_ci_without_a_solve() {
+    // The page's two-block preset (www/state.js): each 2 × 2 cross block wholly unknown, so
+    // each block takes CI's proven bound (one certificate for every direction, no sectors, no
+    // iterations) and the certified trace is nmCI's up to rounding.
+    let a = explore(&request(
+        r#"{"pa": [[3, 0.5, 0, 0], [0.5, 1, 0, 0], [0, 0, 1, 0.2], [0, 0, 0.2, 2]],
+            "pb": [[1, -0.3, 0, 0], [-0.3, 2, 0, 0], [0, 0, 4, 1], [0, 0, 1, 2]],
+            "pab_unknown": [[true, true, false, false], [true, true, false, false],
+                            [false, false, true, true], [false, false, true, true]]}"#,
+    ))
+    .unwrap();
+    let certs = a.gap.clone().unwrap().certificates.unwrap();
+    assert_eq!((certs.levels, certs.sectors), (vec![1, 1], vec![0, 0]));
+    let cert = a.response(Method::Certified).unwrap();
+    match &cert.details {
+        Details::Certified(d) => assert_eq!(d.iterations, 0),
+        other => panic!("not the certified rule's details: {other:?}"),
+    }
+    let nm = a.response(Method::Nmci).unwrap().trace;
+    assert!(cert.trace >= nm * (1.0 - 1e-12) && cert.trace <= nm * (1.0 + 1e-14));
+}
