@@ -7,7 +7,7 @@ use wasm_bindgen::prelude::*;
 
 use crate::api::FuseRequest;
 use crate::error::RequestError;
-use crate::sim::{LiveCoin, LiveStudy, StudyConfig};
+use crate::sim::{LiveCoin, LiveRules, LiveStudy, StudyConfig, TraceTail};
 use crate::{ExploreRequest, Fig2Config, Fig2Record};
 
 mod canvas;
@@ -129,6 +129,29 @@ impl Study {
         })
     }
 
+    /// As the constructor, running the rules of `WORKER_RULES[0]` only
+    /// ([`crate::sim::LiveStudy::with_second_worker`]): those of `WORKER_RULES[1]` come from a
+    /// [`StudyRules`] in a second worker, through [`Study::absorb`].
+    pub fn with_second_worker(config: JsValue) -> Result<Study, JsError> {
+        let config: StudyConfig = parse(config)?;
+        Ok(Study {
+            inner: LiveStudy::with_second_worker(config)?,
+        })
+    }
+
+    /// Takes a tail of the second worker's steps ([`StudyRules::tail`], as it gave it); throws
+    /// when it does not continue where the previous one ended or passes this worker's steps.
+    pub fn absorb(&mut self, tail: JsValue) -> Result<(), JsError> {
+        let tail: TraceTail = parse_own(tail)?;
+        Ok(self.inner.absorb(tail)?)
+    }
+
+    /// Whether it waits for the second worker's steps up to where its own runs are (then
+    /// `advance` does nothing).
+    pub fn waiting(&self) -> bool {
+        self.inner.waiting()
+    }
+
     /// Advances by up to `steps` time steps (of every run together, then of the exact COIN);
     /// returns whether the study is finished.
     pub fn advance(&mut self, steps: usize) -> Result<bool, JsError> {
@@ -164,6 +187,37 @@ impl Study {
                 .map_err(|_| JsError::new("cannot attach a series to the view"))?;
         }
         Ok(object)
+    }
+}
+
+/// The runs of a study for the rules of `WORKER_RULES[1]`, advanced a few steps at a time:
+/// what the page runs in a second Web Worker beside the [`Study`] that runs the other rules
+/// ([`crate::sim::LiveRules`]).
+#[wasm_bindgen]
+pub struct StudyRules {
+    inner: LiveRules,
+}
+
+#[wasm_bindgen]
+impl StudyRules {
+    /// From a study configuration object (the keys of `configs/paper.toml`; `coin` is not
+    /// consulted); throws on an invalid configuration.
+    #[wasm_bindgen(constructor)]
+    pub fn new(config: JsValue) -> Result<StudyRules, JsError> {
+        let config: StudyConfig = parse(config)?;
+        Ok(StudyRules {
+            inner: LiveRules::new(config)?,
+        })
+    }
+
+    /// Advances every run by up to `steps` time steps; returns whether they are done.
+    pub fn advance(&mut self, steps: usize) -> Result<bool, JsError> {
+        Ok(self.inner.advance(steps)?)
+    }
+
+    /// The steps since the previous tail ([`crate::sim::TraceTail`]), for [`Study::absorb`].
+    pub fn tail(&mut self) -> Result<JsValue, JsError> {
+        to_js(&self.inner.tail())
     }
 }
 

@@ -229,6 +229,45 @@ fn tiny_study_matches_the_native_golden_numbers() {
     golden::within_1e9(&series(&view, "coin"), &stored.coin).unwrap();
 }
 
+/// The page's two run workers through the bindings: the second worker's tails cross as JS
+/// objects, and the first's view is that of one worker running every rule, bit for bit.
+#[wasm_bindgen_test]
+fn a_study_shared_by_two_workers_is_the_one_worker_study_bit_for_bit() {
+    let stored: golden::GoldenStudy = serde_json::from_str(golden::TINY_STUDY).unwrap();
+    let config = || JSON::parse(&serde_json::to_string(&stored.config).unwrap()).unwrap();
+    let mut whole = nmci::wasm::Study::new(config()).unwrap();
+    let mut first = nmci::wasm::Study::with_second_worker(config()).unwrap();
+    let mut second = nmci::wasm::StudyRules::new(config()).unwrap();
+    loop {
+        let done = whole.advance(5).unwrap();
+        first.advance(5).unwrap();
+        while first.waiting() {
+            second.advance(5).unwrap();
+            first.absorb(second.tail().unwrap()).unwrap();
+        }
+        let (a, b) = (first.view().unwrap(), whole.view().unwrap());
+        for name in ["nees", "rmse", "two_sigma", "omega", "coin"] {
+            assert_eq!(series(&a, name), series(&b, name), "{name}");
+        }
+        let report = |v: &JsValue| -> nmci::sim::StudyReport {
+            serde_wasm_bindgen::from_value(Reflect::get(v, &"report".into()).unwrap()).unwrap()
+        };
+        assert_eq!(report(&a), report(&b));
+        if done {
+            break;
+        }
+    }
+    // A tail that does not continue where the previous ended throws its message.
+    let mut again = nmci::wasm::StudyRules::new(config()).unwrap();
+    again.advance(5).unwrap();
+    let e = JsValue::from(first.absorb(again.tail().unwrap()).unwrap_err());
+    let message = Reflect::get(&e, &"message".into()).unwrap().as_string();
+    assert_eq!(
+        message.as_deref(),
+        Some("two-worker study: the second worker's steps start at step 0 but step 12 is next")
+    );
+}
+
 #[wasm_bindgen_test]
 fn invalid_study_configuration_throws_its_message() {
     let config = JSON::parse(r#"{"runs": 0}"#).unwrap();

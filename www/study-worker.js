@@ -1,20 +1,38 @@
 // The tracking study off the main thread: the wasm `Study` advanced a chunk of steps at a
 // time; after each chunk the current view (headline numbers) and the charts (`Study.charts`,
-// drawn on the page by the wasm `draw_chart`) go back to the page. A "stop" message is seen between chunks.
+// drawn on the page by the wasm `draw_chart`) go back to the page. The rules are shared with
+// a second run worker (www/study-rules-worker.js: `Study.with_second_worker` runs
+// `WORKER_RULES[0]` here, src/sim/live.rs), which sends its steps straight here as "tails"
+// (through the `MessageChannel` port of the start message): after each chunk this worker
+// waits for the second's steps up to the same step, so every view is that of one worker
+// running every rule, bit for bit. A "stop" message is seen between chunks and while
+// waiting.
 import { Study, panic_for_test } from "./pkg/nmci.js";
+import { chunk } from "./study-chunk.js";
 import { onRun, ready, reportFailure as fail } from "./worker-init.js";
 
-// Steps per message: about 0.1–0.2 s of work. Every run advances by each step (their shared
-// covariances once, then each run's means), so many runs take fewer steps per message.
-const chunk = (runs) => Math.max(1, Math.round(200 / Math.max(10, runs)));
+// The wake-up of a run waiting for the second worker's next tail (or a "stop").
+let wake = null;
+const nudge = () => {
+  wake?.();
+  wake = null;
+};
 
-onRun(async ({ type, config, message }, stopped) => {
+onRun(async ({ type, config, message, port }, stopped) => {
+  // This run's tails from the second worker (a fresh channel per run).
+  const tails = [];
+  if (port) {
+    port.onmessage = (event) => {
+      tails.push(event.data);
+      nudge();
+    };
+  }
   let study;
   const steps = chunk(config?.runs ?? 1);
   try {
     await ready;
     if (type === "panic") panic_for_test(message); // the end-to-end test's forced panic
-    study = new Study(config);
+    study = Study.with_second_worker(config);
   } catch (err) {
     fail(err);
     return;
@@ -26,8 +44,14 @@ onRun(async ({ type, config, message }, stopped) => {
     let finished = false;
     let runsDone = 0;
     while (!finished && !stopped()) {
-      finished = study.advance(steps);
+      study.advance(steps);
+      while (study.waiting() && !stopped()) {
+        if (tails.length) study.absorb(tails.shift());
+        else await new Promise((resolve) => { wake = resolve; });
+      }
+      if (stopped()) break;
       const view = study.view();
+      finished = view.finished;
       // The runs finish together: the time per run is their time over their number.
       if (view.runs_done > runsDone) {
         const now = performance.now();
@@ -45,5 +69,6 @@ onRun(async ({ type, config, message }, stopped) => {
   } catch (err) {
     if (fail(err)) return; // the instance is unusable: no `free`
   }
+  port?.close();
   study.free();
-}, ["panic"]);
+}, ["panic"], nudge);

@@ -1,5 +1,6 @@
-// The "Tracking study" tab: runs the paper's 16-agent study in a Web Worker (wasm `Study`)
-// and its exact COIN in a second one (wasm `StudyCoin`), side by side, and redraws the
+// The "Tracking study" tab: runs the paper's 16-agent study in two Web Workers (wasm `Study`
+// and `StudyRules`, each running half of the rules) and its exact COIN in a third (wasm
+// `StudyCoin`), side by side, and redraws the
 // headline table and the four charts (drawn by the wasm module, as `nmci track` draws its SVG
 // files) as their chunks come in. The network is
 // picked (paper fit, the figure's reading, custom links) and drawn by the wasm module.
@@ -103,7 +104,7 @@ function render() {
   if (!runs) return;
   const view = runs.view;
   const c = coin?.view;
-  // Work: every run's steps and, side by side in the second worker, the exact COIN: one step
+  // Work: every run's steps and, side by side in its own worker, the exact COIN: one step
   // per estimator (5).
   const coinTotal = coinOn ? ESTIMATORS.length * view.steps : 0;
   const coinDone = c ? ESTIMATORS.length * c.coin_len : 0;
@@ -124,6 +125,8 @@ function render() {
         : `${view.runs} run${view.runs === 1 ? "" : "s"}, step ${view.step} of ${view.steps}${coinText} · ${elapsed}`;
   const coinOf = Object.fromEntries((c ? c.estimators : []).map((e) => [e.name, e]));
   const body = $("#study-table tbody");
+  // The numbers behind the table, unrounded (JSON), for whoever reads the page's markup.
+  $("#study-table").dataset.report = JSON.stringify(view.report);
   body.replaceChildren();
   for (const { name, label } of ESTIMATORS) {
     const e = view.report[name];
@@ -161,14 +164,17 @@ function drawCharts(charts) {
 const tab = workerTab({
   name: "study",
   label: "study",
-  // The runs, and beside them (on the second core) the exact COIN, which does not depend on
-  // them.
-  urls: [new URL("./study-worker.js", import.meta.url), new URL("./study-coin-worker.js", import.meta.url)],
+  // The runs, their rules shared between two workers (the second sends its steps straight
+  // to the first, which shows them all), and beside them the exact COIN, which does not
+  // depend on them.
+  urls: [new URL("./study-worker.js", import.meta.url), new URL("./study-coin-worker.js", import.meta.url), new URL("./study-rules-worker.js", import.meta.url)],
+  channel: [0, 2],
   readConfig,
   split: (config) => {
     runs = coin = null;
     coinOn = config.coin;
-    return [{ ...config, coin: false }, coinOn ? config : null];
+    const runsOnly = { ...config, coin: false };
+    return [runsOnly, coinOn ? config : null, runsOnly];
   },
   onProgress: (msg) => {
     if (msg.type === "coin") {

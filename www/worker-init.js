@@ -27,13 +27,15 @@ export function reportFailure(err) {
 
 /** The worker side of a tab's run (www/worker-tab.js): on a "start" message (or one of the
  * `also` types) calls `run(message, stopped)`, where `stopped()` says whether a "stop"
- * message has come since; the work checks it between chunks. */
-export function onRun(run, also = []) {
+ * message has come since; the work checks it between chunks. `onStop()` is called on "stop"
+ * (a run waiting on another worker wakes up, www/study-worker.js). */
+export function onRun(run, also = [], onStop = () => {}) {
   let stop = false;
   self.onmessage = async (event) => {
     const message = event.data;
     if (message.type === "stop") {
       stop = true;
+      onStop();
       return;
     }
     if (message.type !== "start" && !also.includes(message.type)) return;

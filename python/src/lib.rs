@@ -66,7 +66,9 @@ fn request_error(py: Python<'_>, e: RequestError) -> PyErr {
 
 fn sim_error(py: Python<'_>, e: SimError) -> PyErr {
     let kind = match e {
-        SimError::InvalidScenario(_) | SimError::InvalidConfig(_) => "StudyError",
+        SimError::InvalidScenario(_) | SimError::InvalidConfig(_) | SimError::Workers(_) => {
+            "StudyError"
+        }
         SimError::Fusion(_) | SimError::Diverged(_) => "SimulationError",
     };
     error(py, kind, e.to_string())

@@ -1,24 +1,126 @@
-//! A study advanced a few steps at a time, for live plots (the page's Study tab runs it in a
-//! Web Worker through the wasm bindings).
+//! A study advanced a few steps at a time, for live plots (the page's Study tab runs it in
+//! Web Workers through the wasm bindings).
+//!
+//! The rules never interact: each rule's agents fuse only with agents of the same rule, and the
+//! truth, the measurements and the centralized filter do not depend on the rules. So a study's
+//! rules can run on two cores and be put back together, bit for bit: the page runs
+//! [`WORKER_RULES`]`[0]` in a [`LiveStudy::with_second_worker`] and [`WORKER_RULES`]`[1]` in a
+//! [`LiveRules`] in a second Web Worker, which sends its steps as [`TraceTail`]s; the first
+//! absorbs them ([`LiveStudy::absorb`]) and its views and charts are those of one
+//! [`LiveStudy::new`] running every rule (tested). The two advance in lock step: the first
+//! starts a chunk of steps only once it has the second's steps up to where it is (the group
+//! sums behind the per-group means are sums over the steps so far, so both halves must be
+//! summed over the same steps).
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
+use super::study::assemble_traces;
 use super::{
-    estimators, summarize, ErrorPropagation, Model, RunBatch, SimError, Storage, StudyConfig,
-    StudyReport, StudySummary, RULES,
+    estimators, summarize, ErrorPropagation, Model, Rule, RunBatch, RunTrace, SimError, Storage,
+    StudyConfig, StudyReport, StudySummary, RULES,
 };
+
+/// How a page shares a study's rules between two run workers: [`LiveStudy::with_second_worker`]
+/// runs the first set, [`LiveRules`] the second. Chosen so that the halves cost about the same
+/// (CI and ICI are the expensive rules: docs/development.md measures each).
+pub const WORKER_RULES: [&[Rule]; 2] = [&[Rule::Ci, Rule::Naive], &[Rule::Nmci, Rule::Ici]];
 
 /// The runs of a study, advanced together a step at a time ([`RunBatch`]: the covariance work
 /// of a step once, every run's means beside it), in chunks of steps. The numbers are those of
 /// [`super::simulate_run`] for each run (same seeds and streams), so a finished live study
-/// equals the CLI's.
+/// equals the CLI's — also when its rules are shared with a second worker
+/// ([`LiveStudy::with_second_worker`]).
 pub struct LiveStudy {
     config: StudyConfig,
     model: Model,
     runs: RunBatch,
+    /// With a second worker: the steps of its rules received so far.
+    second: Option<Second>,
     /// With `config.coin`: the exact COIN, advanced after the runs (the paper's numbers come
     /// first; a page runs [`LiveCoin`] beside the runs instead).
     coin: Option<LiveCoin>,
+}
+
+/// What a [`LiveStudy`] holds of the rules a second worker runs.
+struct Second {
+    /// Per run: `central`, then [`WORKER_RULES`]`[1]`, for the steps received so far.
+    traces: Vec<RunTrace>,
+    /// Per run: the group sums of this worker's own rules at the step received so far (taken
+    /// when its runs were last there: they advance only from there).
+    own_sums: Vec<Vec<Vec<[f64; 2]>>>,
+}
+
+/// The runs of a study for some of its rules ([`WORKER_RULES`]`[1]`), advanced a step at a
+/// time: what a page's second run worker computes. Its steps leave as [`TraceTail`]s for the
+/// [`LiveStudy`] that runs the other rules.
+pub struct LiveRules {
+    model: Model,
+    runs: RunBatch,
+    /// Steps already sent.
+    sent: usize,
+}
+
+/// The steps of a [`LiveRules`] since its previous tail, for [`LiveStudy::absorb`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TraceTail {
+    /// The first step in the tail (0-based).
+    pub from: usize,
+    /// Per run: the steps `from..` of `central` and of the rules' series and ω, and the group
+    /// sums up to the tail's last step.
+    pub traces: Vec<RunTrace>,
+}
+
+impl TraceTail {
+    /// The step after the tail's last (`from` plus the steps it holds).
+    pub fn end(&self) -> usize {
+        self.from + self.traces.first().map_or(0, RunTrace::steps)
+    }
+}
+
+impl LiveRules {
+    /// Validates the configuration and builds the model and the runs of
+    /// [`WORKER_RULES`]`[1]` (`config.coin` is not consulted).
+    pub fn new(config: StudyConfig) -> Result<Self, SimError> {
+        config.validate()?;
+        let model = Model::new(&config.scenario)?;
+        let runs = RunBatch::new(
+            &model,
+            &config.run_spec(0, Storage::Blocks),
+            0..config.runs as u64,
+            WORKER_RULES[1],
+        );
+        Ok(Self {
+            model,
+            runs,
+            sent: 0,
+        })
+    }
+
+    /// Whether every run is done.
+    pub fn finished(&self) -> bool {
+        self.runs.finished()
+    }
+
+    /// Advances every run by up to `steps` time steps; returns whether they are done.
+    pub fn advance(&mut self, steps: usize) -> Result<bool, SimError> {
+        for _ in 0..steps {
+            if self.runs.finished() {
+                break;
+            }
+            self.runs.step(&self.model)?;
+        }
+        Ok(self.runs.finished())
+    }
+
+    /// The steps since the previous tail.
+    pub fn tail(&mut self) -> TraceTail {
+        let tail = TraceTail {
+            from: self.sent,
+            traces: self.runs.traces_from(self.sent),
+        };
+        self.sent = self.runs.steps_done();
+        tail
+    }
 }
 
 /// Every estimator's exact COIN for the headline agent ([`ErrorPropagation`]), advanced one
@@ -199,13 +301,109 @@ impl LiveStudy {
             config,
             model,
             runs,
+            second: None,
             coin,
         })
     }
 
+    /// As [`LiveStudy::new`], running the rules of [`WORKER_RULES`]`[0]` here; those of
+    /// [`WORKER_RULES`]`[1]` come from a [`LiveRules`] with the same configuration, through
+    /// [`LiveStudy::absorb`]. Its views and charts are those of [`LiveStudy::new`], bit for bit.
+    pub fn with_second_worker(config: StudyConfig) -> Result<Self, SimError> {
+        let mut study = Self::new(config)?;
+        study.runs = RunBatch::new(
+            &study.model,
+            &study.config.run_spec(0, Storage::Blocks),
+            0..study.config.runs as u64,
+            WORKER_RULES[0],
+        );
+        // Before the first tail: every run's second series empty, their group sums zero.
+        let (series, groups) = (1 + WORKER_RULES[1].len(), study.config.scenario.groups);
+        let empty = RunTrace {
+            nees: vec![Vec::new(); series],
+            rmse: vec![Vec::new(); series],
+            two_sigma: vec![Vec::new(); series],
+            omega_ci: Vec::new(),
+            omega_nmci: Vec::new(),
+            omega_ici: Vec::new(),
+            group_sums: vec![vec![[0.0; 2]; groups]; series],
+        };
+        study.second = Some(Second {
+            traces: vec![empty; study.config.runs],
+            own_sums: study.runs.group_sums(),
+        });
+        Ok(study)
+    }
+
+    /// Steps of the second worker's rules received so far (the runs' own steps without a
+    /// second worker).
+    fn received(&self) -> usize {
+        match &self.second {
+            Some(second) => second.traces.first().map_or(0, RunTrace::steps),
+            None => self.runs.steps_done(),
+        }
+    }
+
+    /// Whether it waits for the second worker's steps up to where its own runs are (then
+    /// [`LiveStudy::advance`] does nothing and the view stays at the steps both reached).
+    pub fn waiting(&self) -> bool {
+        self.received() < self.runs.steps_done()
+    }
+
+    /// Takes the next steps of the second worker's rules ([`LiveRules::tail`]). A tail must
+    /// continue where the previous one ended, hold every run, and not pass the steps this
+    /// worker's own runs have done.
+    pub fn absorb(&mut self, tail: TraceTail) -> Result<(), SimError> {
+        let (own, received, runs) = (self.runs.steps_done(), self.received(), self.runs.runs());
+        let second = self.second.as_mut().ok_or_else(|| {
+            SimError::Workers(
+                "this study runs every rule itself: it takes no second worker's steps".into(),
+            )
+        })?;
+        let bad = |m: String| Err(SimError::Workers(m));
+        if tail.from != received {
+            return bad(format!(
+                "the second worker's steps start at step {} but step {received} is next",
+                tail.from
+            ));
+        }
+        if tail.traces.len() != runs {
+            return bad(format!(
+                "the second worker sent {} runs, the study has {runs}",
+                tail.traces.len()
+            ));
+        }
+        let series = 1 + WORKER_RULES[1].len();
+        let groups = self.config.scenario.groups;
+        let steps = tail.traces.first().map_or(0, RunTrace::steps);
+        for t in &tail.traces {
+            let lengths_ok = [&t.nees, &t.rmse, &t.two_sigma]
+                .iter()
+                .all(|s| s.len() == series && s.iter().all(|v| v.len() == steps));
+            if !lengths_ok
+                || t.group_sums.len() != series
+                || t.group_sums.iter().any(|g| g.len() != groups)
+            {
+                return bad(format!(
+                    "a run of the second worker's steps does not have {series} series of {steps} steps and {groups} groups"
+                ));
+            }
+        }
+        if tail.end() > own {
+            return bad(format!(
+                "the second worker's steps reach step {} but this worker's runs are at step {own}",
+                tail.end()
+            ));
+        }
+        for (mine, theirs) in second.traces.iter_mut().zip(tail.traces) {
+            mine.append(theirs);
+        }
+        Ok(())
+    }
+
     /// Whether every run is done, and then the COIN series.
     pub fn finished(&self) -> bool {
-        self.runs.finished() && self.coin_finished()
+        self.runs.finished() && !self.waiting() && self.coin_finished()
     }
 
     fn coin_finished(&self) -> bool {
@@ -214,16 +412,21 @@ impl LiveStudy {
 
     /// Advances by up to `steps` units of work: a time step of every run or, once the runs are
     /// done, a time step of one estimator's exact COIN (the one furthest behind); returns
-    /// whether the study is finished.
+    /// whether the study is finished. With a second worker it does nothing while
+    /// [`LiveStudy::waiting`]: a chunk starts where both workers' steps are.
     pub fn advance(&mut self, steps: usize) -> Result<bool, SimError> {
+        if self.waiting() {
+            return Ok(false);
+        }
+        if let Some(second) = &mut self.second {
+            second.own_sums = self.runs.group_sums();
+        }
         for _ in 0..steps {
-            if self.finished() {
-                break;
-            }
             if self.runs.finished() {
-                if let Some(coin) = &mut self.coin {
-                    coin.advance(1)?;
-                }
+                match &mut self.coin {
+                    Some(coin) if !coin.finished() => coin.advance(1)?,
+                    _ => break,
+                };
                 continue;
             }
             self.runs.step(&self.model)?;
@@ -231,10 +434,41 @@ impl LiveStudy {
         Ok(self.finished())
     }
 
+    /// Every run's trace for every rule so far: with a second worker, its rules' steps beside
+    /// this worker's, over the steps both reached.
+    fn traces(&self) -> Vec<RunTrace> {
+        let mut own = self.runs.traces();
+        let Some(second) = &self.second else {
+            return own;
+        };
+        let steps = self.received();
+        if steps < self.runs.steps_done() {
+            for (trace, sums) in own.iter_mut().zip(&second.own_sums) {
+                trace.truncate(steps);
+                trace.group_sums.clone_from(sums);
+            }
+        }
+        let position = |rules: &[Rule]| -> Vec<usize> {
+            rules
+                .iter()
+                .filter_map(|r| RULES.iter().position(|q| q == r))
+                .collect()
+        };
+        own.into_iter()
+            .zip(&second.traces)
+            .map(|(mine, theirs)| {
+                assemble_traces([
+                    (position(WORKER_RULES[0]), mine),
+                    (position(WORKER_RULES[1]), theirs.clone()),
+                ])
+            })
+            .collect()
+    }
+
     /// The summary of the runs so far (every run, up to the step they reached) and how many
     /// runs it averages, with every estimator's COIN up to the step all of them reached.
     fn summary(&self) -> (StudySummary, usize) {
-        let traces = self.runs.traces();
+        let traces = self.traces();
         let mut summary = summarize(&traces, self.model.dim());
         if let Some(coin) = &self.coin {
             summary.attach_coin(coin.series());
@@ -261,13 +495,13 @@ impl LiveStudy {
         omega.extend(flat(&summary.omega_nmci_series));
         omega.extend(&summary.omega_ici_series);
         StudyView {
-            runs_done: if self.runs.finished() {
+            runs_done: if self.runs.finished() && !self.waiting() {
                 self.config.runs
             } else {
                 0
             },
             runs: self.config.runs,
-            step: self.runs.steps_done(),
+            step: self.received(),
             steps: self.config.steps,
             dt: self.config.scenario.dt,
             finished: self.finished(),

@@ -27,7 +27,9 @@ mod sweep;
 
 pub use coin::{coin_series, ErrorPropagation};
 pub use draw::network_svg;
-pub use live::{CoinReport, CoinView, LiveCoin, LiveStudy, StudyView};
+pub use live::{
+    CoinReport, CoinView, LiveCoin, LiveRules, LiveStudy, StudyView, TraceTail, WORKER_RULES,
+};
 pub use model::Model;
 #[cfg(not(target_arch = "wasm32"))]
 pub use report::{write_study, write_sweep};
@@ -67,6 +69,10 @@ pub enum SimError {
     /// A configuration text that does not parse (syntax, unknown key, wrong type).
     #[error("invalid configuration: {0}")]
     InvalidConfig(String),
+    /// A study shared between two workers received steps that do not fit
+    /// ([`LiveStudy::absorb`]).
+    #[error("two-worker study: {0}")]
+    Workers(String),
 }
 
 impl Scenario {

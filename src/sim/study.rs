@@ -488,16 +488,28 @@ pub fn simulate_runs_for_rule(
 /// Assembles the per-rule traces of one run (from [`simulate_run_for_rule`], in [`RULES`]
 /// order) into the trace [`simulate_run`] gives.
 pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
+    assemble_traces(parts.into_iter().enumerate().map(|(k, t)| (vec![k], t)))
+}
+
+/// Assembles traces of one run computed for disjoint sets of rules into one trace. Each part
+/// is `(positions, trace)`: the trace's series `1 + i` becomes series `1 + positions[i]` of the
+/// result. Series 0, the centralized filter, is the same in every part (its filter does not
+/// depend on the rules); the first part's is kept. Each ω series is one rule's and moves as it
+/// is. The positions of all parts together must be `0..` without gaps.
+pub(super) fn assemble_traces(parts: impl IntoIterator<Item = (Vec<usize>, RunTrace)>) -> RunTrace {
     let mut merged = RunTrace {
-        nees: Vec::with_capacity(RULES.len() + 1),
-        rmse: Vec::with_capacity(RULES.len() + 1),
-        two_sigma: Vec::with_capacity(RULES.len() + 1),
+        nees: Vec::new(),
+        rmse: Vec::new(),
+        two_sigma: Vec::new(),
         omega_ci: Vec::new(),
         omega_nmci: Vec::new(),
         omega_ici: Vec::new(),
-        group_sums: Vec::with_capacity(RULES.len() + 1),
+        group_sums: Vec::new(),
     };
-    for (k, part) in parts.into_iter().enumerate() {
+    // Per result series: (nees, rmse, two_sigma, group_sums).
+    type Series = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<[f64; 2]>);
+    let mut series: Vec<Option<Series>> = Vec::new();
+    for (k, (positions, part)) in parts.into_iter().enumerate() {
         let RunTrace {
             nees,
             rmse,
@@ -507,17 +519,92 @@ pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
             omega_ici,
             group_sums,
         } = part;
-        // Series 0 is the centralized filter (the same in every part); series 1 the rule's.
-        let skip = if k == 0 { 0 } else { 1 };
-        merged.nees.extend(nees.into_iter().skip(skip));
-        merged.rmse.extend(rmse.into_iter().skip(skip));
-        merged.two_sigma.extend(two_sigma.into_iter().skip(skip));
+        let mut all = nees
+            .into_iter()
+            .zip(rmse)
+            .zip(two_sigma)
+            .zip(group_sums)
+            .map(|(((n, r), t), g)| (n, r, t, g));
+        let central = all.next();
+        for (&position, one) in positions.iter().zip(all) {
+            if series.len() <= position + 1 {
+                series.resize_with(position + 2, || None);
+            }
+            series[position + 1] = Some(one);
+        }
+        if k == 0 {
+            if series.is_empty() {
+                series.push(None);
+            }
+            series[0] = central;
+        }
         merged.omega_ci.extend(omega_ci);
         merged.omega_nmci.extend(omega_nmci);
         merged.omega_ici.extend(omega_ici);
-        merged.group_sums.extend(group_sums.into_iter().skip(skip));
+    }
+    for (n, r, t, g) in series.into_iter().flatten() {
+        merged.nees.push(n);
+        merged.rmse.push(r);
+        merged.two_sigma.push(t);
+        merged.group_sums.push(g);
     }
     merged
+}
+
+impl RunTrace {
+    /// Steps in the trace.
+    pub(super) fn steps(&self) -> usize {
+        self.nees.first().map_or(0, Vec::len)
+    }
+
+    /// The steps from `from` on (each series and ω from there; the group sums, which are
+    /// sums over every step so far, as they are).
+    pub(super) fn tail(&self, from: usize) -> RunTrace {
+        let rows = |v: &[Vec<f64>]| v.iter().map(|s| s[from.min(s.len())..].to_vec()).collect();
+        RunTrace {
+            nees: rows(&self.nees),
+            rmse: rows(&self.rmse),
+            two_sigma: rows(&self.two_sigma),
+            omega_ci: self.omega_ci[from.min(self.omega_ci.len())..].to_vec(),
+            omega_nmci: self.omega_nmci[from.min(self.omega_nmci.len())..].to_vec(),
+            omega_ici: self.omega_ici[from.min(self.omega_ici.len())..].to_vec(),
+            group_sums: self.group_sums.clone(),
+        }
+    }
+
+    /// Appends `tail` ([`RunTrace::tail`] of the same run, continuing where this trace ends),
+    /// whose group sums replace these.
+    pub(super) fn append(&mut self, tail: RunTrace) {
+        for (mine, theirs) in [
+            (&mut self.nees, tail.nees),
+            (&mut self.rmse, tail.rmse),
+            (&mut self.two_sigma, tail.two_sigma),
+        ] {
+            for (s, t) in mine.iter_mut().zip(theirs) {
+                s.extend(t);
+            }
+        }
+        self.omega_ci.extend(tail.omega_ci);
+        self.omega_nmci.extend(tail.omega_nmci);
+        self.omega_ici.extend(tail.omega_ici);
+        self.group_sums = tail.group_sums;
+    }
+
+    /// The first `steps` steps (a fusion's ω is recorded once per step, as each agent fuses
+    /// each neighbour once), the group sums left as they are.
+    pub(super) fn truncate(&mut self, steps: usize) {
+        for s in self
+            .nees
+            .iter_mut()
+            .chain(&mut self.rmse)
+            .chain(&mut self.two_sigma)
+        {
+            s.truncate(steps);
+        }
+        self.omega_ci.truncate(steps);
+        self.omega_nmci.truncate(steps);
+        self.omega_ici.truncate(steps);
+    }
 }
 
 /// Monte Carlo runs advanced together, a step at a time: the runs of one study (one seed,
@@ -678,6 +765,29 @@ impl RunBatch {
     /// The per-step results of every run so far, in the order given.
     pub fn traces(&self) -> Vec<RunTrace> {
         self.runs.iter().map(|r| r.trace.clone()).collect()
+    }
+
+    /// Every run's trace from step `from` on ([`RunTrace::tail`]), in the order given.
+    pub(super) fn traces_from(&self, from: usize) -> Vec<RunTrace> {
+        self.runs.iter().map(|r| r.trace.tail(from)).collect()
+    }
+
+    /// Every run's group sums so far ([`RunTrace::group_sums`]), in the order given.
+    pub(super) fn group_sums(&self) -> Vec<Vec<Vec<[f64; 2]>>> {
+        self.runs
+            .iter()
+            .map(|r| r.trace.group_sums.clone())
+            .collect()
+    }
+
+    /// The rules simulated, in series order.
+    pub fn rules(&self) -> &[Rule] {
+        &self.rules
+    }
+
+    /// Runs in the batch.
+    pub fn runs(&self) -> usize {
+        self.runs.len()
     }
 
     /// The per-step results of every run, in the order given.

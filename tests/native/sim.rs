@@ -320,6 +320,126 @@ fn live_study_equals_the_batch_study_and_the_golden_file() {
     }
 }
 
+/// The page's two run workers: a study running `WORKER_RULES[0]` and absorbing the tails of a
+/// `LiveRules` running `WORKER_RULES[1]` shows, after every chunk, the view of one study running
+/// every rule — bit for bit, the COIN after the runs included. Between its own chunk and the
+/// second worker's tail it shows the steps both reached (its own truncated, with the group
+/// sums of that step).
+#[test]
+fn a_study_shared_by_two_workers_is_the_one_worker_study_bit_for_bit() {
+    assert_eq!(
+        WORKER_RULES.concat().len(),
+        RULES.len(),
+        "the two workers share every rule"
+    );
+    assert!(RULES.iter().all(|r| WORKER_RULES.concat().contains(r)));
+    for (config, chunk) in [
+        (tiny_config(), 5),
+        (
+            StudyConfig {
+                runs: 3,
+                steps: 9,
+                coin: false,
+                ..tiny_config()
+            },
+            2,
+        ),
+    ] {
+        let mut whole = LiveStudy::new(config.clone()).unwrap();
+        let mut first = LiveStudy::with_second_worker(config.clone()).unwrap();
+        let mut second = LiveRules::new(config.clone()).unwrap();
+        assert_eq!(first.view(), whole.view());
+        let mut before = whole.view();
+        let mut tails = std::collections::VecDeque::new();
+        let mut chunks = 0;
+        loop {
+            let done = whole.advance(chunk).unwrap();
+            assert!(!first.advance(chunk).unwrap() || done);
+            chunks += 1;
+            if first.waiting() {
+                // Waiting: no work, and the view of the steps both reached.
+                assert!(!first.advance(chunk).unwrap());
+                assert_eq!(first.view(), before, "chunk {chunk}, {chunks} chunks");
+            }
+            // The second worker may be ahead: its tails wait in a queue.
+            while first.waiting() {
+                if tails.is_empty() {
+                    second.advance(chunk).unwrap();
+                    tails.push_back(second.tail());
+                    second.advance(chunk).unwrap();
+                    tails.push_back(second.tail());
+                }
+                first.absorb(tails.pop_front().unwrap()).unwrap();
+            }
+            let view = first.view();
+            assert_eq!(view, whole.view(), "chunk {chunk}, {chunks} chunks");
+            assert_eq!(first.charts(), whole.charts());
+            before = view;
+            if done {
+                assert!(first.finished());
+                break;
+            }
+        }
+        let (summary, report) = run_study(&config).unwrap();
+        assert_eq!(before.report, report);
+        assert_eq!(before.nees, summary.nees_series.concat());
+    }
+}
+
+/// Tails that do not fit are refused with what is wrong, and the study is unchanged.
+#[test]
+fn a_study_refuses_second_worker_steps_that_do_not_fit() {
+    let config = StudyConfig {
+        coin: false,
+        ..tiny_config()
+    };
+    let mut second = LiveRules::new(config.clone()).unwrap();
+    second.advance(4).unwrap();
+    let four = second.tail();
+    assert_eq!((four.from, four.end()), (0, 4));
+    second.advance(4).unwrap();
+    let eight = second.tail();
+    assert_eq!((eight.from, eight.end()), (4, 8));
+    let e = LiveStudy::new(config.clone())
+        .unwrap()
+        .absorb(four.clone())
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "two-worker study: this study runs every rule itself: it takes no second worker's steps"
+    );
+    let mut first = LiveStudy::with_second_worker(config.clone()).unwrap();
+    let e = first.absorb(four.clone()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "two-worker study: the second worker's steps reach step 4 but this worker's runs are at step 0"
+    );
+    first.advance(4).unwrap();
+    assert!(first.waiting());
+    let e = first.absorb(eight.clone()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "two-worker study: the second worker's steps start at step 4 but step 0 is next"
+    );
+    let mut one_run = four.clone();
+    one_run.traces.pop();
+    let e = first.absorb(one_run).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "two-worker study: the second worker sent 1 runs, the study has 2"
+    );
+    let mut short = four.clone();
+    short.traces[1].rmse[2].pop();
+    let e = first.absorb(short).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "two-worker study: a run of the second worker's steps does not have 3 series of 4 steps and 4 groups"
+    );
+    assert!(first.waiting());
+    first.absorb(four).unwrap();
+    assert!(!first.waiting());
+}
+
 #[test]
 fn live_study_rejects_an_invalid_configuration() {
     let config = StudyConfig {
