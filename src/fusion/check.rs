@@ -8,11 +8,72 @@
 //! `A P_a Aᵀ + B P_b Bᵀ` once and takes `λ_max` of it plus `N + Nᵀ`, `N = A P_ab Bᵀ`. The same
 //! quantities as [`conservativeness_margin`] and [`fused_coin`] per `P_ab`, summed in another
 //! order (rounding-level differences, tested).
+//!
+//! When the problem has independent blocks ([`crate::independent_blocks`]: `P_a`, `P_b` and
+//! every admissible `P_ab` are zero off them) and the rule's `P̄`, `K_a`, `K_b` are zero off
+//! them too (exactly, as every block-wise rule gives them), `P̄ − K P' Kᵀ` and
+//! `L⁻¹ K P' Kᵀ L⁻ᵀ` are block-diagonal for every `P'`, so their eigenvalues are those of
+//! their blocks: above 2 × 2 (where the whole state is in closed form already) both functions
+//! then work block by block (the smallest margin, the largest COIN), each block's quantities
+//! as above. Again the same numbers up to rounding.
 
 use nalgebra::DMatrix;
 
 use super::{Fused, FusionProblem};
 use crate::linalg::{max_eigenvalue, min_eigenvalue, symmetrize};
+use crate::structure::independent_blocks;
+
+/// The problem's independent blocks when the checks of `fused` over `cross` decouple on them
+/// (module docs): `P̄`, `K_a`, `K_b` and each `P_ab` zero off them, exactly. `None` for one
+/// block or when something couples two blocks.
+fn decoupled(
+    problem: &FusionProblem,
+    fused: &Fused,
+    cross: &[DMatrix<f64>],
+) -> Option<Vec<Vec<usize>>> {
+    // Up to 2 × 2 the whole state is already in closed form.
+    let n = problem.dim();
+    if n <= 2 {
+        return None;
+    }
+    let blocks = independent_blocks(&problem.P_a, &problem.P_b, &problem.cross_pattern);
+    if blocks.len() < 2 {
+        return None;
+    }
+    let mut block_of = vec![0; n];
+    for (k, block) in blocks.iter().enumerate() {
+        for &i in block {
+            block_of[i] = k;
+        }
+    }
+    let zero_off_blocks = |m: &DMatrix<f64>| {
+        m.shape() == (n, n)
+            && (0..n).all(|j| (0..n).all(|i| block_of[i] == block_of[j] || m[(i, j)] == 0.0))
+    };
+    let mut matrices = [&fused.P, &fused.K_a, &fused.K_b].into_iter().chain(cross);
+    matrices.all(zero_off_blocks).then_some(blocks)
+}
+
+/// The problem, the fused result and the cross-covariances on the states `block`.
+#[allow(non_snake_case)]
+fn on_block(
+    problem: &FusionProblem,
+    fused: &Fused,
+    cross: &[DMatrix<f64>],
+    block: &[usize],
+) -> (FusionProblem, Fused, Vec<DMatrix<f64>>) {
+    let sub = |m: &DMatrix<f64>| m.select_rows(block).select_columns(block);
+    (
+        problem.restrict(block),
+        Fused {
+            x: fused.x.select_rows(block),
+            P: sub(&fused.P),
+            K_a: sub(&fused.K_a),
+            K_b: sub(&fused.K_b),
+        },
+        cross.iter().map(sub).collect(),
+    )
+}
 
 /// The fused error covariance `K P' Kᵀ = K_a P_a K_aᵀ + K_a P_ab K_bᵀ + K_b P_abᵀ K_aᵀ + K_b P_b K_bᵀ`
 /// (the paper's `P_f`) of the gains in `fused` when the cross-covariance is `P_ab`.
@@ -54,6 +115,21 @@ pub fn worst_margin(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f64
     if cross.is_empty() {
         return f64::INFINITY;
     }
+    if let Some(blocks) = decoupled(problem, fused, cross) {
+        return blocks
+            .iter()
+            .map(|block| {
+                let (problem, fused, cross) = on_block(problem, fused, cross, block);
+                worst_margin_dense(&problem, &fused, &cross)
+            })
+            .fold(f64::INFINITY, f64::min);
+    }
+    worst_margin_dense(problem, fused, cross)
+}
+
+/// [`worst_margin`] on the whole state.
+#[allow(non_snake_case)]
+fn worst_margin_dense(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f64>]) -> f64 {
     let K_bt = fused.K_b.transpose();
     let C = &fused.P
         - &fused.K_a * &problem.P_a * fused.K_a.transpose()
@@ -132,6 +208,31 @@ pub fn fused_coins(
     cross: &[DMatrix<f64>],
 ) -> Result<Vec<f64>, crate::error::InputError> {
     let L = bound_factor(&fused.P)?;
+    if let Some(blocks) = decoupled(problem, fused, cross) {
+        let mut coins = vec![f64::NEG_INFINITY; cross.len()];
+        for block in &blocks {
+            let (problem, fused, cross) = on_block(problem, fused, cross, block);
+            let L = bound_factor(&fused.P)?;
+            for (coin, c) in coins
+                .iter_mut()
+                .zip(block_coins(&problem, &fused, &cross, &L))
+            {
+                *coin = coin.max(c);
+            }
+        }
+        return Ok(coins);
+    }
+    Ok(block_coins(problem, fused, cross, &L))
+}
+
+/// [`fused_coins`] on the whole state, with `P̄ = L Lᵀ`.
+#[allow(non_snake_case)]
+fn block_coins(
+    problem: &FusionProblem,
+    fused: &Fused,
+    cross: &[DMatrix<f64>],
+    L: &DMatrix<f64>,
+) -> Vec<f64> {
     let solve = |K: &DMatrix<f64>| {
         let mut X = K.clone();
         L.solve_lower_triangular_mut(&mut X);
@@ -140,11 +241,11 @@ pub fn fused_coins(
     let (A, B) = (solve(&fused.K_a), solve(&fused.K_b));
     let Bt = B.transpose();
     let W0 = symmetrize(&(&A * &problem.P_a * A.transpose() + &B * &problem.P_b * &Bt));
-    Ok(cross
+    cross
         .iter()
         .map(|P_ab| {
             let N = &A * P_ab * &Bt;
             max_eigenvalue(&(&W0 + &N + N.transpose()))
         })
-        .collect())
+        .collect()
 }

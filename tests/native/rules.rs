@@ -211,3 +211,69 @@ fn region_margins_and_coins_match_the_per_sample_ones() {
     let p = random_problem(2, CrossPattern::fully_unknown(2), &mut r);
     assert_eq!(worst_margin(&p, &naive_fusion(&p), &[]), f64::INFINITY);
 }
+
+/// With independent blocks (here interleaved: {0, 2, 4} and {1, 3}, and {0, 3}, {1, 4}, {2, 5})
+/// and a rule that respects them, `worst_margin` and `fused_coins` work block by block (module
+/// docs of `fusion::check`); they still agree with the per-sample textbook computations on the
+/// whole state. So do they when a gain couples two blocks (one off-block entry of `K_a` and
+/// `K_b`): then they work on the whole state.
+#[test]
+fn region_margins_and_coins_of_independent_blocks_match_the_per_sample_ones() {
+    let mut r = rng(37);
+    for groups in [
+        vec![vec![0, 2, 4], vec![1, 3]],
+        vec![vec![0, 3], vec![1, 4], vec![2, 5]],
+    ] {
+        let n = groups.iter().map(Vec::len).sum();
+        let group_of = |i: usize| groups.iter().position(|g| g.contains(&i)).unwrap();
+        let pattern = CrossPattern::from_fn(n, |i, j| group_of(i) == group_of(j));
+        let p = FusionProblem::from_covariances(
+            block_spd(n, &groups, &mut r),
+            block_spd(n, &groups, &mut r),
+            pattern,
+        )
+        .unwrap();
+        assert_eq!(
+            independent_blocks(&p.P_a, &p.P_b, &p.cross_pattern).len(),
+            groups.len()
+        );
+        let cross = sample_cross_covariances(&p, 60, 5, SamplerSettings::hit_and_run())
+            .unwrap()
+            .cross;
+        let coupled = |mut f: Fused| {
+            let (i, j) = (groups[0][0], groups[1][0]);
+            f.K_a[(i, j)] += 0.05;
+            f.K_b[(i, j)] -= 0.05;
+            f
+        };
+        let ci = covariance_intersection(&p, Criterion::Trace).unwrap().fused;
+        let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap().fused;
+        for fused in [
+            ci.clone(),
+            nm.clone(),
+            naive_fusion(&p),
+            coupled(ci),
+            coupled(nm),
+        ] {
+            let scale = fused.P.amax();
+            let worst = cross
+                .iter()
+                .map(|c| conservativeness_margin(&p, &fused, c))
+                .fold(f64::INFINITY, f64::min);
+            let got = worst_margin(&p, &fused, &cross);
+            assert!(
+                (got - worst).abs() <= 1e-12 * scale,
+                "{groups:?}: {got} vs {worst}"
+            );
+            let coins = fused_coins(&p, &fused, &cross).unwrap();
+            assert_eq!(coins.len(), cross.len());
+            for (c, P_ab) in coins.iter().zip(&cross) {
+                let one = fused_coin(&p, &fused, P_ab).unwrap();
+                assert!(
+                    (c - one).abs() <= 1e-11 * one.max(1.0),
+                    "{groups:?}: {c} vs {one}"
+                );
+            }
+        }
+    }
+}
