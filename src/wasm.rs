@@ -7,7 +7,7 @@ use wasm_bindgen::prelude::*;
 
 use crate::api::FuseRequest;
 use crate::error::RequestError;
-use crate::sim::{LiveCoin, LiveRules, LiveStudy, StudyConfig, TraceTail};
+use crate::sim::{CoinTail, LiveCoin, LiveCoinPart, LiveRules, LiveStudy, StudyConfig, TraceTail};
 use crate::{ExploreRequest, Fig2Config, Fig2Record};
 
 mod canvas;
@@ -240,6 +240,29 @@ impl StudyCoin {
         })
     }
 
+    /// As the constructor, propagating the estimators of `COIN_WORKER_ESTIMATORS[0]` only
+    /// ([`crate::sim::LiveCoin::with_second_worker`]): those of `COIN_WORKER_ESTIMATORS[1]`
+    /// come from a [`StudyCoinPart`] in a second worker, through [`StudyCoin::absorb`].
+    pub fn with_second_worker(config: JsValue) -> Result<StudyCoin, JsError> {
+        let config: StudyConfig = parse(config)?;
+        Ok(StudyCoin {
+            inner: LiveCoin::with_second_worker(config)?,
+        })
+    }
+
+    /// Takes a tail of the second worker's COIN steps ([`StudyCoinPart::tail`], as it gave
+    /// it); throws when it does not continue where the previous one ended.
+    pub fn absorb(&mut self, tail: JsValue) -> Result<(), JsError> {
+        let tail: CoinTail = parse_own(tail)?;
+        Ok(self.inner.absorb(tail)?)
+    }
+
+    /// Whether its own estimators are done and it waits for the second worker's steps (then
+    /// `advance` does nothing).
+    pub fn waiting(&self) -> bool {
+        self.inner.waiting()
+    }
+
     /// Advances by up to `units` estimator-steps; returns whether it is finished.
     pub fn advance(&mut self, units: usize) -> Result<bool, JsError> {
         Ok(self.inner.advance(units)?)
@@ -262,6 +285,37 @@ impl StudyCoin {
     /// The COIN chart so far ([`crate::coin_chart`]), for [`draw_chart`].
     pub fn chart(&self) -> Result<JsValue, JsError> {
         to_js(&self.inner.chart())
+    }
+}
+
+/// The exact COIN of the estimators of `COIN_WORKER_ESTIMATORS[1]`, advanced a few
+/// estimator-steps at a time: what the page runs in a second COIN worker beside the
+/// [`StudyCoin`] that propagates the others ([`crate::sim::LiveCoinPart`]).
+#[wasm_bindgen]
+pub struct StudyCoinPart {
+    inner: LiveCoinPart,
+}
+
+#[wasm_bindgen]
+impl StudyCoinPart {
+    /// From a study configuration object (the keys of `configs/paper.toml`; `coin` is not
+    /// consulted); throws on an invalid configuration.
+    #[wasm_bindgen(constructor)]
+    pub fn new(config: JsValue) -> Result<StudyCoinPart, JsError> {
+        let config: StudyConfig = parse(config)?;
+        Ok(StudyCoinPart {
+            inner: LiveCoinPart::new(config)?,
+        })
+    }
+
+    /// Advances by up to `units` estimator-steps; returns whether its estimators are done.
+    pub fn advance(&mut self, units: usize) -> Result<bool, JsError> {
+        Ok(self.inner.advance(units)?)
+    }
+
+    /// The steps since the previous tail ([`crate::sim::CoinTail`]), for [`StudyCoin::absorb`].
+    pub fn tail(&mut self) -> Result<JsValue, JsError> {
+        to_js(&self.inner.tail())
     }
 }
 

@@ -1,19 +1,35 @@
 // The tracking study's exact COIN off the runs' critical path: the wasm `StudyCoin` (every
 // estimator's true error covariance, propagated exactly; it does not depend on the runs)
 // advanced a chunk of estimator-steps at a time in its own Web Worker, beside the runs'
-// worker (www/study-worker.js). After each chunk its view (the mean and largest COIN per
-// estimator, the series as a Float64Array) and its chart go back to the page. A "stop"
-// message is seen between chunks.
+// workers. Its estimators are shared with a second COIN worker (www/study-coin-part-worker.js:
+// `StudyCoin.with_second_worker` propagates `COIN_WORKER_ESTIMATORS[0]` here,
+// src/sim/live.rs), whose steps arrive straight here as "tails" (through the `MessageChannel`
+// port of the start message). After each chunk the view (the mean and largest COIN per
+// estimator over the steps every estimator reached, the series as a Float64Array) and the
+// chart go back to the page; once its own estimators are done it waits for the second's. A
+// "stop" message is seen between chunks and while waiting.
 import { StudyCoin } from "./pkg/nmci.js";
+import { COIN_CHUNK } from "./study-chunk.js";
 import { onRun, ready, reportFailure as fail } from "./worker-init.js";
 
-const CHUNK = 25; // estimator-steps per message: about 0.2 s of work
+// The wake-up of a run waiting for the second worker's next tail (or a "stop").
+let wake = null;
+const nudge = () => {
+  wake?.();
+  wake = null;
+};
 
-onRun(async ({ config }, stopped) => {
+onRun(async ({ config, port }, stopped) => {
+  // This run's tails from the second worker (a fresh channel per run).
+  const tails = [];
+  port.onmessage = (event) => {
+    tails.push(event.data);
+    nudge();
+  };
   let coin;
   try {
     await ready;
-    coin = new StudyCoin(config);
+    coin = StudyCoin.with_second_worker(config);
   } catch (err) {
     fail(err);
     return;
@@ -22,8 +38,13 @@ onRun(async ({ config }, stopped) => {
   try {
     let finished = false;
     while (!finished && !stopped()) {
-      finished = coin.advance(CHUNK);
+      // Its own estimators done: nothing to do until the second worker's next tail.
+      if (coin.waiting() && !tails.length) await new Promise((resolve) => { wake = resolve; });
+      if (stopped()) break;
+      coin.advance(COIN_CHUNK);
+      while (tails.length) coin.absorb(tails.shift());
       const view = coin.view();
+      finished = view.finished;
       view.elapsed_ms = performance.now() - t0;
       self.postMessage({ type: "coin", view, chart: coin.chart() }, [view.coin.buffer]);
       await new Promise((resolve) => setTimeout(resolve, 0));
@@ -32,5 +53,6 @@ onRun(async ({ config }, stopped) => {
   } catch (err) {
     if (fail(err)) return;
   }
+  port.close();
   coin.free();
-});
+}, [], nudge);

@@ -1,6 +1,6 @@
 // The "Tracking study" tab: runs the paper's 16-agent study in two Web Workers (wasm `Study`
-// and `StudyRules`, each running half of the rules) and its exact COIN in a third (wasm
-// `StudyCoin`), side by side, and redraws the
+// and `StudyRules`, each running half of the rules) and its exact COIN in two more (wasm
+// `StudyCoin` and `StudyCoinPart`, half of the estimators each), side by side, and redraws the
 // headline table and the four charts (drawn by the wasm module, as `nmci track` draws its SVG
 // files) as their chunks come in. The network is
 // picked (paper fit, the figure's reading, custom links) and drawn by the wasm module.
@@ -127,6 +127,7 @@ function render() {
   const body = $("#study-table tbody");
   // The numbers behind the table, unrounded (JSON), for whoever reads the page's markup.
   $("#study-table").dataset.report = JSON.stringify(view.report);
+  $("#study-table").dataset.coin = JSON.stringify(c ? c.estimators : []);
   body.replaceChildren();
   for (const { name, label } of ESTIMATORS) {
     const e = view.report[name];
@@ -166,15 +167,15 @@ const tab = workerTab({
   label: "study",
   // The runs, their rules shared between two workers (the second sends its steps straight
   // to the first, which shows them all), and beside them the exact COIN, which does not
-  // depend on them.
-  urls: [new URL("./study-worker.js", import.meta.url), new URL("./study-coin-worker.js", import.meta.url), new URL("./study-rules-worker.js", import.meta.url)],
-  channel: [0, 2],
+  // depend on them, its estimators shared between two more workers the same way.
+  urls: ["./study-worker.js", "./study-coin-worker.js", "./study-rules-worker.js", "./study-coin-part-worker.js"].map((u) => new URL(u, import.meta.url)),
+  channels: [[0, 2], [1, 3]],
   readConfig,
   split: (config) => {
     runs = coin = null;
     coinOn = config.coin;
     const runsOnly = { ...config, coin: false };
-    return [runsOnly, coinOn ? config : null, runsOnly];
+    return [runsOnly, coinOn ? config : null, runsOnly, coinOn ? config : null];
   },
   onProgress: (msg) => {
     if (msg.type === "coin") {

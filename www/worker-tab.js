@@ -31,12 +31,12 @@ export function readWholeNumbers(prefix, fields) {
  * out; by default the one worker gets the config). The tab is done when every started worker
  * said "done" (or "stopped"); an error or a crash in any of them ends the run for all (the
  * workers are dropped; the next start makes fresh ones). Every other message goes to
- * `onProgress(msg, index)`. With `channel: [i, j]`, workers `i` and `j` get the two ends of
- * a fresh `MessageChannel` as `port` in their start messages (when both start): they talk
- * directly, and a late message of a previous run cannot reach this run's port.
- * Returns `{ start, running }`.
+ * `onProgress(msg, index)`. For each pair `[i, j]` of `channels`, workers `i` and `j` get
+ * the two ends of a fresh `MessageChannel` as `port` in their start messages (when both
+ * start): they talk directly, and a late message of a previous run cannot reach this run's
+ * port. Returns `{ start, running }`.
  */
-export function workerTab({ name, label, url, urls = [url], readConfig, split = (config) => [config], channel = null, onProgress }) {
+export function workerTab({ name, label, url, urls = [url], readConfig, split = (config) => [config], channels = [], onProgress }) {
   const workers = urls.map(() => null);
   let running = false;
   let pending = 0; // started workers that have not finished
@@ -90,9 +90,10 @@ export function workerTab({ name, label, url, urls = [url], readConfig, split = 
     stopped = false;
     pending = 0;
     const ports = new Map();
-    if (channel && channel.every((i) => messages[i])) {
+    for (const [i, j] of channels) {
+      if (!messages[i] || !messages[j]) continue;
       const { port1, port2 } = new MessageChannel();
-      ports.set(channel[0], port1).set(channel[1], port2);
+      ports.set(i, port1).set(j, port2);
     }
     messages.forEach((message, i) => {
       if (message === null) return;

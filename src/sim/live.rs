@@ -16,8 +16,8 @@ use serde::{Deserialize, Serialize};
 
 use super::study::assemble_traces;
 use super::{
-    estimators, summarize, ErrorPropagation, Model, Rule, RunBatch, RunTrace, SimError, Storage,
-    StudyConfig, StudyReport, StudySummary, RULES,
+    estimators, summarize, ErrorPropagation, Estimator, Model, Rule, RunBatch, RunTrace, SimError,
+    Storage, StudyConfig, StudyReport, StudySummary, RULES,
 };
 
 /// How a page shares a study's rules between two run workers: [`LiveStudy::with_second_worker`]
@@ -77,6 +77,39 @@ impl TraceTail {
     }
 }
 
+impl LiveCoinPart {
+    /// Validates the configuration and builds the model and the propagations of
+    /// [`COIN_WORKER_ESTIMATORS`]`[1]`.
+    pub fn new(config: StudyConfig) -> Result<Self, SimError> {
+        Ok(Self {
+            inner: LiveCoin::propagating(config, |e| COIN_WORKER_ESTIMATORS[1].contains(&e))?,
+            sent: vec![0; COIN_WORKER_ESTIMATORS[1].len()],
+        })
+    }
+
+    /// Advances by up to `units` estimator-steps; returns whether its estimators are done.
+    pub fn advance(&mut self, units: usize) -> Result<bool, SimError> {
+        self.inner.advance(units)?;
+        Ok(self.inner.own_finished())
+    }
+
+    /// The steps since the previous tail.
+    pub fn tail(&mut self) -> CoinTail {
+        let mut tail = CoinTail {
+            from: Vec::new(),
+            values: Vec::new(),
+        };
+        for (e, sent) in COIN_WORKER_ESTIMATORS[1].iter().zip(&mut self.sent) {
+            if let Some((_, _, series)) = self.inner.coin.iter().find(|(f, _, _)| f == e) {
+                tail.from.push(*sent);
+                tail.values.push(series[*sent..].to_vec());
+                *sent = series.len();
+            }
+        }
+        tail
+    }
+}
+
 impl LiveRules {
     /// Validates the configuration and builds the model and the runs of
     /// [`WORKER_RULES`]`[1]` (`config.coin` is not consulted).
@@ -130,7 +163,44 @@ impl LiveRules {
 pub struct LiveCoin {
     config: StudyConfig,
     model: Model,
-    coin: Vec<(ErrorPropagation, Vec<f64>)>,
+    /// In [`estimators`] order: the estimator, its propagation (`None`: a second worker
+    /// computes it and its steps come through [`LiveCoin::absorb`]) and its series so far.
+    coin: Vec<(Estimator, Option<ErrorPropagation>, Vec<f64>)>,
+}
+
+/// How a page shares the exact COIN's estimators between two workers:
+/// [`LiveCoin::with_second_worker`] propagates the first set, [`LiveCoinPart`] the second.
+/// Chosen so that the halves cost about the same (docs/study.md measures each).
+pub const COIN_WORKER_ESTIMATORS: [&[Estimator]; 2] = [
+    &[
+        Estimator::Decentralized(Rule::Ci),
+        Estimator::Decentralized(Rule::Naive),
+    ],
+    &[
+        Estimator::Central,
+        Estimator::Decentralized(Rule::Nmci),
+        Estimator::Decentralized(Rule::Ici),
+    ],
+];
+
+/// The exact COIN of the estimators of [`COIN_WORKER_ESTIMATORS`]`[1]`, advanced one
+/// estimator-step at a time: what a page's second COIN worker computes. Its steps leave as
+/// [`CoinTail`]s for the [`LiveCoin`] that propagates the others.
+pub struct LiveCoinPart {
+    inner: LiveCoin,
+    /// Steps already sent, per estimator of [`COIN_WORKER_ESTIMATORS`]`[1]`.
+    sent: Vec<usize>,
+}
+
+/// The COIN steps of a [`LiveCoinPart`] since its previous tail, for [`LiveCoin::absorb`]: per
+/// estimator of [`COIN_WORKER_ESTIMATORS`]`[1]` (in that order), the first step sent and the
+/// values from there.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CoinTail {
+    /// Per estimator: the first step in the tail (0-based).
+    pub from: Vec<usize>,
+    /// Per estimator: the COIN of the steps `from..`.
+    pub values: Vec<Vec<f64>>,
 }
 
 /// A snapshot of a [`LiveCoin`].
@@ -167,10 +237,32 @@ impl LiveCoin {
     /// Validates the configuration and builds the model and one propagation per estimator
     /// (`config.coin` is not consulted: this is the COIN).
     pub fn new(config: StudyConfig) -> Result<Self, SimError> {
+        Self::propagating(config, |_| true)
+    }
+
+    /// As [`LiveCoin::new`], propagating the estimators of [`COIN_WORKER_ESTIMATORS`]`[0]`
+    /// here; those of [`COIN_WORKER_ESTIMATORS`]`[1]` come from a [`LiveCoinPart`] with the
+    /// same configuration, through [`LiveCoin::absorb`]. Its views and charts are those of
+    /// [`LiveCoin::new`] at the steps every estimator reached, bit for bit.
+    pub fn with_second_worker(config: StudyConfig) -> Result<Self, SimError> {
+        Self::propagating(config, |e| COIN_WORKER_ESTIMATORS[0].contains(&e))
+    }
+
+    /// Propagations for the estimators `here` picks; the others' series come from elsewhere.
+    fn propagating(
+        config: StudyConfig,
+        here: impl Fn(Estimator) -> bool,
+    ) -> Result<Self, SimError> {
         config.validate()?;
         let model = Model::new(&config.scenario)?;
         let coin = estimators()
-            .map(|e| (ErrorPropagation::new(&model, e), Vec::new()))
+            .map(|e| {
+                (
+                    e,
+                    here(e).then(|| ErrorPropagation::new(&model, e)),
+                    Vec::new(),
+                )
+            })
             .collect();
         Ok(Self {
             config,
@@ -179,21 +271,40 @@ impl LiveCoin {
         })
     }
 
-    /// Whether every estimator reached the configured steps.
+    /// Whether every estimator reached the configured steps (with a second worker: its
+    /// estimators' steps received too).
     pub fn finished(&self) -> bool {
         self.coin
             .iter()
-            .all(|(p, _)| p.steps_done() >= self.config.steps)
+            .all(|(_, _, s)| s.len() >= self.config.steps)
     }
 
-    /// Advances by up to `units` estimator-steps; returns whether it is finished.
+    /// Whether its own estimators are done and it waits for a second worker's steps (then
+    /// [`LiveCoin::advance`] does nothing).
+    pub fn waiting(&self) -> bool {
+        self.own_finished() && !self.finished()
+    }
+
+    /// Whether the estimators propagated here reached the configured steps.
+    fn own_finished(&self) -> bool {
+        self.coin
+            .iter()
+            .all(|(_, p, s)| p.is_none() || s.len() >= self.config.steps)
+    }
+
+    /// Advances by up to `units` estimator-steps of the estimators propagated here; returns
+    /// whether it is finished ([`LiveCoin::finished`]).
     pub fn advance(&mut self, units: usize) -> Result<bool, SimError> {
         let agent = self.config.agent - 1;
         for _ in 0..units {
-            if self.finished() {
+            if self.own_finished() {
                 break;
             }
-            let behind = self.coin.iter_mut().min_by_key(|(p, _)| p.steps_done());
+            let behind = self
+                .coin
+                .iter_mut()
+                .filter_map(|(_, p, s)| Some((p.as_mut()?, s)))
+                .min_by_key(|(p, _)| p.steps_done());
             if let Some((propagation, series)) = behind {
                 propagation.step(&self.model)?;
                 let filter = if propagation.is_central() { 0 } else { agent };
@@ -203,10 +314,54 @@ impl LiveCoin {
         Ok(self.finished())
     }
 
+    /// Takes the next COIN steps of a second worker's estimators ([`LiveCoinPart::tail`]).
+    /// Each estimator's steps must continue where its previous ones ended.
+    pub fn absorb(&mut self, tail: CoinTail) -> Result<(), SimError> {
+        let bad = |m: String| Err(SimError::Workers(m));
+        let expected = COIN_WORKER_ESTIMATORS[1];
+        if tail.from.len() != expected.len() || tail.values.len() != expected.len() {
+            return bad(format!(
+                "the second COIN worker sent {} estimators, not {}",
+                tail.values.len(),
+                expected.len()
+            ));
+        }
+        for (k, e) in expected.iter().enumerate() {
+            let (_, propagation, series) = self
+                .coin
+                .iter()
+                .find(|(f, _, _)| f == e)
+                .expect("every estimator has a series");
+            if propagation.is_some() {
+                return bad(format!(
+                    "the COIN of {} is computed here, not by a second worker",
+                    e.name()
+                ));
+            }
+            if tail.from[k] != series.len() {
+                return bad(format!(
+                    "the second COIN worker's steps of {} start at step {} but step {} is next",
+                    e.name(),
+                    tail.from[k],
+                    series.len()
+                ));
+            }
+        }
+        for (e, values) in expected.iter().zip(tail.values) {
+            if let Some((_, _, series)) = self.coin.iter_mut().find(|(f, _, _)| f == e) {
+                series.extend(values);
+            }
+        }
+        Ok(())
+    }
+
     /// Every estimator's series up to the step all of them reached.
     pub fn series(&self) -> Vec<Vec<f64>> {
-        let len = self.coin.iter().map(|(_, s)| s.len()).min().unwrap_or(0);
-        self.coin.iter().map(|(_, s)| s[..len].to_vec()).collect()
+        let len = self.coin.iter().map(|(_, _, s)| s.len()).min().unwrap_or(0);
+        self.coin
+            .iter()
+            .map(|(_, _, s)| s[..len].to_vec())
+            .collect()
     }
 
     /// The current snapshot.

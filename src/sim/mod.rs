@@ -28,7 +28,8 @@ mod sweep;
 pub use coin::{coin_series, ErrorPropagation};
 pub use draw::network_svg;
 pub use live::{
-    CoinReport, CoinView, LiveCoin, LiveRules, LiveStudy, StudyView, TraceTail, WORKER_RULES,
+    CoinReport, CoinTail, CoinView, LiveCoin, LiveCoinPart, LiveRules, LiveStudy, StudyView,
+    TraceTail, COIN_WORKER_ESTIMATORS, WORKER_RULES,
 };
 pub use model::Model;
 #[cfg(not(target_arch = "wasm32"))]

@@ -537,16 +537,26 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
   // The rules ran in two workers (www/study-rules-worker.js beside www/study-worker.js):
   // the numbers behind the table are those of one wasm `Study` running every rule, bit for
   // bit.
+  // So is the exact COIN, its estimators shared between two more workers
+  // (www/study-coin-part-worker.js beside www/study-coin-worker.js).
   const shown = JSON.parse(await page.getAttribute("#study-table", "data-report"));
+  const shownCoin = JSON.parse(await page.getAttribute("#study-table", "data-coin"));
   const alone = await page.evaluate(async () => {
-    const { Study } = await import("./pkg/nmci.js");
-    const study = new Study({ runs: 2, steps: 80, seed: 4, coin: false });
+    const { Study, StudyCoin } = await import("./pkg/nmci.js");
+    const config = { runs: 2, steps: 80, seed: 4, coin: false };
+    const study = new Study(config);
     while (!study.advance(40));
     const report = study.view().report;
     study.free();
-    return report;
+    const coin = new StudyCoin(config);
+    while (!coin.advance(100));
+    const estimators = coin.view().estimators;
+    coin.free();
+    return { report, estimators };
   });
-  assert.deepEqual(shown, alone);
+  assert.deepEqual(shown, alone.report);
+  assert.equal(shownCoin.length, 5);
+  assert.deepEqual(shownCoin, alone.estimators);
   // The exact COIN runs in its own worker beside the runs, not after them: it had steps done
   // while a run was still in progress.
   const progress = await page.evaluate(() => window.studyProgress);

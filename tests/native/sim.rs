@@ -264,6 +264,80 @@ fn live_coin_alone_equals_the_studys_coin() {
     assert_eq!(charts.last().unwrap(), &("coin", coin.chart()));
 }
 
+/// The page's two COIN workers: a `LiveCoin` propagating `COIN_WORKER_ESTIMATORS[0]` and
+/// absorbing the tails of a `LiveCoinPart` propagating the rest ends with the view and chart
+/// of one `LiveCoin` propagating all five, bit for bit; on the way every view is a prefix of
+/// the final series. Tails that do not fit are refused with what is wrong.
+#[test]
+fn the_coin_shared_by_two_workers_is_the_one_worker_coin_bit_for_bit() {
+    let all: Vec<Estimator> = COIN_WORKER_ESTIMATORS.concat();
+    assert_eq!(all.len(), 5, "the two COIN workers share every estimator");
+    assert!(estimators().all(|e| all.contains(&e)));
+    let config = tiny_config();
+    let mut whole = LiveCoin::new(config.clone()).unwrap();
+    while !whole.advance(7).unwrap() {}
+    let done = whole.view();
+    let mut first = LiveCoin::with_second_worker(config.clone()).unwrap();
+    let mut second = LiveCoinPart::new(config.clone()).unwrap();
+    let (mut finished, mut rounds) = (false, 0);
+    while !finished {
+        // The second runs ahead by a chunk: the first shows the steps every estimator reached.
+        second.advance(5).unwrap();
+        let tail = second.tail();
+        assert!(!first.finished());
+        first.advance(3).unwrap();
+        first.absorb(tail).unwrap();
+        let v = first.view();
+        for (k, part) in v.coin.chunks(v.coin_len.max(1)).enumerate() {
+            let whole_k = &done.coin[k * config.steps..(k + 1) * config.steps];
+            assert_eq!(
+                part,
+                &whole_k[..part.len()],
+                "estimator {k}, round {rounds}"
+            );
+        }
+        finished = v.finished;
+        rounds += 1;
+    }
+    assert_eq!(first.view(), done);
+    assert_eq!(first.chart(), whole.chart());
+    // Its own estimators done before the second's: it waits, and advancing does nothing.
+    let mut alone = LiveCoin::with_second_worker(config.clone()).unwrap();
+    assert!(!alone.waiting());
+    assert!(!alone.advance(10 * config.steps).unwrap());
+    assert!(alone.waiting());
+    let v = alone.view();
+    assert_eq!((v.coin_len, v.finished), (0, false));
+    assert!(!alone.advance(1).unwrap());
+    // Refusals.
+    let mut again = LiveCoinPart::new(config.clone()).unwrap();
+    again.advance(4).unwrap();
+    let tail = again.tail();
+    let e = first.absorb(tail.clone()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "two-worker study: the second COIN worker's steps of central start at step 0 but step 12 is next"
+    );
+    let e = LiveCoin::new(config.clone())
+        .unwrap()
+        .absorb(tail.clone())
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "two-worker study: the COIN of central is computed here, not by a second worker"
+    );
+    let mut short = tail;
+    short.values.pop();
+    let e = LiveCoin::with_second_worker(config)
+        .unwrap()
+        .absorb(short)
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "two-worker study: the second COIN worker sent 2 estimators, not 3"
+    );
+}
+
 #[test]
 fn live_study_equals_the_batch_study_and_the_golden_file() {
     let config = tiny_config();
