@@ -327,11 +327,9 @@ impl LiveCoin {
             ));
         }
         for (k, e) in expected.iter().enumerate() {
-            let (_, propagation, series) = self
-                .coin
-                .iter()
-                .find(|(f, _, _)| f == e)
-                .expect("every estimator has a series");
+            let Some((_, propagation, series)) = self.coin.iter().find(|(f, _, _)| f == e) else {
+                return bad(format!("the study has no estimator {}", e.name()));
+            };
             if propagation.is_some() {
                 return bad(format!(
                     "the COIN of {} is computed here, not by a second worker",
@@ -440,6 +438,11 @@ pub struct StudyView {
 impl LiveStudy {
     /// Validates the configuration and builds the model.
     pub fn new(config: StudyConfig) -> Result<Self, SimError> {
+        Self::running(config, &RULES)
+    }
+
+    /// Validates the configuration and builds the model and the runs of `rules`.
+    fn running(config: StudyConfig, rules: &[Rule]) -> Result<Self, SimError> {
         config.validate()?;
         let model = Model::new(&config.scenario)?;
         let coin = config
@@ -450,7 +453,7 @@ impl LiveStudy {
             &model,
             &config.run_spec(0, Storage::Blocks),
             0..config.runs as u64,
-            &RULES,
+            rules,
         );
         Ok(Self {
             config,
@@ -465,13 +468,7 @@ impl LiveStudy {
     /// [`WORKER_RULES`]`[1]` come from a [`LiveRules`] with the same configuration, through
     /// [`LiveStudy::absorb`]. Its views and charts are those of [`LiveStudy::new`], bit for bit.
     pub fn with_second_worker(config: StudyConfig) -> Result<Self, SimError> {
-        let mut study = Self::new(config)?;
-        study.runs = RunBatch::new(
-            &study.model,
-            &study.config.run_spec(0, Storage::Blocks),
-            0..study.config.runs as u64,
-            WORKER_RULES[0],
-        );
+        let mut study = Self::running(config, WORKER_RULES[0])?;
         // Before the first tail: every run's second series empty, their group sums zero.
         let (series, groups) = (1 + WORKER_RULES[1].len(), study.config.scenario.groups);
         let empty = RunTrace {
