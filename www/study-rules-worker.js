@@ -6,30 +6,6 @@
 // bit for bit. A "stop" message is seen between chunks.
 import { StudyRules } from "./pkg/nmci.js";
 import { chunk } from "./study-chunk.js";
-import { onRun, ready, reportFailure as fail } from "./worker-init.js";
+import { secondWorker } from "./worker-init.js";
 
-onRun(async ({ config, port }, stopped) => {
-  let rules;
-  try {
-    await ready;
-    rules = new StudyRules(config);
-  } catch (err) {
-    fail(err);
-    return;
-  }
-  const steps = chunk(config.runs);
-  try {
-    let finished = false;
-    while (!finished && !stopped()) {
-      finished = rules.advance(steps);
-      port.postMessage(rules.tail());
-      // Yield so that a "stop" message can arrive.
-      await new Promise((resolve) => setTimeout(resolve, 0));
-    }
-    self.postMessage({ type: stopped() ? "stopped" : "done" });
-  } catch (err) {
-    if (fail(err)) return; // the instance is unusable: no `free`
-  }
-  port.close();
-  rules.free();
-});
+secondWorker((config) => new StudyRules(config), (config) => chunk(config.runs));

@@ -107,7 +107,7 @@ function render() {
   // Work: every run's steps and, side by side in its own worker, the exact COIN: one step
   // per estimator (5).
   const coinTotal = coinOn ? ESTIMATORS.length * view.steps : 0;
-  const coinDone = c ? ESTIMATORS.length * c.coin_len : 0;
+  const coinDone = c ? c.units_done : 0;
   // The runs advance together (the covariances they share computed once per step).
   const runsDone = view.runs_done >= view.runs;
   const runWork = view.runs * view.step;
@@ -116,7 +116,7 @@ function render() {
   const runSeconds = view.run_ms.length ? ` · ${(view.run_ms.reduce((a, b) => a + b, 0) / view.run_ms.length / 1000).toFixed(2)} s per run` : "";
   const coinFinished = !coinOn || (c && c.finished);
   const elapsed = `${(Math.max(view.elapsed_ms, c ? c.elapsed_ms : 0) / 1000).toFixed(1)} s`;
-  const coinText = coinOn ? (coinFinished ? "; exact COIN done" : `; exact COIN: step ${c ? c.coin_len : 0} of ${view.steps}`) : "";
+  const coinText = coinOn ? (coinFinished ? "; exact COIN done" : `; exact COIN ${Math.floor((100 * coinDone) / coinTotal)}%: step ${c ? c.coin_len : 0} of ${view.steps}`) : "";
   $("#study-progress").textContent =
     runsDone && coinFinished
       ? `done: ${view.runs} run${view.runs === 1 ? "" : "s"} × ${view.steps} steps${coinOn ? " and the exact COIN" : ""} in ${elapsed}${runSeconds}`

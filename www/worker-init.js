@@ -43,3 +43,35 @@ export function onRun(run, also = [], onStop = () => {}) {
     await run(message, () => stop);
   };
 }
+
+/** A second worker of a tab (www/study-rules-worker.js, www/study-coin-part-worker.js): on
+ * "start", `make(config)` builds the wasm object, which is advanced by `units(config)` at a
+ * time until it says it is done or a "stop" comes; after each chunk its `tail()` (the steps
+ * since the previous one) goes through the `port` of the start message to the first worker,
+ * which shows them. */
+export function secondWorker(make, units) {
+  onRun(async ({ config, port }, stopped) => {
+    let part;
+    try {
+      await ready;
+      part = make(config);
+    } catch (err) {
+      reportFailure(err);
+      return;
+    }
+    try {
+      let finished = false;
+      while (!finished && !stopped()) {
+        finished = part.advance(units(config));
+        port.postMessage(part.tail());
+        // Yield so that a "stop" message can arrive.
+        await new Promise((resolve) => setTimeout(resolve, 0));
+      }
+      self.postMessage({ type: stopped() ? "stopped" : "done" });
+    } catch (err) {
+      if (reportFailure(err)) return; // the instance is unusable: no `free`
+    }
+    port.close();
+    part.free();
+  });
+}

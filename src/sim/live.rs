@@ -210,6 +210,9 @@ pub struct CoinView {
     pub steps: usize,
     /// Steps every estimator's COIN has reached.
     pub coin_len: usize,
+    /// Estimator-steps done so far, over every estimator (with a second worker: its steps
+    /// received too); `5 × steps` when finished.
+    pub units_done: usize,
     /// Whether every estimator reached `steps`.
     pub finished: bool,
     /// Per estimator (in [`estimators`] order): its name, and the mean and largest COIN over
@@ -368,6 +371,7 @@ impl LiveCoin {
         CoinView {
             steps: self.config.steps,
             coin_len: series.first().map_or(0, Vec::len),
+            units_done: self.coin.iter().map(|(_, _, s)| s.len()).sum(),
             finished: self.finished(),
             estimators: estimators()
                 .zip(&series)

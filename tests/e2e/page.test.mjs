@@ -557,10 +557,10 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
   assert.deepEqual(shown, alone.report);
   assert.equal(shownCoin.length, 5);
   assert.deepEqual(shownCoin, alone.estimators);
-  // The exact COIN runs in its own worker beside the runs, not after them: it had steps done
+  // The exact COIN runs in its own workers beside the runs, not after them: it had work done
   // while a run was still in progress.
   const progress = await page.evaluate(() => window.studyProgress);
-  assert.ok(progress.some((p) => /^2 runs, step \d+ of 80; exact COIN: step [1-9]\d* of 80/.test(p)), progress.join("\n"));
+  assert.ok(progress.some((p) => /^2 runs, step \d+ of 80; exact COIN [1-9]\d*%: step \d+ of 80/.test(p)), progress.join("\n"));
   const rows = await page.evaluate(() => Object.fromEntries([...document.querySelectorAll("#study-table tbody tr")].map((tr) => [tr.dataset.estimator, [...tr.children].map((td) => td.textContent)])));
   assert.deepEqual(Object.keys(rows), ["central", "ci", "nmci", "naive", "ici"]);
   assert.match(rows.naive[0], /not guaranteed conservative/);

@@ -300,6 +300,7 @@ fn the_coin_shared_by_two_workers_is_the_one_worker_coin_bit_for_bit() {
         rounds += 1;
     }
     assert_eq!(first.view(), done);
+    assert_eq!(done.units_done, 5 * config.steps);
     assert_eq!(first.chart(), whole.chart());
     // Its own estimators done before the second's: it waits, and advancing does nothing.
     let mut alone = LiveCoin::with_second_worker(config.clone()).unwrap();
@@ -308,6 +309,7 @@ fn the_coin_shared_by_two_workers_is_the_one_worker_coin_bit_for_bit() {
     assert!(alone.waiting());
     let v = alone.view();
     assert_eq!((v.coin_len, v.finished), (0, false));
+    assert_eq!(v.units_done, COIN_WORKER_ESTIMATORS[0].len() * config.steps);
     assert!(!alone.advance(1).unwrap());
     // Refusals.
     let mut again = LiveCoinPart::new(config.clone()).unwrap();
