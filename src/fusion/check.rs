@@ -249,3 +249,79 @@ fn block_coins(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fusion::known::naive_fusion;
+    use crate::fusion::nmci::non_monolithic_ci;
+    use crate::fusion::Criterion;
+    use crate::structure::CrossPattern;
+
+    /// Two 2 × 2 blocks, interleaved ({0, 2} and {1, 3}), each cross block wholly unknown.
+    #[allow(non_snake_case)]
+    fn interleaved() -> FusionProblem {
+        let P_a = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                3.0, 0.0, 0.5, 0.0, 0.0, 1.0, 0.0, 0.2, 0.5, 0.0, 1.0, 0.0, 0.0, 0.2, 0.0, 2.0,
+            ],
+        );
+        let P_b = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                1.0, 0.0, -0.3, 0.0, 0.0, 4.0, 0.0, 1.0, -0.3, 0.0, 2.0, 0.0, 0.0, 1.0, 0.0, 2.0,
+            ],
+        );
+        FusionProblem::from_covariances(P_a, P_b, CrossPattern::from_fn(4, |i, j| i % 2 == j % 2))
+            .unwrap()
+    }
+
+    /// The checks decouple exactly when the module docs say: independent blocks, a rule zero
+    /// off them, samples zero off them, above 2 × 2.
+    #[test]
+    #[allow(non_snake_case)]
+    fn checks_decouple_on_the_blocks_a_rule_respects_only() {
+        let p = interleaved();
+        let blocks = Some(vec![vec![0, 2], vec![1, 3]]);
+        let zero = DMatrix::zeros(4, 4);
+        let P_ab = DMatrix::from_fn(4, 4, |i, j| if i % 2 == j % 2 { 0.1 } else { 0.0 });
+        // nmCI and naive fusion work block by block: exact zeros off the blocks.
+        for fused in [
+            non_monolithic_ci(&p, Criterion::Trace).unwrap().fused,
+            naive_fusion(&p),
+        ] {
+            assert_eq!(decoupled(&p, &fused, &[zero.clone(), P_ab.clone()]), blocks);
+            // A gain entry, a bound entry or a sample entry off the blocks couples them.
+            for which in 0..3 {
+                let mut f = fused.clone();
+                let mut cross = P_ab.clone();
+                match which {
+                    0 => f.K_a[(0, 1)] = 1e-300,
+                    1 => f.P[(3, 2)] = -1e-300,
+                    _ => cross[(1, 2)] = 1e-300,
+                }
+                assert_eq!(decoupled(&p, &f, &[cross]), None, "case {which}");
+            }
+        }
+        // One block (a fully unknown P_ab), or 2 × 2 (closed form already): the whole state.
+        let one = FusionProblem::from_covariances(
+            p.P_a.clone(),
+            p.P_b.clone(),
+            CrossPattern::fully_unknown(4),
+        )
+        .unwrap();
+        assert_eq!(decoupled(&one, &naive_fusion(&one), &[zero]), None);
+        let two = p.restrict(&[0, 1]);
+        assert_eq!(
+            independent_blocks(&two.P_a, &two.P_b, &two.cross_pattern).len(),
+            2
+        );
+        assert_eq!(
+            decoupled(&two, &naive_fusion(&two), &[DMatrix::zeros(2, 2)]),
+            None
+        );
+    }
+}
