@@ -10,22 +10,13 @@
 // "stop" message is seen between chunks and while waiting.
 import { StudyCoin } from "./pkg/nmci.js";
 import { COIN_CHUNK } from "./study-chunk.js";
-import { onRun, ready, reportFailure as fail } from "./worker-init.js";
+import { onRun, ready, reportFailure as fail, tailReceiver } from "./worker-init.js";
 
-// The wake-up of a run waiting for the second worker's next tail (or a "stop").
-let wake = null;
-const nudge = () => {
-  wake?.();
-  wake = null;
-};
+// The second worker's tails for the run in progress.
+const receiver = tailReceiver();
 
 onRun(async ({ config, port }, stopped) => {
-  // This run's tails from the second worker (a fresh channel per run).
-  const tails = [];
-  port.onmessage = (event) => {
-    tails.push(event.data);
-    nudge();
-  };
+  receiver.listen(port);
   let coin;
   try {
     await ready;
@@ -39,10 +30,10 @@ onRun(async ({ config, port }, stopped) => {
     let finished = false;
     while (!finished && !stopped()) {
       // Its own estimators done: nothing to do until the second worker's next tail.
-      if (coin.waiting() && !tails.length) await new Promise((resolve) => { wake = resolve; });
+      if (coin.waiting() && !receiver.tails.length) await receiver.arrival();
       if (stopped()) break;
       coin.advance(COIN_CHUNK);
-      while (tails.length) coin.absorb(tails.shift());
+      while (receiver.tails.length) coin.absorb(receiver.tails.shift());
       const view = coin.view();
       finished = view.finished;
       view.elapsed_ms = performance.now() - t0;
@@ -55,4 +46,4 @@ onRun(async ({ config, port }, stopped) => {
   }
   port.close();
   coin.free();
-}, [], nudge);
+}, [], receiver.nudge);

@@ -9,24 +9,13 @@
 // waiting.
 import { Study, panic_for_test } from "./pkg/nmci.js";
 import { chunk } from "./study-chunk.js";
-import { onRun, ready, reportFailure as fail } from "./worker-init.js";
+import { onRun, ready, reportFailure as fail, tailReceiver } from "./worker-init.js";
 
-// The wake-up of a run waiting for the second worker's next tail (or a "stop").
-let wake = null;
-const nudge = () => {
-  wake?.();
-  wake = null;
-};
+// The second worker's tails for the run in progress.
+const receiver = tailReceiver();
 
 onRun(async ({ type, config, message, port }, stopped) => {
-  // This run's tails from the second worker (a fresh channel per run).
-  const tails = [];
-  if (port) {
-    port.onmessage = (event) => {
-      tails.push(event.data);
-      nudge();
-    };
-  }
+  receiver.listen(port);
   let study;
   const steps = chunk(config?.runs ?? 1);
   try {
@@ -46,8 +35,8 @@ onRun(async ({ type, config, message, port }, stopped) => {
     while (!finished && !stopped()) {
       study.advance(steps);
       while (study.waiting() && !stopped()) {
-        if (tails.length) study.absorb(tails.shift());
-        else await new Promise((resolve) => { wake = resolve; });
+        if (receiver.tails.length) study.absorb(receiver.tails.shift());
+        else await receiver.arrival();
       }
       if (stopped()) break;
       const view = study.view();
@@ -71,4 +60,4 @@ onRun(async ({ type, config, message, port }, stopped) => {
   }
   port?.close();
   study.free();
-}, ["panic"], nudge);
+}, ["panic"], receiver.nudge);

@@ -75,3 +75,29 @@ export function secondWorker(make, units) {
     part.free();
   });
 }
+
+/** The receiving side of a second worker's tails (www/study-worker.js,
+ * www/study-coin-worker.js): `listen(port)` at each start collects that run's tails (a fresh
+ * channel per run); `tails` is the queue; `arrival()` resolves on the next tail or on `nudge()`
+ * (pass it to `onRun` as `onStop`, so a run waiting for a tail sees a "stop"). */
+export function tailReceiver() {
+  const tails = [];
+  let wake = null;
+  const nudge = () => {
+    wake?.();
+    wake = null;
+  };
+  return {
+    tails,
+    nudge,
+    listen(port) {
+      tails.length = 0;
+      if (!port) return;
+      port.onmessage = (event) => {
+        tails.push(event.data);
+        nudge();
+      };
+    },
+    arrival: () => new Promise((resolve) => { wake = resolve; }),
+  };
+}

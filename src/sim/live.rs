@@ -129,11 +129,6 @@ impl LiveRules {
         })
     }
 
-    /// Whether every run is done.
-    pub fn finished(&self) -> bool {
-        self.runs.finished()
-    }
-
     /// Advances every run by up to `steps` time steps; returns whether they are done.
     pub fn advance(&mut self, steps: usize) -> Result<bool, SimError> {
         for _ in 0..steps {
@@ -604,19 +599,16 @@ impl LiveStudy {
                 trace.group_sums.clone_from(sums);
             }
         }
-        let position = |rules: &[Rule]| -> Vec<usize> {
+        let [first, other] = WORKER_RULES.map(|rules| -> Vec<usize> {
             rules
                 .iter()
                 .filter_map(|r| RULES.iter().position(|q| q == r))
                 .collect()
-        };
+        });
         own.into_iter()
             .zip(&second.traces)
             .map(|(mine, theirs)| {
-                assemble_traces([
-                    (position(WORKER_RULES[0]), mine),
-                    (position(WORKER_RULES[1]), theirs.clone()),
-                ])
+                assemble_traces([(first.clone(), mine), (other.clone(), theirs.clone())])
             })
             .collect()
     }

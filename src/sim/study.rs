@@ -780,11 +780,6 @@ impl RunBatch {
             .collect()
     }
 
-    /// The rules simulated, in series order.
-    pub fn rules(&self) -> &[Rule] {
-        &self.rules
-    }
-
     /// Runs in the batch.
     pub fn runs(&self) -> usize {
         self.runs.len()
