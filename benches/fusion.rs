@@ -11,7 +11,8 @@
 //! example by cutting planes) and `sdp_cuts/random6` (a random 6-D problem, each entry of
 //! `P_ab` unknown with probability 0.6: no independent blocks); the certified rule per level
 //! `certified/<level>/paper_one_zero`, `certified/<level>/random3`, `certified/1/random4`, and
-//! on sectors `certified/sectors<count>/paper_one_zero`.
+//! on sectors `certified/sectors<count>/paper_one_zero`; method `"sdp"` through the contract at
+//! 1000 samples, `fuse/sdp/{paper,paper_one_zero}/1000` (issue 15: `nmci.optimal` ≥ 100× cvxpy).
 //! Issue 17: `explore/{paper,twoblock,twoblock_full,twoblock_one_zero}`, the explorer's
 //! computation natively (the page runs it in wasm): every rule, the bracket and 300 region
 //! samples, for the page's opening example (n = 2), its two-block preset (n = 4, two 2 × 2
@@ -293,6 +294,22 @@ fn certified_benches(c: &mut Bench) {
     c.bench_function("certified/1/random4", |b| {
         b.iter(|| certified_fusion(black_box(&random4), &level(1)).unwrap())
     });
+    // Method "sdp" through the contract at N = 1000 (what `nmci.optimal` runs): the sampled
+    // SDP, the bracket (with the certified rule) and the bound for the SDP's own gain, on the
+    // paper's example and with one known zero.
+    for (name, pattern) in [
+        ("paper", "[[true, false], [false, true]]"),
+        ("paper_one_zero", "[[true, true], [false, true]]"),
+    ] {
+        let request: FuseRequest = serde_json::from_str(&format!(
+            r#"{{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": {pattern},
+                "method": "sdp", "samples": 1000}}"#
+        ))
+        .unwrap();
+        c.bench_function(&format!("fuse/sdp/{name}/1000"), |b| {
+            b.iter(|| fuse(black_box(&request)).unwrap())
+        });
+    }
 }
 
 fn explorer_benches(c: &mut Bench) {

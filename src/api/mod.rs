@@ -147,12 +147,17 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             let cuts = optimal_fusion_cuts(&problem, &plan.cuts)?;
             // Past the time limit the own-gain certificate is left out, not an error (the loop
             // has its bracket).
-            let gain_certified_trace =
-                match gain_certified_trace(&problem, &cuts.fused.K_a, &plan.certify) {
-                    Ok(t) => t,
-                    Err(SolveError::TimeLimit { .. }) => None,
-                    Err(e) => return Err(e.into()),
-                };
+            let gain_certified_trace = match gain_certified_trace(
+                &problem,
+                &cuts.fused.K_a,
+                &plan.certify,
+                cuts.certified.as_ref(),
+                cuts.lower_bound,
+            ) {
+                Ok(t) => t,
+                Err(SolveError::TimeLimit { .. }) => None,
+                Err(e) => return Err(e.into()),
+            };
             // The loop computed the certified rule already (blocks of up to 6 states).
             let uppers = UpperBounds::of(&problem, cuts.certified_trace)?;
             let details = Details::SdpCuts(CutsDetails {
@@ -313,20 +318,28 @@ pub(crate) fn sdp_response(
     own_gain: bool,
 ) -> Result<(FuseResponse, Fused), SolveError> {
     let opt = optimal_fusion(problem, &plan.sdp)?;
-    let gain_certified_trace = if own_gain {
-        gain_certified_trace(problem, &opt.fused.K_a, &plan.certify)?
-    } else {
-        None
-    };
-    let (uppers, certificates) = match uppers {
+    let (uppers, cert) = match uppers {
         Some(u) => (u, None),
         None => {
             let cert = bracket_certificate(problem, &plan.certify)?;
-            let certificates = cert.as_ref().map(Certificates::of);
             let uppers = upper_bounds(problem, cert.as_ref().map(|c| &c.fused.P))?;
-            (uppers, certificates)
+            (uppers, cert)
         }
     };
+    // The certified rule's bound carried over to the SDP's gain, or the gain's own
+    // certificate (`fusion::bracket`, "A given gain's bound").
+    let gain_certified_trace = if own_gain {
+        gain_certified_trace(
+            problem,
+            &opt.fused.K_a,
+            &plan.certify,
+            cert.as_ref().map(|c| &c.fused),
+            opt.lower_bound,
+        )?
+    } else {
+        None
+    };
+    let certificates = cert.as_ref().map(Certificates::of);
     let details = Details::Sdp(SdpDetails {
         blocks: opt.blocks.clone(),
         samples: opt.samples,

@@ -118,8 +118,11 @@ pub struct SdpDetails {
     /// The certified rule in the bracket (blocks of at most
     /// [`crate::BRACKET_CERTIFY_MAX_BLOCK`] states; absent when the caller gave the upper ends).
     pub certificates: Option<Certificates>,
-    /// `tr P̄` of the tightest bound *proven* for this method's own gain (`certify_gain`):
-    /// what the optimal gain costs when the bound must hold for every admissible `P_ab`.
+    /// A proven upper bound on `tr P̄` of a bound that holds for this method's own gain and
+    /// every admissible `P_ab`: what the optimal gain costs when the bound must hold for all of
+    /// them. The certified rule's bound carried over to the gain where that closes the gain's
+    /// bracket, else the smaller of it and the gain's own certificate (`certify_gain`); see
+    /// `fusion::bracket`, "A given gain's bound".
     pub gain_certified_trace: Option<f64>,
 }
 

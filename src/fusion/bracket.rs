@@ -58,6 +58,31 @@
 //! ([`bracket_certificate`]; its level-1 program grows as `(2n² + 1)²`); the same limit
 //! applies to certifying an optimal-fusion method's own gain ([`gain_certified_trace`]).
 //! Method `"certified"` itself takes larger blocks.
+//!
+//! ## A given gain's bound, carried over from the certified rule
+//! `gain_certified_trace` reports a proven upper bound on what an optimal-fusion method's own
+//! gain `K₁` (`K_b = I − K_a`) costs when the bound must hold for every admissible `J`. Besides
+//! the gain's own certificate (`certify_gain`, a solve), the certified rule's pair `(K₀, P̄₀)`
+//! gives one without a solve. With `Δ = K₁ − K₀ = [ΔK_a, −ΔK_a]` and any `ε > 0`, for every
+//! `J ⪰ 0` (Young's inequality, as above)
+//!
+//! `K₁ J K₁ᵀ ⪯ (1 + ε) K₀ J K₀ᵀ + (1 + 1/ε) Δ J Δᵀ`,
+//!
+//! and `Δ J Δᵀ = ΔK_a Cov(e_a − e_b) ΔK_aᵀ ⪯ 2 ΔK_a (P_a + P_b) ΔK_aᵀ`, since
+//! `(vᵀe_a − vᵀe_b)² ≤ 2(vᵀe_a)² + 2(vᵀe_b)²` — a fixed matrix, whatever `P_ab` is. So
+//! `P̄₁ = (1 + ε) P̄₀ + 2(1 + 1/ε) ΔK_a (P_a + P_b) ΔK_aᵀ` dominates `K₁ J K₁ᵀ` for every
+//! admissible `J`, and its trace `(1 + ε) t₀ + (1 + 1/ε) d`, `t₀ = tr P̄₀`,
+//! `d = 2 tr(ΔK_a (P_a + P_b) ΔK_aᵀ)`, is smallest at `ε = √(d / t₀)`: `(√t₀ + √d)²`. It is
+//! evaluated in balls and rounded up ([`carried_trace`]); when `K₁ = K₀` it is `t₀`.
+//!
+//! When that carried-over bound `t` is within the bracket's closing tolerance of the proven
+//! lower end (`t − lower_bound ≤ CLOSED_RTOL · t`), no bound for this gain can be smaller by
+//! more than that — every valid bound for `K₁` is at least its worst case, hence at least
+//! `V* ≥ lower_bound` — so the gain's own certificate is not solved. Otherwise it is (within
+//! the block limit above), and the smaller of the two is reported. The sampled SDP's and the
+//! cutting planes' gains converge to the robust optimum's where the bracket closes, so the
+//! carried-over bound is then as tight as the certified rule's, without the second solve
+//! (`docs/development.md` has the timings).
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
@@ -69,7 +94,7 @@ use super::nmci::{non_monolithic_ci, NmciResult};
 use super::rules::Method;
 use super::verify::{down, is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::Criterion;
-use super::FusionProblem;
+use super::{Fused, FusionProblem};
 use crate::error::{InputError, SolveError};
 use crate::linalg::cholesky_of;
 
@@ -103,20 +128,90 @@ fn small_enough(problem: &FusionProblem, gain: Option<&DMatrix<f64>>) -> bool {
         .all(|b| b.len() <= BRACKET_CERTIFY_MAX_BLOCK)
 }
 
-/// `tr P̄` (rounded up) of the tightest bound certified for an optimal-fusion method's own
-/// gain `K_a` (`None` for blocks above [`BRACKET_CERTIFY_MAX_BLOCK`] states).
+/// A proven upper bound on the worst-case trace of an optimal-fusion method's own gain `K_a`
+/// (module docs, "A given gain's bound"): the certified rule's `certified` bound carried over
+/// to `K_a`, without a solve when that is within [`CLOSED_RTOL`] of the proven `lower` end;
+/// otherwise the smaller of it and the gain's own certificate (`certify_gain`, only for
+/// blocks of at most [`BRACKET_CERTIFY_MAX_BLOCK`] states). `None` when neither exists.
 #[allow(non_snake_case)]
 pub(crate) fn gain_certified_trace(
     problem: &FusionProblem,
     K_a: &DMatrix<f64>,
     settings: &CertifySettings,
+    certified: Option<&Fused>,
+    lower: f64,
 ) -> Result<Option<f64>, SolveError> {
-    if !small_enough(problem, Some(K_a)) {
-        return Ok(None);
+    let carried = certified.and_then(|c| carried_trace(problem, K_a, c));
+    if let Some(t) = carried {
+        if t - lower <= CLOSED_RTOL * t {
+            return Ok(Some(t));
+        }
     }
-    Ok(Some(trace_upper_bound(
-        &certify_gain(problem, K_a, settings)?.fused.P,
-    )))
+    let own = if small_enough(problem, Some(K_a)) {
+        Some(trace_upper_bound(
+            &certify_gain(problem, K_a, settings)?.fused.P,
+        ))
+    } else {
+        None
+    };
+    Ok(match (own, carried) {
+        (Some(own), Some(carried)) => Some(own.min(carried)),
+        (own, carried) => own.or(carried),
+    })
+}
+
+/// `(1 + ε) t₀ + (1 + 1/ε) d` rounded up, with `t₀ ≥ tr P̄₀` of the conservative pair
+/// `certified = (K₀, P̄₀)` and `d ≥ 2 tr(ΔK_a (P_a + P_b) ΔK_aᵀ)`, `ΔK_a = K_a − K₀`, both
+/// enclosed in balls: a proven upper bound on the trace of a bound that dominates
+/// `K J Kᵀ` (`K_b = I − K_a`) for every admissible `J` (module docs). `None` when the sizes
+/// differ or a number is not finite.
+#[allow(non_snake_case)]
+pub(crate) fn carried_trace(
+    problem: &FusionProblem,
+    K_a: &DMatrix<f64>,
+    certified: &Fused,
+) -> Option<f64> {
+    let n = problem.dim();
+    let K_0 = &certified.K_a;
+    if K_a.shape() != (n, n) || K_0.shape() != (n, n) || certified.P.shape() != (n, n) {
+        return None;
+    }
+    let t0 = trace_upper_bound(&certified.P);
+    if !(t0.is_finite() && t0 > 0.0) || K_a.iter().chain(K_0.iter()).any(|k| !k.is_finite()) {
+        return None;
+    }
+    if K_a == K_0 {
+        return Some(t0);
+    }
+    let delta = BallMatrix::from_fn(n, n, |i, j| {
+        let mut d = Dot::new();
+        d.add(Ball::exact(K_a[(i, j)]));
+        d.add(Ball::exact(-K_0[(i, j)]));
+        d.ball()
+    });
+    let sum = BallMatrix::from_fn(n, n, |i, j| {
+        let mut d = Dot::new();
+        d.add(Ball::exact(problem.P_a[(i, j)]));
+        d.add(Ball::exact(problem.P_b[(i, j)]));
+        d.ball()
+    });
+    let d = 2.0 * delta.mul(&sum).mul(&delta.transpose()).trace().upper(); // exact doubling
+    if !d.is_finite() {
+        return None;
+    }
+    // Any ε > 0 gives a valid bound; this one makes it (√t₀ + √d)² up to rounding.
+    let epsilon = (d / t0).sqrt().max(1e-150);
+    let one_plus = |x: Ball| {
+        let mut s = Dot::new();
+        s.add(Ball::exact(1.0));
+        s.add(x);
+        s.ball()
+    };
+    let mut total = Dot::new();
+    total.add_prod(one_plus(Ball::exact(epsilon)), Ball::exact(t0));
+    total.add_prod(one_plus(Ball::exact(epsilon).recip()?), Ball::exact(d));
+    let t = total.ball().upper();
+    t.is_finite().then_some(t)
 }
 
 /// The proven upper bounds of a problem: CI, nmCI and (for small blocks) the certified rule.
@@ -562,4 +657,123 @@ fn proven_psd(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
         t *= 2.0;
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fusion::sample::{sample_cross_covariances, SamplerSettings};
+    use crate::fusion::sdp::{optimal_fusion, SdpSettings};
+    use crate::structure::CrossPattern;
+    use nalgebra::DVector;
+
+    /// The paper's example with one known zero (`P_ab[1][0] = 0`): a two-state block of the
+    /// sector family, whose bracket closes.
+    fn one_known_zero() -> FusionProblem {
+        let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+        FusionProblem::from_covariances(
+            d(&[3.0, 1.0]),
+            d(&[1.0, 4.0]),
+            CrossPattern::from_fn(2, |i, j| !(i == 1 && j == 0)),
+        )
+        .unwrap()
+    }
+
+    /// `max tr(K J Kᵀ)` over admissible joint covariances drawn by hit-and-run, `K_b = I − K_a`:
+    /// a lower estimate of the gain's worst case, which every valid bound's trace exceeds.
+    #[allow(non_snake_case)]
+    fn sampled_worst_trace(problem: &FusionProblem, K_a: &DMatrix<f64>) -> f64 {
+        let n = problem.dim();
+        let K_b = DMatrix::identity(n, n) - K_a;
+        let drawn =
+            sample_cross_covariances(problem, 2000, 3, SamplerSettings::hit_and_run()).unwrap();
+        drawn
+            .cross
+            .iter()
+            .map(|P_ab| {
+                let cross = K_a * P_ab * K_b.transpose();
+                (K_a * &problem.P_a * K_a.transpose()
+                    + &K_b * &problem.P_b * K_b.transpose()
+                    + &cross
+                    + cross.transpose())
+                .trace()
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// The carried-over bound: `t₀` itself for the certified gain, `(√t₀ + √d)²` to rounding
+    /// (never below it) for another, and above every sampled worst case of that gain — also
+    /// for gains far enough from the certified one that `t₀` alone is exceeded (so a bound that
+    /// dropped the `d` term would fail here).
+    #[test]
+    #[allow(non_snake_case)]
+    fn carried_bound_is_the_closed_form_and_dominates_the_gains_worst_cases() {
+        let problem = one_known_zero();
+        let cert = certified_fusion(&problem, &CertifySettings::default()).unwrap();
+        let t0 = trace_upper_bound(&cert.fused.P);
+        assert_eq!(
+            carried_trace(&problem, &cert.fused.K_a, &cert.fused),
+            Some(t0)
+        );
+        let direction = DMatrix::from_row_slice(2, 2, &[0.7, -0.4, 0.5, -0.9]);
+        let mut exceeded = false;
+        for step in [1e-9, 1e-4, 0.05, 0.3] {
+            let K_a = &cert.fused.K_a + &direction * step;
+            let t = carried_trace(&problem, &K_a, &cert.fused).unwrap();
+            let delta = &K_a - &cert.fused.K_a;
+            let d = 2.0 * (&delta * (&problem.P_a + &problem.P_b) * delta.transpose()).trace();
+            let closed = (t0.sqrt() + d.sqrt()).powi(2);
+            assert!(
+                t >= closed && t <= closed * (1.0 + 1e-12),
+                "{step}: {t} vs {closed}"
+            );
+            let worst = sampled_worst_trace(&problem, &K_a);
+            assert!(
+                t >= worst,
+                "{step}: bound {t} below a sampled worst case {worst}"
+            );
+            exceeded |= worst > t0;
+        }
+        assert!(
+            exceeded,
+            "no gain's sampled worst case exceeded t₀: the test proves little"
+        );
+        // Sizes that do not fit, and non-finite gains: no bound.
+        assert_eq!(
+            carried_trace(&problem, &DMatrix::zeros(3, 3), &cert.fused),
+            None
+        );
+        let nan = DMatrix::from_element(2, 2, f64::NAN);
+        assert_eq!(carried_trace(&problem, &nan, &cert.fused), None);
+    }
+
+    /// Where the carried-over bound closes the gain's bracket it is reported without the
+    /// gain's own solve (bit for bit the carried bound); with a lower end that leaves it open,
+    /// the smaller of the gain's own certificate and the carried bound.
+    #[test]
+    #[allow(non_snake_case)]
+    fn the_gains_own_certificate_is_solved_only_where_the_carried_bound_leaves_a_gap() {
+        let problem = one_known_zero();
+        let settings = CertifySettings::default();
+        let cert = certified_fusion(&problem, &settings).unwrap();
+        let sdp = optimal_fusion(
+            &problem,
+            &SdpSettings {
+                samples: 1000,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let K = &sdp.fused.K_a;
+        let carried = carried_trace(&problem, K, &cert.fused).unwrap();
+        assert!(carried - sdp.lower_bound <= CLOSED_RTOL * carried);
+        let closed =
+            gain_certified_trace(&problem, K, &settings, Some(&cert.fused), sdp.lower_bound);
+        assert_eq!(closed.unwrap(), Some(carried));
+        let own = trace_upper_bound(&certify_gain(&problem, K, &settings).unwrap().fused.P);
+        let open = gain_certified_trace(&problem, K, &settings, Some(&cert.fused), 0.0);
+        assert_eq!(open.unwrap(), Some(own.min(carried)));
+        let alone = gain_certified_trace(&problem, K, &settings, None, sdp.lower_bound);
+        assert_eq!(alone.unwrap(), Some(own));
+    }
 }

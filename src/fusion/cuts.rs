@@ -196,6 +196,8 @@ pub struct CutsResult {
     pub certified_trace: Option<f64>,
     /// The certified rule's certificate on each block, when computed.
     pub certificates: Option<Certificates>,
+    /// The certified rule itself (its gain and proven bound), when computed.
+    pub certified: Option<Fused>,
     /// Whether the loop stopped because `lower_bound` reached `certified_trace` within the
     /// tolerance: the optimum is then proven to that relative accuracy, and the certified rule
     /// attains it to that accuracy.
@@ -308,6 +310,7 @@ pub fn optimal_fusion_cuts(
         stop,
         certified_trace,
         certificates: certified.as_ref().map(Certificates::of),
+        certified: certified.as_ref().map(|c| c.fused.clone()),
         gap_closed: stop == CutsStop::GapClosed,
         dual_objective: opt.dual_objective,
         lower_bound,
