@@ -177,7 +177,7 @@ pub(crate) fn carried_trace(
         return None;
     }
     let t0 = trace_upper_bound(&certified.P);
-    if !(t0.is_finite() && t0 > 0.0) || K_a.iter().chain(K_0.iter()).any(|k| !k.is_finite()) {
+    if !(t0.is_finite() && t0 > 0.0) || K_a.iter().any(|k| !k.is_finite()) {
         return None;
     }
     if K_a == K_0 {
@@ -745,6 +745,32 @@ mod tests {
         );
         let nan = DMatrix::from_element(2, 2, f64::NAN);
         assert_eq!(carried_trace(&problem, &nan, &cert.fused), None);
+        // A pair that cannot be a certificate — wrong sizes, a bound of negative or infinite trace,
+        // infinite gains (equal to the given one) — gives no bound either.
+        let pair = |K_a: DMatrix<f64>, P: DMatrix<f64>| Fused {
+            x: DVector::zeros(K_a.nrows()),
+            K_b: DMatrix::identity(K_a.nrows(), K_a.nrows()) - &K_a,
+            K_a,
+            P,
+        };
+        let (I2, I3) = (DMatrix::identity(2, 2), DMatrix::identity(3, 3));
+        let K = &cert.fused.K_a;
+        assert!(carried_trace(&problem, K, &pair(K.clone(), I2.clone())).is_some());
+        assert_eq!(
+            carried_trace(&problem, K, &pair(I3.clone(), I2.clone())),
+            None
+        );
+        assert_eq!(carried_trace(&problem, K, &pair(K.clone(), I3)), None);
+        assert_eq!(carried_trace(&problem, K, &pair(K.clone(), -&I2)), None);
+        assert_eq!(
+            carried_trace(&problem, K, &pair(K.clone(), &I2 * f64::INFINITY)),
+            None
+        );
+        let infinite = DMatrix::from_row_slice(2, 2, &[f64::INFINITY, 0.0, 0.0, 1.0]);
+        assert_eq!(
+            carried_trace(&problem, &infinite, &pair(infinite.clone(), I2)),
+            None
+        );
     }
 
     /// Where the carried-over bound closes the gain's bracket it is reported without the
@@ -771,6 +797,18 @@ mod tests {
             gain_certified_trace(&problem, K, &settings, Some(&cert.fused), sdp.lower_bound);
         assert_eq!(closed.unwrap(), Some(carried));
         let own = trace_upper_bound(&certify_gain(&problem, K, &settings).unwrap().fused.P);
+        assert_ne!(
+            own, carried,
+            "the two bounds must differ for this test to tell them apart"
+        );
+        // The threshold is relative to the bound: just inside it the carried bound, just
+        // outside the solve.
+        let at = |gap: f64| {
+            let lower = carried * (1.0 - gap * CLOSED_RTOL);
+            gain_certified_trace(&problem, K, &settings, Some(&cert.fused), lower).unwrap()
+        };
+        assert_eq!(at(0.9), Some(carried));
+        assert_eq!(at(1.1), Some(own.min(carried)));
         let open = gain_certified_trace(&problem, K, &settings, Some(&cert.fused), 0.0);
         assert_eq!(open.unwrap(), Some(own.min(carried)));
         let alone = gain_certified_trace(&problem, K, &settings, None, sdp.lower_bound);
