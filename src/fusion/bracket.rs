@@ -79,10 +79,10 @@
 //! lower end (`t − lower_bound ≤ CLOSED_RTOL · t`), no bound for this gain can be smaller by
 //! more than that — every valid bound for `K₁` is at least its worst case, hence at least
 //! `V* ≥ lower_bound` — so the gain's own certificate is not solved. Otherwise it is (within
-//! the block limit above), and the smaller of the two is reported. The sampled SDP's and the
-//! cutting planes' gains converge to the robust optimum's where the bracket closes, so the
-//! carried-over bound is then as tight as the certified rule's, without the second solve
-//! (`docs/development.md` has the timings).
+//! the block limit above), and the smaller of the two is reported. Where the method's gain is
+//! close to the certified rule's (as on the paper's example with one known zero, the unit
+//! test) the carried-over bound exceeds the certified rule's trace by only `2√(t₀ d) + d`, and
+//! the second solve is saved (`docs/development.md` has the timings).
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
