@@ -310,7 +310,7 @@ pub(crate) fn naive_response(problem: &FusionProblem) -> (FuseResponse, Fused) {
 
 /// The sampled-SDP response; `uppers` are the certified upper bounds when the caller has
 /// already computed them (the bracket's certificates are then not repeated here);
-/// `own_gain`: whether to certify the SDP's own gain.
+/// `own_gain`: whether to give the proven bound for the SDP's own gain (`gain_certified_trace`).
 pub(crate) fn sdp_response(
     problem: &FusionProblem,
     plan: &Plan,
