@@ -77,8 +77,9 @@
 //!
 //! When that carried-over bound `t` is within the bracket's closing tolerance of the proven
 //! lower end (`t − lower_bound ≤ CLOSED_RTOL · t`), no bound for this gain can be smaller by
-//! more than that — every valid bound for `K₁` is at least its worst case, hence at least
-//! `V* ≥ lower_bound` — so the gain's own certificate is not solved. Otherwise it is (within
+//! more than that — with `K₁`, every valid bound `P̄` is a feasible point of the robust
+//! problem, so `tr P̄ ≥ V* ≥ lower_bound` — and the gain's own certificate is not solved.
+//! Otherwise it is (within
 //! the block limit above), and the smaller of the two is reported. Where the method's gain is
 //! close to the certified rule's (as on the paper's example with one known zero, the unit
 //! test) the carried-over bound exceeds the certified rule's trace by only `2√(t₀ d) + d`, and
