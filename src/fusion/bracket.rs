@@ -815,4 +815,29 @@ mod tests {
         let alone = gain_certified_trace(&problem, K, &settings, None, sdp.lower_bound);
         assert_eq!(alone.unwrap(), Some(own));
     }
+
+    /// The cutting planes hand their certified rule on (`CutsResult::certified`, the pair whose
+    /// trace is `certified_trace`), and method `sdp_cuts` reports the bound carried over from
+    /// it to the loop's gain where that closes the gain's bracket.
+    #[test]
+    fn the_cutting_planes_carry_their_certified_rule_to_their_gain() {
+        let problem = one_known_zero();
+        let cuts = crate::optimal_fusion_cuts(&problem, &Default::default()).unwrap();
+        let cert = cuts
+            .certified
+            .as_ref()
+            .expect("the loop certifies a two-state block");
+        assert_eq!(Some(trace_upper_bound(&cert.P)), cuts.certified_trace);
+        let carried = carried_trace(&problem, &cuts.fused.K_a, cert).unwrap();
+        assert!(carried - cuts.lower_bound <= CLOSED_RTOL * carried);
+        let request: crate::FuseRequest = serde_json::from_str(
+            r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
+                "pab_unknown": [[true, true], [false, true]], "method": "sdp_cuts"}"#,
+        )
+        .unwrap();
+        match crate::fuse(&request).unwrap().details {
+            crate::Details::SdpCuts(d) => assert_eq!(d.gain_certified_trace, Some(carried)),
+            other => panic!("{other:?}"),
+        }
+    }
 }
