@@ -528,12 +528,19 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
     window.studyProgress = [];
     new MutationObserver(() => window.studyProgress.push(document.querySelector("#study-progress").textContent)).observe(document.querySelector("#study-progress"), { childList: true, characterData: true, subtree: true });
   });
+  // The workers the page starts for the study (the first study of this page: none exists yet).
+  const studyWorkers = [];
+  const onWorker = (worker) => studyWorkers.push(new URL(worker.url()).pathname.split("/").pop());
+  page.on("worker", onWorker);
   await page.click("#study-start");
   // Live: a view arrives before the end (progress text shows a step of the two runs, which
   // advance together).
   await page.waitForFunction(() => /^2 runs, step \d+ of 80/.test(document.querySelector("#study-progress").textContent), null, { timeout: 60_000 });
   await page.waitForFunction(() => document.body.dataset.study === "done", null, { timeout: 120_000 });
   assert.match(await text("#study-progress"), /^done: 2 runs × 80 steps/);
+  page.off("worker", onWorker);
+  // With the exact COIN on (the default), four: the rules' two and the COIN's two.
+  assert.deepEqual(studyWorkers.filter((f) => f.startsWith("study-")).sort(), ["study-coin-part-worker.js", "study-coin-worker.js", "study-rules-worker.js", "study-worker.js"]);
   // The rules ran in two workers (www/study-rules-worker.js beside www/study-worker.js):
   // the numbers behind the table are those of one wasm `Study` running every rule, bit for
   // bit.
