@@ -17,7 +17,9 @@
 //! computation natively (the page runs it in wasm): every rule, the bracket and 300 region
 //! samples, for the page's opening example (n = 2), its two-block preset (n = 4, two 2 × 2
 //! blocks), the same covariances with `P_ab` fully unknown, and with one known zero in each
-//! block's cross block (the presets' values, as `www/state.js` sets them).
+//! block's cross block (the presets' values, as `www/state.js` sets them);
+//! `explore/twoblock_one_zero/edit_one_block`: the last with a new value in block 1 at every
+//! call and block 2's certificate from the memo, as an edit in the page.
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
@@ -353,6 +355,20 @@ fn explorer_benches(c: &mut Bench) {
         c.bench_function(&format!("explore/{name}"), |b| {
             b.iter(|| explore(black_box(&request)).unwrap())
         });
+        if name == "twoblock_one_zero" {
+            // What an edit of the page costs: P_a[0][0] (block 1) new at every call, block 2
+            // taken from the worker's memo of certified blocks.
+            let mut memo = CertificateMemo::new();
+            let mut edited = request.clone();
+            let mut k = 0u32;
+            c.bench_function("explore/twoblock_one_zero/edit_one_block", |b| {
+                b.iter(|| {
+                    k += 1;
+                    edited.pair.pa[0][0] = 3.0 + f64::from(k) * 1e-6;
+                    explore_with_memo(black_box(&edited), &mut memo).unwrap()
+                })
+            });
+        }
     }
 }
 

@@ -17,7 +17,7 @@ use crate::error::RequestError;
 use crate::fusion::bracket::{
     bracket_certificate, upper_bounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
-use crate::fusion::certify::Certificates;
+use crate::fusion::certify::{CertificateMemo, Certificates};
 use crate::fusion::check::{fused_coins, worst_margin};
 use crate::fusion::known::known_correlation_fusion;
 use crate::fusion::rules::{Method, RULES};
@@ -187,8 +187,35 @@ fn region_seed(seed: u64) -> u64 {
 /// assert!(a.gap.unwrap().absolute.abs() < 1e-6);
 /// assert_eq!(a.region.len(), 300 * 4);
 /// ```
-#[allow(non_snake_case)]
 pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
+    analyse(request, None)
+}
+
+/// [`explore`] with the certified rule's blocks certified before taken from `memo` (and the
+/// new ones added): the same analysis, bit for bit; an edit inside one independent block then
+/// solves that block's certificate alone (the page keeps one memo per worker).
+///
+/// ```
+/// let req: nmci::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],
+///     "pb": [[1,0],[0,4]], "pab_unknown": [[true,false],[false,true]], "samples": 50}"#).unwrap();
+/// let mut memo = nmci::CertificateMemo::new();
+/// let first = nmci::explore_with_memo(&req, &mut memo).unwrap();
+/// assert_eq!(first, nmci::explore(&req).unwrap());
+/// assert_eq!(nmci::explore_with_memo(&req, &mut memo).unwrap(), first);
+/// assert!(memo.hits() > 0);
+/// ```
+pub fn explore_with_memo(
+    request: &ExploreRequest,
+    memo: &mut CertificateMemo,
+) -> Result<Exploration, RequestError> {
+    analyse(request, Some(memo))
+}
+
+#[allow(non_snake_case)]
+fn analyse(
+    request: &ExploreRequest,
+    memo: Option<&mut CertificateMemo>,
+) -> Result<Exploration, RequestError> {
     // The explorer solves the sampled SDP of every state: its limits apply.
     request
         .pair
@@ -203,7 +230,7 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
     )?;
     let n = problem.dim();
     let criterion = plan.criterion;
-    let certificate = bracket_certificate(&problem, &plan.certify);
+    let certificate = bracket_certificate(&problem, &plan.certify, memo);
     let certified_P = match &certificate {
         Ok(Some(cert)) => Some(&cert.fused.P),
         _ => None,

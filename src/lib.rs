@@ -68,7 +68,9 @@ pub use chart::{
 pub use error::{
     request_field, DrawError, InputError, ReportError, RequestError, SampleError, SolveError,
 };
-pub use explore::{explore, CoinStats, Exploration, ExploreRequest, Gap, RuleReport};
+pub use explore::{
+    explore, explore_with_memo, CoinStats, Exploration, ExploreRequest, Gap, RuleReport,
+};
 #[cfg(not(target_arch = "wasm32"))]
 pub use fig2::write_fig2;
 pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
@@ -77,8 +79,9 @@ pub use fusion::bracket::{
     Bracket, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
 pub use fusion::certify::{
-    certified_fusion, certify_gain, Certificates, CertifiedResult, CertifySettings, Family,
-    DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_LEVEL, MAX_SECTORS,
+    certified_fusion, certified_fusion_memo, certify_gain, CertificateMemo, Certificates,
+    CertifiedResult, CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_LEVEL,
+    MAX_SECTORS, MEMO_BLOCKS,
 };
 pub use fusion::check::{
     conservativeness_index, conservativeness_margin, fused_coin, fused_coins,

@@ -95,15 +95,24 @@ pub fn study_estimators() -> Result<JsValue, JsError> {
     to_js(&crate::sim::estimators().collect::<Vec<_>>())
 }
 
+thread_local! {
+    /// The certified blocks [`explore`] keeps between calls.
+    static EXPLORE_MEMO: std::cell::RefCell<crate::CertificateMemo> = Default::default();
+}
+
 /// Analyses one explorer state (see [`crate::ExploreRequest`]): CI, nmCI, the sampled-SDP
 /// bound, the gap, the region of possible true fused covariances and each rule's worst
 /// conservativeness margin. The region crosses as a `Float64Array` in `region`
 /// (`region_count` row-major `n × n` matrices).
 /// Throws as [`fuse`] does.
+/// The certified rule's blocks are memoized per module instance (one per worker,
+/// [`crate::explore_with_memo`]): the same numbers, an edit in one block solves that block.
 #[wasm_bindgen]
 pub fn explore(request: JsValue) -> Result<JsValue, JsValue> {
     let request: ExploreRequest = parse(request).map_err(thrown)?;
-    let analysis = crate::explore(&request).map_err(thrown)?;
+    let analysis = EXPLORE_MEMO
+        .with(|memo| crate::explore_with_memo(&request, &mut memo.borrow_mut()))
+        .map_err(thrown)?;
     let object = to_js(&analysis)?;
     let region = js_sys::Float64Array::from(analysis.region.as_slice());
     js_sys::Reflect::set(&object, &"region".into(), &region)

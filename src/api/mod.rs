@@ -321,7 +321,7 @@ pub(crate) fn sdp_response(
     let (uppers, cert) = match uppers {
         Some(u) => (u, None),
         None => {
-            let cert = bracket_certificate(problem, &plan.certify)?;
+            let cert = bracket_certificate(problem, &plan.certify, None)?;
             let uppers = upper_bounds(problem, cert.as_ref().map(|c| &c.fused.P))?;
             (uppers, cert)
         }

@@ -88,7 +88,8 @@
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
 use super::certify::{
-    certification_blocks, certified_fusion, certify_gain, CertifiedResult, CertifySettings,
+    certification_blocks, certified_fusion, certified_fusion_memo, certify_gain, CertificateMemo,
+    CertifiedResult, CertifySettings,
 };
 use super::ci::{covariance_intersection, CiResult};
 use super::nmci::{non_monolithic_ci, NmciResult};
@@ -110,15 +111,20 @@ pub const CLOSED_RTOL: f64 = 1e-6;
 pub const BRACKET_CERTIFY_MAX_BLOCK: usize = 4;
 
 /// The certified rule for the bracket: `None` when a block exceeds
-/// [`BRACKET_CERTIFY_MAX_BLOCK`] states (too slow for every SDP request).
+/// [`BRACKET_CERTIFY_MAX_BLOCK`] states (too slow for every SDP request). Blocks certified
+/// before are taken from `memo` when one is given (the same result, see [`CertificateMemo`]).
 pub(crate) fn bracket_certificate(
     problem: &FusionProblem,
     settings: &CertifySettings,
+    memo: Option<&mut CertificateMemo>,
 ) -> Result<Option<CertifiedResult>, SolveError> {
     if !small_enough(problem, None) {
         return Ok(None);
     }
-    certified_fusion(problem, settings).map(Some)
+    match memo {
+        Some(memo) => certified_fusion_memo(problem, settings, memo).map(Some),
+        None => certified_fusion(problem, settings).map(Some),
+    }
 }
 
 /// Whether every block a certificate would be computed on has at most

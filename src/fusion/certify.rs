@@ -558,7 +558,32 @@ pub fn certified_fusion(
     problem: &FusionProblem,
     settings: &CertifySettings,
 ) -> Result<CertifiedResult, SolveError> {
-    certify(problem, None, settings)
+    certify(problem, None, settings, None)
+}
+
+/// [`certified_fusion`] with the blocks certified before taken from `memo` (and those
+/// certified now added to it): the same result, bit for bit (see [`CertificateMemo`]).
+///
+/// ```
+/// use nalgebra::{DMatrix, DVector};
+/// use nmci::*;
+/// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+/// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
+///     CrossPattern::diagonal(2)).unwrap();
+/// let mut memo = CertificateMemo::new();
+/// let settings = CertifySettings::default();
+/// let first = certified_fusion_memo(&p, &settings, &mut memo).unwrap();
+/// let again = certified_fusion_memo(&p, &settings, &mut memo).unwrap();
+/// assert_eq!(first, again);
+/// assert_eq!(first, certified_fusion(&p, &settings).unwrap());
+/// assert_eq!(memo.hits(), 2); // two independent 1-state blocks, each certified once
+/// ```
+pub fn certified_fusion_memo(
+    problem: &FusionProblem,
+    settings: &CertifySettings,
+    memo: &mut CertificateMemo,
+) -> Result<CertifiedResult, SolveError> {
+    certify(problem, None, settings, Some(memo))
 }
 
 /// The tightest certified bound for a given gain `K_a` (`K_b = I − K_a`), e.g. the sampled
@@ -588,7 +613,7 @@ pub fn certify_gain(
             K_a.ncols()
         )));
     }
-    certify(problem, Some(K_a), settings)
+    certify(problem, Some(K_a), settings, None)
 }
 
 /// The blocks a certificate is computed on: the independent blocks, or the whole state when
@@ -621,6 +646,7 @@ fn certify(
     problem: &FusionProblem,
     gain: Option<&DMatrix<f64>>,
     settings: &CertifySettings,
+    memo: Option<&mut CertificateMemo>,
 ) -> Result<CertifiedResult, SolveError> {
     settings.validate()?;
     let blocks = certification_blocks(problem, gain);
@@ -646,94 +672,23 @@ fn certify(
     let mut levels = Vec::with_capacity(blocks.len());
     let mut sectors = Vec::with_capacity(blocks.len());
     let mut ci_blocks = Vec::with_capacity(blocks.len());
+    let mut memo = memo;
     let fused = per_block(problem, &blocks, |block, sub| {
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
-        // A block whose cross block is wholly unknown: CI is the robust optimum there (module
-        // docs), so no certificate of any family is tighter than CI's own beyond rounding; its
-        // proven bound is taken without a solve.
-        if sub_gain.is_none() && sub.cross_pattern.unknown_count() == block.len() * block.len() {
-            let ci = covariance_intersection(&sub, Criterion::Trace)?;
-            if let Some(bound) = young_bound(&sub.P_a, &sub.P_b, &ci.fused.K_a, ci.omega) {
-                ci_blocks.push(true);
-                levels.push(1);
-                sectors.push(0);
-                return Ok((ci.fused.K_a, bound.dominating()));
-            }
-        }
-        // The requested family, or — where the solver breaks down numerically on it — the
-        // next lower one that solves (`Family::lower`); CI's proven bound when none does.
-        let mut family = settings.family_for(block.len());
-        let mut solved = loop {
-            match certify_block(&sub, sub_gain.as_ref(), family, settings) {
-                Ok(s) => break Some(s),
-                Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => {
-                    match family.lower() {
-                        Some(lower) => family = lower,
-                        None => break None,
-                    }
-                }
-                Err(e) => return Err(e),
-            }
+        let outcome = match (&mut memo, &sub_gain) {
+            (Some(memo), None) => memo.get_or_certify(&sub, settings)?,
+            _ => certify_one_block(&sub, sub_gain.as_ref(), settings)?,
         };
-        // Solved to reduced accuracy only and repaired by more than RETRY_REPAIR_RTOL of the
-        // trace: the repair can cost more than a coarser family loses (degenerate optima,
-        // e.g. one row of P_ab unknown). Both are proofs; keep the smaller trace of this
-        // family's and the next lower one's.
-        if let (Some(first), Some(lower)) = (&solved, family.lower()) {
-            if first.status == SdpStatus::AlmostSolved
-                && first.repair > RETRY_REPAIR_RTOL * first.P.trace().abs()
-            {
-                match certify_block(&sub, sub_gain.as_ref(), lower, settings) {
-                    Ok(s) if trace_upper_bound(&s.P) < trace_upper_bound(&first.P) => {
-                        solved = Some(s);
-                        family = lower;
-                    }
-                    Ok(_) | Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => {
-                    }
-                    Err(e) => return Err(e),
-                }
-            }
-        }
-        // CI's bound (Young's inequality, proven in exact arithmetic) is a level-1
-        // certificate: keep it where the solver's certificate ended looser (module docs).
-        let (ci_gain, omega) = match &sub_gain {
-            Some(K) => (K.clone(), young_omega(&sub.P_a, &sub.P_b, K)),
-            None => {
-                let ci = covariance_intersection(&sub, Criterion::Trace)?;
-                (ci.fused.K_a, ci.omega)
-            }
-        };
-        let mut ci_used = false;
-        if let Some(bound) = young_bound(&sub.P_a, &sub.P_b, &ci_gain, omega) {
-            let P_ci = bound.dominating();
-            let looser = match &solved {
-                Some(s) => trace_upper_bound(&P_ci) < trace_upper_bound(&s.P),
-                None => true,
-            };
-            if looser {
-                let s = solved.get_or_insert_with(|| BlockCertificate {
-                    K_a: ci_gain.clone(),
-                    P: P_ci.clone(),
-                    status: SdpStatus::AlmostSolved,
-                    iterations: 0,
-                    repair: 0.0,
-                });
-                s.P = P_ci;
-                s.K_a = ci_gain;
-                ci_used = true;
-            }
-        }
-        let solved = solved.ok_or_else(|| repair_failed("CI's bound"))?;
-        ci_blocks.push(ci_used);
-        if solved.status == SdpStatus::AlmostSolved {
+        ci_blocks.push(outcome.ci_used);
+        if outcome.status == SdpStatus::AlmostSolved {
             status = SdpStatus::AlmostSolved;
         }
-        iterations += solved.iterations;
-        repair += solved.repair;
-        levels.push(family.level());
-        sectors.push(family.sectors());
-        Ok((solved.K_a, solved.P))
+        iterations += outcome.iterations;
+        repair += outcome.repair;
+        levels.push(outcome.level);
+        sectors.push(outcome.sectors);
+        Ok::<_, SolveError>((outcome.K_a, outcome.P))
     })?;
     Ok(CertifiedResult {
         fused,
@@ -745,6 +700,208 @@ fn certify(
         sectors,
         ci_blocks,
     })
+}
+
+/// What [`certify`] finds for one block: its gain and proven bound, and how they were found.
+#[allow(non_snake_case)]
+#[derive(Debug, Clone)]
+struct BlockOutcome {
+    K_a: DMatrix<f64>,
+    P: DMatrix<f64>,
+    status: SdpStatus,
+    iterations: u32,
+    repair: f64,
+    level: u32,
+    sectors: u32,
+    ci_used: bool,
+}
+
+/// One block of [`certify`]: `sub` is the block's problem, `sub_gain` its part of a given gain.
+#[allow(non_snake_case)]
+fn certify_one_block(
+    sub: &FusionProblem,
+    sub_gain: Option<&DMatrix<f64>>,
+    settings: &CertifySettings,
+) -> Result<BlockOutcome, SolveError> {
+    let n = sub.dim();
+    // A block whose cross block is wholly unknown: CI is the robust optimum there (module
+    // docs), so no certificate of any family is tighter than CI's own beyond rounding; its
+    // proven bound is taken without a solve.
+    if sub_gain.is_none() && sub.cross_pattern.unknown_count() == n * n {
+        let ci = covariance_intersection(sub, Criterion::Trace)?;
+        if let Some(bound) = young_bound(&sub.P_a, &sub.P_b, &ci.fused.K_a, ci.omega) {
+            return Ok(BlockOutcome {
+                K_a: ci.fused.K_a,
+                P: bound.dominating(),
+                status: SdpStatus::Solved,
+                iterations: 0,
+                repair: 0.0,
+                level: 1,
+                sectors: 0,
+                ci_used: true,
+            });
+        }
+    }
+    // The requested family, or — where the solver breaks down numerically on it — the
+    // next lower one that solves (`Family::lower`); CI's proven bound when none does.
+    let mut family = settings.family_for(n);
+    let mut solved = loop {
+        match certify_block(sub, sub_gain, family, settings) {
+            Ok(s) => break Some(s),
+            Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => {
+                match family.lower() {
+                    Some(lower) => family = lower,
+                    None => break None,
+                }
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    // Solved to reduced accuracy only and repaired by more than RETRY_REPAIR_RTOL of the
+    // trace: the repair can cost more than a coarser family loses (degenerate optima,
+    // e.g. one row of P_ab unknown). Both are proofs; keep the smaller trace of this
+    // family's and the next lower one's.
+    if let (Some(first), Some(lower)) = (&solved, family.lower()) {
+        if first.status == SdpStatus::AlmostSolved
+            && first.repair > RETRY_REPAIR_RTOL * first.P.trace().abs()
+        {
+            match certify_block(sub, sub_gain, lower, settings) {
+                Ok(s) if trace_upper_bound(&s.P) < trace_upper_bound(&first.P) => {
+                    solved = Some(s);
+                    family = lower;
+                }
+                Ok(_) | Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }) => {}
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    // CI's bound (Young's inequality, proven in exact arithmetic) is a level-1
+    // certificate: keep it where the solver's certificate ended looser (module docs).
+    let (ci_gain, omega) = match sub_gain {
+        Some(K) => (K.clone(), young_omega(&sub.P_a, &sub.P_b, K)),
+        None => {
+            let ci = covariance_intersection(sub, Criterion::Trace)?;
+            (ci.fused.K_a, ci.omega)
+        }
+    };
+    let mut ci_used = false;
+    if let Some(bound) = young_bound(&sub.P_a, &sub.P_b, &ci_gain, omega) {
+        let P_ci = bound.dominating();
+        let looser = match &solved {
+            Some(s) => trace_upper_bound(&P_ci) < trace_upper_bound(&s.P),
+            None => true,
+        };
+        if looser {
+            let s = solved.get_or_insert_with(|| BlockCertificate {
+                K_a: ci_gain.clone(),
+                P: P_ci.clone(),
+                status: SdpStatus::AlmostSolved,
+                iterations: 0,
+                repair: 0.0,
+            });
+            s.P = P_ci;
+            s.K_a = ci_gain;
+            ci_used = true;
+        }
+    }
+    let solved = solved.ok_or_else(|| repair_failed("CI's bound"))?;
+    Ok(BlockOutcome {
+        K_a: solved.K_a,
+        P: solved.P,
+        status: solved.status,
+        iterations: solved.iterations,
+        repair: solved.repair,
+        level: family.level(),
+        sectors: family.sectors(),
+        ci_used,
+    })
+}
+
+/// How many certified blocks a [`CertificateMemo`] keeps.
+pub const MEMO_BLOCKS: usize = 8;
+
+/// Certified blocks kept for reuse by [`certified_fusion_memo`]: the last [`MEMO_BLOCKS`]
+/// blocks certified, each under its exact inputs — the block's `P_a`, `P_b` (bit for bit) and
+/// known-zero pattern, and the settings. A block certified before with the same inputs gets
+/// the same gain, bound, status, iterations, repair, level and sector count as then, which a
+/// fresh solve would give again (the program and its repair are deterministic), so results
+/// are the same with and without the memo (tested); only the time differs. The explorer keeps
+/// one per worker: an edit inside one block then solves that block alone. Errors are not
+/// kept.
+#[derive(Debug, Default)]
+pub struct CertificateMemo {
+    entries: std::collections::VecDeque<(BlockKey, BlockOutcome)>,
+    hits: u64,
+}
+
+/// The exact inputs of one block's certificate (no given gain).
+#[allow(non_snake_case)]
+#[derive(Debug, PartialEq)]
+struct BlockKey {
+    P_a: Vec<u64>,
+    P_b: Vec<u64>,
+    unknown: Vec<bool>,
+    settings: CertifySettings,
+}
+
+impl BlockKey {
+    fn of(sub: &FusionProblem, settings: &CertifySettings) -> Self {
+        let n = sub.dim();
+        let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect();
+        BlockKey {
+            P_a: bits(&sub.P_a),
+            P_b: bits(&sub.P_b),
+            unknown: (0..n)
+                .flat_map(|i| (0..n).map(move |j| (i, j)))
+                .map(|(i, j)| sub.cross_pattern.is_unknown(i, j))
+                .collect(),
+            settings: *settings,
+        }
+    }
+}
+
+impl CertificateMemo {
+    /// An empty memo.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// How many blocks were taken from the memo instead of certified.
+    pub fn hits(&self) -> u64 {
+        self.hits
+    }
+
+    /// How many blocks it holds (at most [`MEMO_BLOCKS`]).
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Whether it holds no block.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    fn get_or_certify(
+        &mut self,
+        sub: &FusionProblem,
+        settings: &CertifySettings,
+    ) -> Result<BlockOutcome, SolveError> {
+        let key = BlockKey::of(sub, settings);
+        if let Some(at) = self.entries.iter().position(|(k, _)| *k == key) {
+            self.hits += 1;
+            // The most recently used last: the first is evicted next.
+            let entry = self.entries.remove(at).expect("found above");
+            let outcome = entry.1.clone();
+            self.entries.push_back(entry);
+            return Ok(outcome);
+        }
+        let outcome = certify_one_block(sub, None, settings)?;
+        if self.entries.len() == MEMO_BLOCKS {
+            self.entries.pop_front();
+        }
+        self.entries.push_back((key, outcome.clone()));
+        Ok(outcome)
+    }
 }
 
 fn binomial(n: usize, k: usize) -> usize {
@@ -1480,7 +1637,54 @@ fn repair_failed(what: &str) -> SolveError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::CrossPattern;
     use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn the_memo_keeps_the_last_blocks_used_and_changes_no_number() {
+        // `n` one-state blocks with distinct variances (each cross block wholly unknown: CI's
+        // bound, so cheap); `shift` moves every variance.
+        let problem = |n: usize, shift: f64| {
+            let d = |f: fn(usize) -> f64| {
+                DMatrix::from_fn(n, n, |i, j| if i == j { f(i) + shift } else { 0.0 })
+            };
+            FusionProblem::from_covariances(
+                d(|i| 1.0 + i as f64),
+                d(|i| 3.0 + 0.5 * i as f64),
+                CrossPattern::diagonal(n),
+            )
+            .unwrap()
+        };
+        let settings = CertifySettings::default();
+        let run = |memo: &mut CertificateMemo, p: &FusionProblem| {
+            let got = certified_fusion_memo(p, &settings, memo).unwrap();
+            assert_eq!(got, certified_fusion(p, &settings).unwrap());
+            (memo.hits(), memo.len())
+        };
+        let mut memo = CertificateMemo::new();
+        assert!(memo.is_empty());
+        // Four blocks, twice: all four kept, then all four reused.
+        assert_eq!(run(&mut memo, &problem(4, 0.0)), (0, 4));
+        assert_eq!(run(&mut memo, &problem(4, 0.0)), (4, 4));
+        // MEMO_BLOCKS + 2 new blocks: the memo holds the last MEMO_BLOCKS of them.
+        let big = problem(MEMO_BLOCKS + 2, 10.0);
+        assert_eq!(run(&mut memo, &big), (4, MEMO_BLOCKS));
+        // The first two were evicted first (least recently used); the cyclic order then
+        // evicts each block before it comes round again: no hit, the same result.
+        assert_eq!(run(&mut memo, &big), (4, MEMO_BLOCKS));
+        // The blocks used last are kept: the last MEMO_BLOCKS of `big` again.
+        let tail = FusionProblem::from_covariances(
+            big.P_a
+                .view((2, 2), (MEMO_BLOCKS, MEMO_BLOCKS))
+                .into_owned(),
+            big.P_b
+                .view((2, 2), (MEMO_BLOCKS, MEMO_BLOCKS))
+                .into_owned(),
+            CrossPattern::diagonal(MEMO_BLOCKS),
+        )
+        .unwrap();
+        assert_eq!(run(&mut memo, &tail), (4 + MEMO_BLOCKS as u64, MEMO_BLOCKS));
+    }
 
     #[test]
     #[allow(non_snake_case)]

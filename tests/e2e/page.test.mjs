@@ -408,13 +408,14 @@ test("an ellipse drawn is the 1σ ellipse of its covariance, every one in the sa
   assert.equal(new Set(results.map((r) => r.direction)).size, 1, `directions ${results.map((r) => r.direction)}`);
 });
 
-test("interaction cost at n = 4: 10 edits of the two-block preset (each cross block wholly unknown: CI's bound, proven without a solve), then 10 with one known zero in each (two 24-sector proofs), each recomputed once, to the CLI's numbers", async () => {
+test("interaction cost at n = 4: 10 edits of the two-block preset (each cross block wholly unknown: CI's bound, proven without a solve), then 10 with one known zero in each (a 24-sector proof of the edited block, the other's from the memo), each recomputed once, to the CLI's numbers", async () => {
   await page.selectOption("#preset", "twoblock");
   await settle();
   assert.equal(await page.locator("#dim").inputValue(), "4");
+  // P_a[1,1] = 3 in the preset: `value(k)` for edit k, never the value already shown.
+  let value = (k) => `3.${1 + (k % 5)}`;
   const edits = async (k) => {
-    // P_a[1,1] = 3 in the preset: 3.1 … 3.5 in turn, never the value already shown.
-    await cell("pa", 1, 1).fill(`3.${1 + (k % 5)}`);
+    await cell("pa", 1, 1).fill(value(k));
     await settle();
     await assertRulesMatchCli(page, `edit ${k}`);
     assert.match((await text("#row-certified .trace")).trim(), /^\d+\.\d{3}$/, `edit ${k}: the certified rule is shown`);
@@ -428,7 +429,10 @@ test("interaction cost at n = 4: 10 edits of the two-block preset (each cross bl
   }
   assert.match(await text("#blocks"), /nmCI blocks \(2\)/);
   assert.match(await text("#certified-status"), /level 1 on 24 sectors, status \w+, [1-9]\d* iterations/);
-  await measureEdits(10, edits, "interaction-n4-one-zero.json", "interaction cost at n = 4, one known zero per block", "n = 4, two 2 × 2 blocks, one known zero in each cross block: edit → all rules (the certified rule: a 24-sector proof on each block) + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone");
+  // A value not seen before at every edit (3.11 … 3.20): block 1's proof is solved each time,
+  // block 2's comes from the worker's memo of certified blocks (an edit, not a revisit).
+  value = (k) => `3.${11 + k}`;
+  await measureEdits(10, edits, "interaction-n4-one-zero.json", "interaction cost at n = 4, one known zero per block", "n = 4, two 2 × 2 blocks, one known zero in each cross block: edit of block 1 to a new value → all rules (the certified rule: block 1's 24-sector proof solved, block 2's from the worker's memo) + SDP (200 samples) + region (300) → rendered, headless Chromium; compute_median: the wasm explore call alone");
 });
 
 test("a panic in the worker is reported, the worker replaced, and the next edit computed", async () => {
