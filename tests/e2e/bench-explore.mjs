@@ -3,9 +3,10 @@
 // Chromium, calls the wasm `explore` on the page's two-block preset (n = 4, the page's request:
 // 200 SDP samples, 300 region samples, sampler "auto") `calls` times in a row on the main
 // thread, printing each call's time. The first calls run V8's baseline compilation of the
-// module's functions, later ones its optimized code: the end-to-end interaction test's 10 edits
-// at n = 4 (test-output/e2e/interaction-n4.json) fall mostly in the first phase. Needs www/pkg
-// (scripts/wasm.sh build).
+// module's functions, later ones its optimized code. The end-to-end interaction test's edits at
+// n = 4 (test-output/e2e/interaction-n4.json) come after the page's other tests, with optimized
+// code, but each after an idle moment, which costs more than calls in a row do
+// (docs/development.md). Needs www/pkg (scripts/wasm.sh build).
 import { serveWww, launchChromium } from "./harness.mjs";
 
 const calls = Number(process.argv[2] ?? 30);
