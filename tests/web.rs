@@ -13,6 +13,8 @@ use wasm_bindgen_test::*;
 
 #[path = "common/fuzz.rs"]
 mod fuzz;
+#[path = "common/memo.rs"]
+mod memo;
 
 wasm_bindgen_test_configure!(run_in_browser);
 
@@ -340,4 +342,11 @@ fn fuzz_cases_never_panic_in_wasm() {
         responses > 0 && errors > 0,
         "{responses} responses, {errors} errors"
     );
+}
+
+/// The explorer's memo of certified blocks in wasm (the page's worker keeps one): the same
+/// analyses as fresh ones, bit for bit, and the expected reuse.
+#[wasm_bindgen_test]
+fn the_memo_reuses_blocks_certified_before_and_changes_no_number() {
+    memo::memo_sequence_matches_fresh_analyses();
 }

@@ -293,33 +293,5 @@ fn the_two_block_preset_is_certified_by_ci_without_a_solve() {
 
 #[test]
 fn the_memo_reuses_blocks_certified_before_and_changes_no_number() {
-    // The two-block preset with one known zero in each cross block: two 24-sector proofs.
-    // `p11` is P_a[1][1] (block 1), `sectors` the certified rule's setting.
-    let state = |p11: f64, sectors: u32| {
-        request(&format!(
-            r#"{{"pa": [[{p11}, 0.5, 0, 0], [0.5, 1, 0, 0], [0, 0, 1, 0.2], [0, 0, 0.2, 2]],
-                "pb": [[1, -0.3, 0, 0], [-0.3, 2, 0, 0], [0, 0, 4, 1], [0, 0, 1, 2]],
-                "pab_unknown": [[true, true, false, false], [false, true, false, false],
-                                [false, false, true, true], [false, false, false, true]],
-                "samples": 50, "region_samples": 40, "sectors": {sectors}}}"#
-        ))
-    };
-    let mut memo = CertificateMemo::new();
-    // Each step: the state, then the hits and blocks held the memo must show after it.
-    let steps = [
-        (state(3.0, 24), 0, 2),
-        (state(3.1, 24), 1, 3), // block 1 edited: block 2 reused
-        (state(3.0, 24), 3, 3), // back: both blocks reused
-        (state(3.0, 16), 3, 5), // another setting: a different certificate
-    ];
-    for (k, (req, hits, held)) in steps.iter().enumerate() {
-        let with = explore_with_memo(req, &mut memo).unwrap();
-        let without = explore(req).unwrap();
-        assert_eq!(with, without, "step {k}: the same analysis, bit for bit");
-        if k == 0 {
-            let certs = with.gap.as_ref().unwrap().certificates.clone().unwrap();
-            assert_eq!(certs.sectors, vec![24, 24], "two proofs on 24 sectors");
-        }
-        assert_eq!((memo.hits(), memo.len()), (*hits, *held), "step {k}");
-    }
+    common::memo::memo_sequence_matches_fresh_analyses();
 }
