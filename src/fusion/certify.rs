@@ -1665,6 +1665,7 @@ mod tests {
         assert!(memo.is_empty());
         // Four blocks, twice: all four kept, then all four reused.
         assert_eq!(run(&mut memo, &problem(4, 0.0)), (0, 4));
+        assert!(!memo.is_empty());
         assert_eq!(run(&mut memo, &problem(4, 0.0)), (4, 4));
         // MEMO_BLOCKS + 2 new blocks: the memo holds the last MEMO_BLOCKS of them.
         let big = problem(MEMO_BLOCKS + 2, 10.0);
