@@ -677,7 +677,9 @@ fn certify(
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
         let outcome = match (&mut memo, &sub_gain) {
-            (Some(memo), None) => memo.get_or_certify(&sub, settings)?,
+            (Some(memo), None) if settings.time_limit.is_none() => {
+                memo.get_or_certify(&sub, settings)?
+            }
             _ => certify_one_block(&sub, sub_gain.as_ref(), settings)?,
         };
         ci_blocks.push(outcome.ci_used);
@@ -820,14 +822,15 @@ fn certify_one_block(
 /// How many certified blocks a [`CertificateMemo`] keeps.
 pub const MEMO_BLOCKS: usize = 8;
 
-/// Certified blocks kept for reuse by [`certified_fusion_memo`]: the last [`MEMO_BLOCKS`]
-/// blocks certified, each under its exact inputs — the block's `P_a`, `P_b` (bit for bit) and
-/// known-zero pattern, and the settings. A block certified before with the same inputs gets
-/// the same gain, bound, status, iterations, repair, level and sector count as then, which a
-/// fresh solve would give again (the program and its repair are deterministic), so results
-/// are the same with and without the memo (tested); only the time differs. The explorer keeps
-/// one per worker: an edit inside one block then solves that block alone. Errors are not
-/// kept.
+/// Certified blocks kept for reuse by [`certified_fusion_memo`]: the [`MEMO_BLOCKS`] blocks
+/// used most recently, each under its exact inputs — the block's `P_a`, `P_b` (bit for bit)
+/// and known-zero pattern, and the settings. A block certified before with the same inputs
+/// gets the same gain, bound, status, iterations, repair, level and sector count as then,
+/// which a fresh solve would give again (the program and its repair are deterministic), so
+/// results are the same with and without the memo (tested); only the time differs. The
+/// explorer keeps one per worker: an edit inside one block then solves that block alone.
+/// Errors are not kept, and settings with a `time_limit` do not use the memo (a solve's
+/// outcome then depends on the time it gets).
 #[derive(Debug, Default)]
 pub struct CertificateMemo {
     entries: std::collections::VecDeque<(BlockKey, BlockOutcome)>,
@@ -1685,6 +1688,16 @@ mod tests {
         )
         .unwrap();
         assert_eq!(run(&mut memo, &tail), (4 + MEMO_BLOCKS as u64, MEMO_BLOCKS));
+        // With a time limit the memo is neither read nor written.
+        let limited = CertifySettings {
+            time_limit: Some(60.0),
+            ..settings
+        };
+        let mut fresh = CertificateMemo::new();
+        for _ in 0..2 {
+            certified_fusion_memo(&tail, &limited, &mut fresh).unwrap();
+        }
+        assert_eq!((fresh.hits(), fresh.len()), (0, 0));
     }
 
     #[test]
