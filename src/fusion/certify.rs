@@ -646,7 +646,7 @@ fn certify(
     problem: &FusionProblem,
     gain: Option<&DMatrix<f64>>,
     settings: &CertifySettings,
-    memo: Option<&mut CertificateMemo>,
+    mut memo: Option<&mut CertificateMemo>,
 ) -> Result<CertifiedResult, SolveError> {
     settings.validate()?;
     let blocks = certification_blocks(problem, gain);
@@ -672,7 +672,6 @@ fn certify(
     let mut levels = Vec::with_capacity(blocks.len());
     let mut sectors = Vec::with_capacity(blocks.len());
     let mut ci_blocks = Vec::with_capacity(blocks.len());
-    let mut memo = memo;
     let fused = per_block(problem, &blocks, |block, sub| {
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
