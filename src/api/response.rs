@@ -118,11 +118,12 @@ pub struct SdpDetails {
     /// The certified rule in the bracket (blocks of at most
     /// [`crate::BRACKET_CERTIFY_MAX_BLOCK`] states; absent when the caller gave the upper ends).
     pub certificates: Option<Certificates>,
-    /// A proven upper bound on `tr P̄` of a bound that holds for this method's own gain and
-    /// every admissible `P_ab`: what the optimal gain costs when the bound must hold for all of
-    /// them. The certified rule's bound carried over to the gain where that closes the gain's
-    /// bracket, else the smaller of it and the gain's own certificate (`certify_gain`); see
-    /// `fusion::bracket`, "A given gain's bound".
+    /// The trace, rounded up, of a bound proven to hold for this method's own gain and every
+    /// admissible `P_ab`: an upper bound on what that gain costs when the bound must hold for
+    /// all of them. The certified rule's bound carried over to the gain where that closes the
+    /// gain's bracket, else the smaller of it and the gain's own certificate (`certify_gain`;
+    /// whichever exists alone; `None` when neither does); see `fusion::bracket`, "A given
+    /// gain's bound".
     pub gain_certified_trace: Option<f64>,
 }
 

@@ -19,6 +19,38 @@ pub fn memo_sequence_matches_fresh_analyses() {
         ))
         .unwrap()
     };
+    // The page's largest size (n = 6): three 2 × 2 blocks, one known zero in each cross block.
+    let six = |p11: f64| {
+        let blocks = [
+            ([[p11, 0.4], [0.4, 1.0]], [[1.0, 0.2], [0.2, 3.0]]),
+            ([[1.0, 0.0], [0.0, 2.0]], [[2.5, 0.6], [0.6, 1.0]]),
+            ([[2.0, -0.5], [-0.5, 1.5]], [[1.0, 0.3], [0.3, 2.5]]),
+        ];
+        let dense = |which: usize| {
+            let mut m = vec![vec![0.0; 6]; 6];
+            for (b, pair) in blocks.iter().enumerate() {
+                let block = if which == 0 { pair.0 } else { pair.1 };
+                for i in 0..2 {
+                    for j in 0..2 {
+                        m[2 * b + i][2 * b + j] = block[i][j];
+                    }
+                }
+            }
+            m
+        };
+        let unknown: Vec<Vec<bool>> = (0..6)
+            .map(|i| {
+                (0..6)
+                    .map(|j| i / 2 == j / 2 && !(i % 2 == 1 && j + 1 == i))
+                    .collect()
+            })
+            .collect();
+        serde_json::from_value::<ExploreRequest>(serde_json::json!({
+            "pa": dense(0), "pb": dense(1), "pab_unknown": unknown,
+            "samples": 50, "region_samples": 40
+        }))
+        .unwrap()
+    };
     let mut memo = CertificateMemo::new();
     // Each step: the state, then the hits and blocks held the memo must show after it.
     let steps = [
@@ -26,6 +58,10 @@ pub fn memo_sequence_matches_fresh_analyses() {
         (state(3.1, 24), 1, 3), // block 1 edited: block 2 reused
         (state(3.0, 24), 3, 3), // back: both blocks reused
         (state(3.0, 16), 3, 5), // another setting: a different certificate
+        (six(3.0), 3, 8),       // three new blocks: the memo full
+        // Block 1 edited: its new proof evicts the least recently used entry, never a block
+        // of the state before (the memo keeps more blocks than a page state has, n ≤ 6).
+        (six(3.1), 5, 8),
     ];
     for (k, (req, hits, held)) in steps.iter().enumerate() {
         let with = explore_with_memo(req, &mut memo).unwrap();
