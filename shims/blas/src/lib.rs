@@ -59,15 +59,39 @@ fn gemm<T: RealField + Copy>(
     let ta = is_trans(transa);
     let tb = is_trans(transb);
     let zero = nalgebra::zero::<T>();
+    // Each entry is `α (((0 + a₁b₁) + a₂b₂) + … + a_kb_k) (+ β c)`, its products summed in
+    // the order of `l` in one accumulator: the reference loop's arithmetic (tested bit for
+    // bit), with the operands read through slices so that the bounds are checked once per
+    // row or column rather than at every product.
     for j in 0..n {
-        for i in 0..m {
+        let ccol = &mut c[j * ldc..j * ldc + m];
+        for (i, cij) in ccol.iter_mut().enumerate() {
             let mut acc = zero;
-            for l in 0..k {
-                let av = if ta { a[l + i * lda] } else { a[i + l * lda] };
-                let bv = if tb { b[j + l * ldb] } else { b[l + j * ldb] };
-                acc += av * bv;
+            if k > 0 {
+                match (ta, tb) {
+                    (true, false) => {
+                        for (&x, &y) in a[i * lda..i * lda + k].iter().zip(&b[j * ldb..j * ldb + k])
+                        {
+                            acc += x * y;
+                        }
+                    }
+                    (true, true) => {
+                        for (l, &x) in a[i * lda..i * lda + k].iter().enumerate() {
+                            acc += x * b[j + l * ldb];
+                        }
+                    }
+                    (false, false) => {
+                        for (l, &y) in b[j * ldb..j * ldb + k].iter().enumerate() {
+                            acc += a[i + l * lda] * y;
+                        }
+                    }
+                    (false, true) => {
+                        for l in 0..k {
+                            acc += a[i + l * lda] * b[j + l * ldb];
+                        }
+                    }
+                }
             }
-            let cij = &mut c[i + j * ldc];
             *cij = if beta == zero {
                 alpha * acc
             } else {

@@ -7,7 +7,7 @@
 //!
 //! | driver | supported arguments |
 //! |---|---|
-//! | `?syevr` | `jobz` `N`/`V`, `range` `A` (others: `info = -2`), `uplo` `U`/`L`, workspace queries (`lwork = -1` or `liwork = -1`) |
+//! | `?syevr` | `jobz` `N` (the eigenvalues alone: the same bits as with `V`) / `V`, `range` `A` (others: `info = -2`), `uplo` `U`/`L`, workspace queries (`lwork = -1` or `liwork = -1`) |
 //! | `?potrf` | `uplo` `U`/`L`; `info = k > 0` when the leading minor of order `k` is not positive definite |
 //! | `?potrs` | `uplo` `U`/`L`, any `nrhs` |
 //! | `?gesdd` | `jobz` `N`/`S`, and `A` when `m = n` (then the same as `S`); workspace query |
@@ -99,16 +99,24 @@ fn syevr<T: RealField + Copy>(
         }
         return;
     }
-    let Some(eig) = SymmetricEigen::try_new(full, T::default_epsilon(), 0) else {
-        *info = 1;
-        return;
+    // Without vectors, nalgebra's eigenvalues alone: the same reduction and QR iteration on
+    // the same numbers (the rotations are only not applied to `Q`), so the same bits as the
+    // values of the full decomposition (tested), at a fraction of the cost.
+    let (values, vecs) = if vectors {
+        let Some(eig) = SymmetricEigen::try_new(full, T::default_epsilon(), 0) else {
+            *info = 1;
+            return;
+        };
+        (eig.eigenvalues, Some(eig.eigenvectors))
+    } else {
+        (full.symmetric_eigenvalues(), None)
     };
     let mut order: Vec<usize> = (0..nu).collect();
     // A total order even with NaN (sorted last, as an invalid input gives; LAPACK returns
     // NaN too): `partial_cmp(..).unwrap_or(Equal)` is not one, and the standard sort panics
     // on such comparators — a panic inside the solver would kill a wasm module.
     order.sort_by(|&p, &q| {
-        let (a, b) = (eig.eigenvalues[p], eig.eigenvalues[q]);
+        let (a, b) = (values[p], values[q]);
         let nan = |x: T| x.partial_cmp(&x).is_none();
         match (nan(a), nan(b)) {
             (true, true) => core::cmp::Ordering::Equal,
@@ -119,10 +127,10 @@ fn syevr<T: RealField + Copy>(
     });
     *m = n;
     for (k, &p) in order.iter().enumerate() {
-        w[k] = eig.eigenvalues[p];
-        if vectors {
+        w[k] = values[p];
+        if let Some(v) = &vecs {
             for i in 0..nu {
-                z[i + k * ldz as usize] = eig.eigenvectors[(i, p)];
+                z[i + k * ldz as usize] = v[(i, p)];
             }
         }
     }
