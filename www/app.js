@@ -30,6 +30,7 @@ const client = createExploreClient({
   url: new URL("./worker.js", import.meta.url),
   onBusy: (busy) => {
     $("busy").hidden = !busy;
+    if (!busy) writeHash();
     document.body.dataset.ready = String(!busy);
   },
   onResult: (result, analysed) => {
@@ -216,10 +217,23 @@ function syncControls() {
 
 const PRESETS = ["paper", "correlated", "twoblock", "six"];
 
+// The URL's hash holds the state (a link reproduces the view). After an edit that starts an
+// analysis it is written once the worker is idle, not at the edit: each `replaceState` costs the
+// browser process several milliseconds, which on a machine with few cores ran alongside the
+// worker's analysis and lengthened it (docs/development.md). A link copied before then is
+// written first (`share`).
+let hashPending = false;
+function writeHash() {
+  if (!hashPending) return;
+  hashPending = false;
+  const hash = encodeHash(state);
+  if (location.hash !== hash) history.replaceState(null, "", hash);
+}
+
 function changed() {
   $("preset").value = PRESETS.includes(state.preset) ? state.preset : "custom";
-  history.replaceState(null, "", encodeHash(state));
-  if (!allCellsValid()) return;
+  hashPending = true;
+  if (!allCellsValid()) return writeHash();
   submit();
 }
 
@@ -408,7 +422,10 @@ function init() {
     const { region, ...numbers } = last;
     download("nmci-numbers.json", "application/json", JSON.stringify({ state, ...numbers }, null, 2));
   });
-  $("share").addEventListener("click", () => navigator.clipboard?.writeText(location.href));
+  $("share").addEventListener("click", () => {
+    writeHash();
+    navigator.clipboard?.writeText(location.href);
+  });
   window.addEventListener("hashchange", () => {
     if (location.hash === encodeHash(state)) return;
     const { state: s, error } = decodeHash(location.hash);

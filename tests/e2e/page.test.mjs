@@ -240,6 +240,22 @@ test("a URL hash restores the whole state", async () => {
   assert.equal(await other.locator("#table tbody").innerText(), traces);
   await other.screenshot({ path: join(out, "explorer-twoblock-from-hash.png"), fullPage: true });
   await other.close();
+  // The hash of an edit is written once its analysis is done (not while the worker computes),
+  // and the share button writes it at once: an edit and a click in one task, before any
+  // result can arrive.
+  const during = await page.evaluate(() => {
+    const input = document.querySelector('#grid-pb input[aria-label="P_b[2,2]"]');
+    input.value = "2.75";
+    input.dispatchEvent(new Event("input", { bubbles: true }));
+    const before = decodeURIComponent(location.hash);
+    document.querySelector("#share").click();
+    return { ready: document.body.dataset.ready, before, after: decodeURIComponent(location.hash) };
+  });
+  assert.equal(during.ready, "false", "the edit's analysis is in flight");
+  assert.match(during.before, /\[-0\.3,2\.5,0,0\]/, "no hash write while the worker computes");
+  assert.match(during.after, /\[-0\.3,2\.75,0,0\]/, "share writes the edit's state");
+  await settle();
+  assert.match(decodeURIComponent(await page.evaluate(() => location.hash)), /\[-0\.3,2\.75,0,0\]/);
 });
 
 test("a malformed or out-of-range URL hash says so: the paper's example, or the defaults for bad settings, named", async () => {
