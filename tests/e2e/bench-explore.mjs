@@ -5,8 +5,9 @@
 // thread, printing each call's time. The first calls run V8's baseline compilation of the
 // module's functions, later ones its optimized code. The end-to-end interaction test's edits at
 // n = 4 (test-output/e2e/interaction-n4.json) come after the page's other tests, with optimized
-// code, but each after an idle moment, which costs more than calls in a row do
-// (docs/development.md). Needs www/pkg (scripts/wasm.sh build).
+// code, but each with the edit's own work in the browser (input handling, layout, paint)
+// running beside the analysis, which calls in a row do not have (docs/development.md).
+// Needs www/pkg (scripts/wasm.sh build).
 import { serveWww, launchChromium } from "./harness.mjs";
 
 const calls = Number(process.argv[2] ?? 30);
