@@ -171,6 +171,22 @@ fn dgemm_is_the_triple_loop_bit_for_bit() {
     }
 }
 
+/// With `k = 0` reference BLAS reads neither `A` nor `B` (they may be empty): `C ← β C`, or
+/// `α·0` when `β = 0`; no panic for any transpose.
+#[test]
+fn dgemm_with_k_zero_reads_no_operand() {
+    for &ta in b"NT" {
+        for &tb in b"NT" {
+            let mut c = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+            unsafe { blas::dgemm(ta, tb, 3, 2, 0, 0.7, &[], 1, &[], 1, 0.5, &mut c, 3) };
+            assert_eq!(c, [0.5, 1.0, 1.5, 2.0, 2.5, 3.0]);
+            let mut c = [f64::NAN; 6];
+            unsafe { blas::dgemm(ta, tb, 3, 2, 0, 0.7, &[], 1, &[], 1, 0.0, &mut c, 3) };
+            assert_eq!(c, [0.0; 6]);
+        }
+    }
+}
+
 #[test]
 fn beta_zero_ignores_nan_output() {
     let a = [1.0, 2.0];
