@@ -424,7 +424,11 @@ function init() {
   });
   $("share").addEventListener("click", () => {
     writeHash();
-    navigator.clipboard?.writeText(location.href);
+    // The clipboard needs a secure context and the browser's permission: when it is refused
+    // the page says so (the link is the address bar's).
+    const refused = () => showGeneral("the link could not be copied (the browser refused the clipboard): copy it from the address bar");
+    if (!navigator.clipboard) return refused();
+    navigator.clipboard.writeText(location.href).catch(refused);
   });
   window.addEventListener("hashchange", () => {
     if (location.hash === encodeHash(state)) return;

@@ -256,6 +256,11 @@ test("a URL hash restores the whole state", async () => {
   assert.match(during.after, /\[-0\.3,2\.75,0,0\]/, "share writes the edit's state");
   await settle();
   assert.match(decodeURIComponent(await page.evaluate(() => location.hash)), /\[-0\.3,2\.75,0,0\]/);
+  // A refused clipboard is said, not silent.
+  await page.evaluate(() => Object.defineProperty(navigator, "clipboard", { configurable: true, value: { writeText: () => Promise.reject(new DOMException("denied", "NotAllowedError")) } }));
+  await page.click("#share");
+  await page.waitForFunction(() => /could not be copied/.test(document.querySelector("#err-general").textContent));
+  await page.evaluate(() => delete navigator.clipboard);
 });
 
 test("a malformed or out-of-range URL hash says so: the paper's example, or the defaults for bad settings, named", async () => {
