@@ -676,9 +676,7 @@ fn certify(
         let sub_gain = gain
             .map(|K| DMatrix::from_fn(block.len(), block.len(), |i, j| K[(block[i], block[j])]));
         let outcome = match (&mut memo, &sub_gain) {
-            (Some(memo), None) if settings.time_limit.is_none() => {
-                memo.get_or_certify(&sub, settings)?
-            }
+            (Some(memo), None) => memo.get_or_certify(&sub, settings)?,
             _ => certify_one_block(&sub, sub_gain.as_ref(), settings)?,
         };
         ci_blocks.push(outcome.ci_used);
@@ -888,6 +886,11 @@ impl CertificateMemo {
         sub: &FusionProblem,
         settings: &CertifySettings,
     ) -> Result<BlockOutcome, SolveError> {
+        // A solve with a time limit may end differently with other timing: never kept or
+        // reused.
+        if settings.time_limit.is_some() {
+            return certify_one_block(sub, None, settings);
+        }
         let key = BlockKey::of(sub, settings);
         if let Some(at) = self.entries.iter().position(|(k, _)| *k == key) {
             self.hits += 1;
