@@ -58,6 +58,28 @@ pub enum InputError {
         /// Its smallest eigenvalue.
         min_eigenvalue: f64,
     },
+    /// A covariance proven positive definite (equilibrated by powers of two) whose smallest
+    /// eigenvalue is nonetheless lost to rounding as given: variances of very different
+    /// orders (mixed units) that the rules cannot compute with in floating point.
+    #[error("{name} is positive definite but too ill-conditioned to fuse in floating point (eigenvalues computed from {min_eigenvalue:.6e} to {max_eigenvalue:.6e}; rescale its states to comparable units)")]
+    IllConditioned {
+        /// Which input.
+        name: String,
+        /// Its smallest eigenvalue as computed (at or below rounding level).
+        min_eigenvalue: f64,
+        /// Its largest eigenvalue as computed.
+        max_eigenvalue: f64,
+    },
+    /// A covariance whose positive definiteness cannot be judged in floating point: its
+    /// eigenvalue computation overflows (entries near the largest float) or all its entries
+    /// are below the normal range (subnormal).
+    #[error("{name} is out of the range nmci computes in: its largest entry in magnitude is {largest:e} (rescale the units)")]
+    OutOfRange {
+        /// Which input.
+        name: String,
+        /// Its largest entry in magnitude.
+        largest: f64,
+    },
     /// A matrix with a non-zero entry outside the blocks it was declared block-diagonal in.
     #[error("{name} is not block-diagonal in the given blocks: entry ({row}, {col}) is {value}")]
     NotBlockDiagonal {
@@ -179,6 +201,16 @@ pub enum SolveError {
         /// The matrix that failed the verified test.
         what: String,
     },
+    /// A proven bound left the range of floating point: covariances whose products overflow
+    /// (of order `10¹⁵⁴` and above) and which cannot be scaled to order one exactly
+    /// (`fusion::scale`: an entry would fall below the normal range).
+    #[error("the {what} overflowed: the covariances (largest diagonal entry {largest:e}) are too large for its floating-point proof and could not be scaled exactly (rescale the problem's units)")]
+    Overflow {
+        /// The bound that overflowed.
+        what: String,
+        /// The largest diagonal entry of `P_a` and `P_b`.
+        largest: f64,
+    },
     /// Drawing the sample set failed.
     #[error(transparent)]
     Sample(#[from] SampleError),
@@ -261,6 +293,8 @@ impl InputError {
             | InputError::NotFinite { name, .. }
             | InputError::NotSymmetric { name, .. }
             | InputError::NotPositiveDefinite { name, .. }
+            | InputError::OutOfRange { name, .. }
+            | InputError::IllConditioned { name, .. }
             | InputError::NotBlockDiagonal { name, .. }
             | InputError::SizeMismatch { name, .. } => Some(name),
             InputError::InvalidBlocks { .. } | InputError::Estimates(_) => None,

@@ -31,7 +31,9 @@ across processes and machines) and :func:`fig2`.
 from __future__ import annotations
 
 import json
+import math
 import os
+import re
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -185,8 +187,12 @@ def fuse(request: Mapping[str, Any]) -> Dict[str, Any]:
     response is a plain dict with lists. Errors raise the exceptions of this package with the
     CLI's messages.
     """
+    at = _non_finite(request, "")
+    if at is not None:
+        field = re.split(r"[.\[]", at, maxsplit=1)[0]
+        raise RequestError(f"invalid request: `{at}` is NaN or infinite (JSON has no such numbers)", field)
     try:
-        text = json.dumps(request, default=_jsonable, allow_nan=True)
+        text = json.dumps(request, default=_jsonable, allow_nan=False)
     except (TypeError, ValueError) as e:
         raise RequestError(f"invalid request: {e}") from None
     return json.loads(_nmci.fuse_json(text))
@@ -199,6 +205,8 @@ def _field(name: str) -> str:
 
 def _array(name: str, a: ArrayLike, ndim: int) -> np.ndarray:
     """``a`` as a contiguous float64 array of ``ndim`` dimensions, or an ``InputError``."""
+    if np.iscomplexobj(a):
+        raise InputError(f"{name} is complex: covariances and means are real", _field(name))
     try:
         m = np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as e:
@@ -230,11 +238,56 @@ def _pattern(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
     return np.ascontiguousarray(m)
 
 
+def _option(name: str, value: Any) -> Any:
+    """An option's value, or a ``RequestError`` naming it: a number that JSON cannot carry
+    (NaN, infinity) or an integer of 2⁶⁴ or more (JSON would carry it, but as a float)."""
+    if isinstance(value, (bool, np.bool_, str)):
+        return value
+    if isinstance(value, (int, np.integer)) and int(value) >= 2**64:
+        raise RequestError(f"invalid request: `{name}` must be below 2^64 (got {value})", name)
+    if isinstance(value, (float, np.floating)) and not math.isfinite(value):
+        raise RequestError(f"invalid request: `{name}` must be a finite number (got {value})", name)
+    return value
+
+
+def _integer(name: str, value: Any) -> int:
+    """``value`` as an int when it is one (a float only when integral), else a ``RequestError``."""
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        return int(value)
+    if isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
+        return int(value)
+    raise RequestError(f"invalid request: `{name}` must be an integer (got {value!r})", name)
+
+
+def _unsigned(name: str, value: Any) -> int:
+    """``value`` as an int from 0 to 2⁶⁴ − 1 (a count, a seed), else a ``RequestError``."""
+    v = _integer(name, value)
+    if not 0 <= v < 2**64:
+        raise RequestError(f"invalid request: `{name}` must be from 0 to 2^64 - 1 (got {v})", name)
+    return v
+
+
 def _options(method: str, **options: Any) -> str:
     return json.dumps(
-        {"method": method, **{k: v for k, v in options.items() if v is not None}},
+        {"method": method, **{k: _option(k, v) for k, v in options.items() if v is not None}},
         default=_jsonable,
     )
+
+
+def _non_finite(value: Any, path: str) -> Optional[str]:
+    """The path of the first NaN or infinity in a request (``pa[0][1]``), if any."""
+    if isinstance(value, Mapping):
+        return next((p for k, v in value.items() if (p := _non_finite(v, f"{path}.{k}" if path else str(k)))), None)
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind in "fc" and not np.all(np.isfinite(value)):
+            index = tuple(int(i) for i in np.argwhere(~np.isfinite(value))[0])
+            return path + "".join(f"[{i}]" for i in index)
+        return None
+    if isinstance(value, (list, tuple)):
+        return next((p for i, v in enumerate(value) if (p := _non_finite(v, f"{path}[{i}]"))), None)
+    if isinstance(value, (float, np.floating)) and not math.isfinite(value):
+        return path
+    return None
 
 
 def _two(
@@ -490,10 +543,10 @@ def sample_cross_covariances(
         _matrix("P_a", Pa),
         _matrix("P_b", Pb),
         _pattern("pab_unknown", pab_unknown),
-        int(count),
-        seed,
+        _unsigned("count", count),
+        None if seed is None else _unsigned("seed", seed),
         sampler,
-        max_trials,
+        None if max_trials is None else _unsigned("max_trials", max_trials),
     )
     return stack
 

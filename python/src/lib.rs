@@ -222,6 +222,15 @@ fn fuse_json(py: Python<'_>, request: String) -> PyResult<String> {
     detached(py, move || nmci::fuse_json(&request))?.map_err(|e| request_error(py, e))
 }
 
+/// The key whose value holds byte column `column` (1-based) of `options`, a flat JSON object
+/// written by the Python layer (`"key": value` pairs, no nesting).
+fn option_at(options: &str, column: usize) -> Option<String> {
+    let before = options.get(..column.checked_sub(1)?)?;
+    let colon = before.rfind("\":")?;
+    let open = before[..colon].rfind('"')?;
+    Some(before[open + 1..colon].to_owned())
+}
+
 /// The JSON contract with the matrices given as numpy arrays: `options` is the rest of the
 /// request as JSON text (method, criterion, samples, …).
 #[pyfunction]
@@ -238,8 +247,18 @@ fn fuse_arrays<'py>(
     estimates: Option<Vec<NumpyEstimate<'py>>>,
     patterns: Option<Vec<(usize, usize, PyReadonlyArray2<'py, bool>)>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let mut request: FuseRequest = serde_json::from_str(options)
-        .map_err(|e| request_error(py, RequestError::Malformed(e.to_string())))?;
+    let mut request: FuseRequest = serde_json::from_str(options).map_err(|e| {
+        let error = match option_at(options, e.column()) {
+            // A value of the wrong type or range: named, since the text is not the user's.
+            Some(field) if e.is_data() => {
+                let message = e.to_string();
+                let message = message.split(" at line ").next().unwrap_or(&message);
+                RequestError::invalid(&field, format!("`{field}`: {message}"))
+            }
+            _ => RequestError::Malformed(e.to_string()),
+        };
+        request_error(py, error)
+    })?;
     if let Some(pa) = &pa {
         request.pair.pa = rows(pa);
     }

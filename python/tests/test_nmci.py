@@ -236,6 +236,18 @@ def test_conservative_rules_hold_on_sampled_cross_covariances():
         assert rules["certified"].trace <= min(rules["ci"].trace, rules["nmci"].trace) * (1 + 1e-14)
 
 
+@pytest.mark.parametrize("unit", [1e-8, 1e12])
+def test_the_solver_based_rules_do_not_depend_on_the_units(unit):
+    # km² for metre-level sensors, rad² for angles: before the power-of-two scaling the
+    # sampled optimum at 1e-8 was 8 % above the robust optimum (2) and 1e12 failed to solve.
+    a, b = np.diag([3.0, 1.0]), np.diag([1.0, 4.0])
+    m = np.array([[True, True], [False, True]])
+    opt = nmci.optimal(a * unit, b * unit, pab_unknown=m, samples=50)
+    assert abs(opt.trace / unit - 2.0) < 1e-6
+    assert 2.0 - 1e-6 < opt.lower_bound / unit <= opt.trace / unit
+    assert nmci.certified(a * unit, b * unit, pab_unknown=m).trace / unit < 2.0 + 1e-6
+
+
 def test_naive_fusion_is_caught_overconfident_by_the_index():
     a, b = np.diag([3.0, 1.0]), np.diag([1.0, 4.0])
     fused = nmci.naive(a, b)
@@ -310,6 +322,16 @@ BAD_CALLS = [
     (lambda: nmci.merge([]), nmci.MergeError, "no shards to merge"),
     (lambda: nmci.Shard("{}"), nmci.MergeError, "not a study shard"),
     (lambda: nmci.fig2(runs=0), nmci.RequestError, "fig2 needs at least one run"),
+    (lambda: nmci.ci(np.eye(2) * (1 + 1j), np.eye(2)), nmci.InputError, "P_a is complex"),
+    (lambda: nmci.ci(np.eye(2) * 1e308, np.eye(2)), nmci.InputError, "P_a is out of the range nmci computes in"),
+    (lambda: nmci.ci(np.eye(2) * 5e-324, np.eye(2)), nmci.InputError, "P_a is out of the range nmci computes in"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), time_limit=float("nan")), nmci.RequestError, "`time_limit` must be a finite number (got nan)"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), seed=-1), nmci.RequestError, "`seed`: invalid value: integer `-1`, expected u64"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), samples=2.5), nmci.RequestError, "`samples`: invalid type: floating point `2.5`, expected usize"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), seed=2**70), nmci.RequestError, "`seed` must be below 2^64"),
+    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=-3), nmci.RequestError, "`count` must be from 0 to 2^64 - 1 (got -3)"),
+    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=2.5), nmci.RequestError, "`count` must be an integer (got 2.5)"),
+    (lambda: nmci.fuse({"pa": [[float("nan")]], "pb": [[1.0]], "method": "ci"}), nmci.RequestError, "`pa[0][0]` is NaN or infinite"),
 ]
 
 
@@ -470,6 +492,11 @@ FIELD_CALLS = [
     (lambda: nmci.conservativeness_index(np.eye(2), np.eye(3)), "E"),
     (lambda: nmci.fig2(runs=0), "runs"),
     (lambda: nmci.optimal(np.eye(6), np.eye(6), max_trials=10), None),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), time_limit=float("inf")), "time_limit"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), seed=-1), "seed"),
+    (lambda: nmci.certified(np.eye(2), np.eye(2), level="2"), "level"),
+    (lambda: nmci.fuse({"pa": [[1.0]], "pb": np.array([[np.inf]]), "method": "ci"}), "pb"),
+    (lambda: nmci.ci(np.eye(2), np.eye(2) * 1e308), "pb"),
 ]
 
 

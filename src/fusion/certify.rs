@@ -159,6 +159,7 @@ use serde::{Deserialize, Serialize};
 
 use super::bracket::{trace_upper_bound, young_bound, young_omega};
 use super::ci::covariance_intersection;
+use super::scale::Pow2;
 use super::sdp::{solve_program, svec_index, Deadline, Kkt, SdpStatus};
 use super::verify::{is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::{per_block, Criterion, Fused, FusionProblem};
@@ -679,6 +680,18 @@ fn certify(
             (Some(memo), None) => memo.get_or_certify(&sub, settings)?,
             _ => certify_one_block(&sub, sub_gain.as_ref(), settings)?,
         };
+        if outcome.P.iter().any(|v| !v.is_finite()) {
+            let largest = sub
+                .P_a
+                .diagonal()
+                .iter()
+                .chain(sub.P_b.diagonal().iter())
+                .fold(0.0_f64, |m, &d| m.max(d));
+            return Err(SolveError::Overflow {
+                what: "certified bound".into(),
+                largest,
+            });
+        }
         ci_blocks.push(outcome.ci_used);
         if outcome.status == SdpStatus::AlmostSolved {
             status = SdpStatus::AlmostSolved;
@@ -716,8 +729,35 @@ struct BlockOutcome {
 }
 
 /// One block of [`certify`]: `sub` is the block's problem, `sub_gain` its part of a given gain.
-#[allow(non_snake_case)]
+///
+/// Certified at unit scale (`fusion::scale`): the block's covariances multiplied by the power
+/// of two that brings their largest diagonal entry into `[1, 2)` — exactly, or not at all —
+/// so the solver's absolute tolerances meet data of order one whatever the units. The bound
+/// proven for the scaled block is mapped back by the inverse power of two; where an entry
+/// would not map back exactly (near the bottom of the float range) the block is certified as
+/// given instead, so the bound is always proven for the block as given.
 fn certify_one_block(
+    sub: &FusionProblem,
+    sub_gain: Option<&DMatrix<f64>>,
+    settings: &CertifySettings,
+) -> Result<BlockOutcome, SolveError> {
+    let (scaled, scale) = Pow2::normalising(sub).scaled_problem(sub);
+    if scale != Pow2::ONE {
+        let outcome = certify_at_scale(&scaled, sub_gain, settings)?;
+        if let Some(p) = scale.unscale_exact(&outcome.P) {
+            return Ok(BlockOutcome {
+                P: p,
+                repair: scale.unscale_value(outcome.repair),
+                ..outcome
+            });
+        }
+    }
+    certify_at_scale(sub, sub_gain, settings)
+}
+
+/// [`certify_one_block`] on the block as given.
+#[allow(non_snake_case)]
+fn certify_at_scale(
     sub: &FusionProblem,
     sub_gain: Option<&DMatrix<f64>>,
     settings: &CertifySettings,

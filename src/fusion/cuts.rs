@@ -62,6 +62,7 @@ use super::certify::{
 use super::check::{conservativeness_margin, fused_error_covariance, worst_margin};
 use super::nmci::non_monolithic_ci;
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
+use super::scale::Pow2;
 use super::sdp::{
     solve_program, solve_samples, svec_index, Deadline, Kkt, SdpResult, SdpSettings, SdpStatus,
 };
@@ -223,12 +224,49 @@ pub struct CutsResult {
 /// let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
 /// assert!(cuts.converged && (cuts.fused.trace() - 2.0).abs() < 1e-6);
 /// ```
-#[allow(non_snake_case)]
+///
+/// Run at unit scale (`fusion::scale`): a problem whose covariances are far from order one is
+/// solved scaled by a power of two, exactly, and mapped back — the proven lower bound rounded
+/// down, the certified trace rounded up, the certified bound only where every entry maps back
+/// exactly (otherwise the problem is solved as given).
 pub fn optimal_fusion_cuts(
     problem: &FusionProblem,
     settings: &CutsSettings,
 ) -> Result<CutsResult, SolveError> {
     settings.validate()?;
+    let (scaled, scale) = Pow2::normalising(problem).scaled_problem(problem);
+    if scale != Pow2::ONE {
+        let r = cuts_at_scale(&scaled, settings)?;
+        let certified = match r.certified {
+            Some(c) => match scale.unscale_exact(&c.P) {
+                Some(p) => Some(Fused { P: p, ..c }),
+                None => return cuts_at_scale(problem, settings),
+            },
+            None => None,
+        };
+        return Ok(CutsResult {
+            fused: Fused {
+                P: scale.unscale(&r.fused.P),
+                ..r.fused
+            },
+            violation: scale.unscale_value(r.violation),
+            certified_trace: r.certified_trace.map(|t| scale.unscale_up(t)),
+            certified,
+            dual_objective: scale.unscale_value(r.dual_objective),
+            lower_bound: scale.unscale_down(r.lower_bound),
+            cross: r.cross.iter().map(|c| scale.unscale(c)).collect(),
+            ..r
+        });
+    }
+    cuts_at_scale(problem, settings)
+}
+
+/// [`optimal_fusion_cuts`] on the problem as given.
+#[allow(non_snake_case)]
+fn cuts_at_scale(
+    problem: &FusionProblem,
+    settings: &CutsSettings,
+) -> Result<CutsResult, SolveError> {
     let deadline = Deadline::after(settings.time_limit);
     let n = problem.dim();
     let mut cross = sample_cross_covariances(

@@ -12,6 +12,7 @@ pub(crate) mod nmci;
 pub(crate) mod nway;
 pub(crate) mod rules;
 pub(crate) mod sample;
+pub(crate) mod scale;
 pub(crate) mod sdp;
 pub(crate) mod verify;
 
@@ -19,7 +20,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::error::InputError;
-use crate::linalg::{cholesky_of, min_eigenvalue, symmetrize, SYMMETRY_RTOL};
+use crate::linalg::{cholesky_of, max_eigenvalue, min_eigenvalue, symmetrize, SYMMETRY_RTOL};
 use crate::structure::CrossPattern;
 
 /// What a fusion rule minimises over its weights.
@@ -58,7 +59,10 @@ pub struct FusionProblem {
 /// Positive definite means: proven so for `(m + mᵀ)/2` by a verified Cholesky test (Rump,
 /// BIT 2006; `fusion::verify`), or, for a matrix too close to singular for that proof, a
 /// floating-point Cholesky factorization that completes and a positive computed smallest
-/// eigenvalue (a numerical judgement at rounding level, not a proof).
+/// eigenvalue (a numerical judgement at rounding level, not a proof). A matrix that fails
+/// both but is proven positive definite once equilibrated by powers of two
+/// (`scale::equilibrated`: variances of very different orders) is refused as
+/// ill-conditioned, not as indefinite: the rules compute in floating point with it as given.
 pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
     if m.nrows() == 0 {
         return Err(InputError::Empty { name: name.into() });
@@ -106,7 +110,27 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
         return Ok(());
     }
     let lambda_min = min_eigenvalue(&sym);
-    if cholesky_of(sym).is_none() || lambda_min <= 0.0 {
+    // An eigenvalue computation that overflowed (or a symmetrisation that did, above half the
+    // largest float), or a matrix below the normal range, says nothing about definiteness:
+    // name the range instead.
+    if !lambda_min.is_finite() || (scale > 0.0 && scale < f64::MIN_POSITIVE) {
+        return Err(InputError::OutOfRange {
+            name: name.into(),
+            largest: scale,
+        });
+    }
+    if cholesky_of(sym.clone()).is_none() || lambda_min <= 0.0 {
+        // Variances of very different orders (mixed units) can make a positive definite
+        // matrix look singular in floating point; the verified test on the matrix
+        // equilibrated by powers of two (a congruence that keeps definiteness,
+        // `scale::equilibrated`) tells the two apart, and the error says which it is.
+        if scale::equilibrated(&sym).is_some_and(|e| verify::is_positive_definite(&e)) {
+            return Err(InputError::IllConditioned {
+                name: name.into(),
+                min_eigenvalue: lambda_min,
+                max_eigenvalue: max_eigenvalue(&sym),
+            });
+        }
         return Err(InputError::NotPositiveDefinite {
             name: name.into(),
             min_eigenvalue: lambda_min,

@@ -50,6 +50,7 @@ use super::bracket::lower_bound;
 use super::certify::check_time_limit;
 use super::check::{conservativeness_margin, worst_margin};
 use super::sample::{sample_cross_covariances, AutoChoice, CrossSamples, SamplerSettings};
+use super::scale::Pow2;
 use super::{per_block, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::{cholesky_of, symmetrize};
@@ -347,6 +348,13 @@ struct BlockSolution {
     lower_bound: f64,
 }
 
+/// The working-set loop on one block, at unit scale (`fusion::scale`): the block's
+/// covariances and samples multiplied by the power of two that brings its largest diagonal
+/// entry into `[1, 2)`, so the solver's absolute tolerances and the LMIs' identity blocks
+/// meet data of order one whatever the units. `P̄` is mapped back (rounded: the sampled
+/// optimum is not a proof). The proven lower bound is proven for the scaled block, which is
+/// exactly the scale times the block as given (`Pow2::scaled_problem` checks it), and mapped
+/// back rounded down: the robust optimum scales with the covariances.
 #[allow(non_snake_case)]
 fn solve_block(
     problem: &FusionProblem,
@@ -354,9 +362,11 @@ fn solve_block(
     settings: &SdpSettings,
     deadline: &Deadline,
 ) -> Result<BlockSolution, SolveError> {
-    let factors: Vec<DMatrix<f64>> = cross
+    let (scaled, scale) = Pow2::normalising(problem).scaled_problem(problem);
+    let scaled_cross: Vec<DMatrix<f64>> = cross.iter().map(|c| scale.scale(c)).collect();
+    let factors: Vec<DMatrix<f64>> = scaled_cross
         .iter()
-        .map(|p| difference_factor(problem, p))
+        .map(|p| difference_factor(&scaled, p))
         .collect();
     let n_all = factors.len();
     let mut active: Vec<usize> = if settings.working_set {
@@ -369,11 +379,10 @@ fn solve_block(
     loop {
         rounds += 1;
         deadline.check("the sampled SDP")?;
-        let solved = solve_lmis(problem, &factors, &active, settings, deadline)?;
+        let solved = solve_lmis(&scaled, &factors, &active, settings, deadline)?;
         iterations += solved.iterations;
         // Check every sample outside the working set.
-        let scale = solved.fused.P.amax().max(1.0);
-        let viol_tol = 10.0 * settings.tolerance * scale;
+        let viol_tol = 10.0 * settings.tolerance * solved.fused.P.amax().max(1.0);
         let mut in_set = vec![false; n_all];
         for &i in &active {
             in_set[i] = true;
@@ -382,22 +391,32 @@ fn solve_block(
             .filter(|&i| !in_set[i])
             .map(|i| {
                 (
-                    conservativeness_margin(problem, &solved.fused, &cross[i]),
+                    conservativeness_margin(&scaled, &solved.fused, &scaled_cross[i]),
                     i,
                 )
             })
             .filter(|(m, _)| *m < -viol_tol)
             .collect();
         if violated.is_empty() {
-            let used: Vec<&DMatrix<f64>> = active.iter().map(|&i| &cross[i]).collect();
+            let used: Vec<&DMatrix<f64>> = active.iter().map(|&i| &scaled_cross[i]).collect();
+            let Solved {
+                fused,
+                status,
+                iterations: _,
+                dual_objective,
+                duals,
+            } = solved;
             return Ok(BlockSolution {
-                fused: solved.fused,
-                status: solved.status,
+                fused: Fused {
+                    P: scale.unscale(&fused.P),
+                    ..fused
+                },
+                status,
                 iterations,
                 rounds,
                 lmis: active.len(),
-                dual_objective: solved.dual_objective,
-                lower_bound: lower_bound(problem, &used, &solved.duals),
+                dual_objective: scale.unscale_value(dual_objective),
+                lower_bound: scale.unscale_down(lower_bound(&scaled, &used, &duals)),
             });
         }
         if rounds >= settings.max_rounds {
@@ -405,7 +424,7 @@ fn solve_block(
             return Err(SolveError::WorkingSetStalled {
                 rounds,
                 violated: violated.len(),
-                worst,
+                worst: scale.unscale_value(worst),
             });
         }
         violated.sort_by(|a, b| a.0.total_cmp(&b.0));

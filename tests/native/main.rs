@@ -26,6 +26,7 @@ mod properties;
 mod registry;
 mod rules;
 mod sample;
+mod scale;
 mod sdp;
 mod sim;
 mod study_coin;

@@ -51,13 +51,27 @@ fn covariance_errors_name_the_problem() {
     // Too close to singular for the verified test (its shift is ~9e-16 here): judged by the
     // floating-point Cholesky and the computed smallest eigenvalue, on either side of zero.
     assert!(problem(I.clone(), diag(&[1.0, 5e-16])).is_ok());
-    // Both must hold: here the Cholesky factorization completes (pivot 1e-17) but the
-    // computed smallest eigenvalue rounds to 0.
-    let e = problem(I.clone(), diag(&[1.0, 1e-17])).unwrap_err();
-    assert_eq!(
-        e.to_string(),
-        "P_b is not positive definite (smallest eigenvalue 0.000000e0)"
-    );
+    // Variances of very different orders: positive definite (proven on the matrix
+    // equilibrated by powers of two) but singular to rounding as given, so refused as
+    // ill-conditioned — before, as "not positive definite (smallest eigenvalue 0)", false.
+    let mixed = DMatrix::from_row_slice(2, 2, &[1e10, 0.5e-3, 0.5e-3, 1e-16]); // ρ = 0.5
+    for (P_a, P_b) in [
+        (I.clone(), diag(&[1.0, 1e-17])),
+        (diag(&[1e160, 1.0]), I.clone()),
+        (I.clone(), mixed),
+    ] {
+        let e = problem(P_a, P_b).unwrap_err();
+        assert!(matches!(e, InputError::IllConditioned { .. }), "{e}");
+        assert!(
+            e.to_string()
+                .contains("is positive definite but too ill-conditioned"),
+            "{e}"
+        );
+    }
+    // Equilibration does not make an indefinite matrix pass: correlation 1.5.
+    let bad = DMatrix::from_row_slice(2, 2, &[1e10, 1.5e-3, 1.5e-3, 1e-16]);
+    let e = problem(I.clone(), bad).unwrap_err();
+    assert!(matches!(e, InputError::NotPositiveDefinite { .. }), "{e}");
     // All zero: symmetric (no tolerance issue at scale 0), not positive definite.
     let e = problem(I.clone(), DMatrix::zeros(2, 2)).unwrap_err();
     assert!(matches!(e, InputError::NotPositiveDefinite { .. }), "{e}");
@@ -354,4 +368,33 @@ fn fuse_and_explore_run_one_plan_with_one_set_of_defaults() {
     };
     assert_eq!(samples(sdp), SdpSettings::default().samples);
     assert_eq!(samples(&fused), samples(sdp));
+}
+
+#[test]
+fn covariances_out_of_the_float_range_are_named_so_not_called_indefinite() {
+    // diag(1e308) is positive definite, but its symmetrisation and eigenvalues overflow;
+    // diag(5e-324) is too, but nothing about a subnormal matrix can be judged. Before, both
+    // were "not positive definite" (smallest eigenvalue NaN, resp. 0).
+    for v in [1e308, 5e-324] {
+        let e = FusionProblem::from_covariances(
+            diag(&[v, v]),
+            diag(&[1.0, 1.0]),
+            CrossPattern::fully_unknown(2),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(&e, InputError::OutOfRange { name, largest } if name == "P_a" && *largest == v),
+            "{e}"
+        );
+        assert!(e
+            .to_string()
+            .starts_with("P_a is out of the range nmci computes in"));
+    }
+    // Below half the largest float the symmetrisation does not overflow: judged as usual.
+    assert!(FusionProblem::from_covariances(
+        diag(&[8e307, 8e307]),
+        diag(&[1.0, 1.0]),
+        CrossPattern::fully_unknown(2)
+    )
+    .is_ok());
 }

@@ -1,0 +1,307 @@
+//! Power-of-two normalisation of a problem's covariances for the solver-based rules (the
+//! sampled SDP, the certified rule, the cutting planes).
+//!
+//! ## Why
+//! Interior-point solvers stop on absolute as well as relative tolerances, and the programs
+//! of this crate mix the covariances with dimensionless data (the identity block of the
+//! sampled SDP's LMIs, the multipliers of the certificates). Solved as given, a problem whose
+//! covariances are of order `10⁻¹²` stopped at its starting point (a sampled "optimum" three
+//! orders of magnitude above the robust optimum) and one of order `10¹²` was declared
+//! infeasible. Covariances in km² for metre-level sensors, or rad² for angles, are of that
+//! order.
+//!
+//! ## The scaling is exact
+//! Every rule here is equivariant under a common scaling of the covariances: for `s > 0`, `J`
+//! is an admissible joint covariance of `(s P_a, s P_b)` exactly when `J / s` is one of
+//! `(P_a, P_b)`, so `P̄ ⪰ K J Kᵀ` for all admissible `J` of the scaled problem exactly when
+//! `P̄ / s ⪰ K J' Kᵀ` for all admissible `J'` of the original; the gains are unchanged and
+//! traces scale by `s`. With `s = 2ᵏ` multiplying a float by `s` is exact unless the result
+//! overflows or leaves the normal range, and [`Pow2::scaled_problem`] uses a scale only when
+//! every entry of `s P_a` and `s P_b` is exact (checked by multiplying back); otherwise it
+//! keeps `s = 1`. So the scaled problem is exactly `s` times the original, and a proof made
+//! for it (a certificate repaired in floating point, a Lagrangian lower bound) is a proof for
+//! the original once mapped back by `1/s` — exactly for a matrix whose every entry maps back
+//! exactly ([`Pow2::unscale_exact`]; the certified rule falls back to solving the block as
+//! given when one does not), and rounded outward for a scalar bound.
+//!
+//! ## Which scale
+//! A problem whose largest diagonal entry (of `P_a` and `P_b`) lies in `[2⁻⁴, 2⁴]` — the order
+//! of magnitude the solver settings were tuned on, and every example, preset and golden file
+//! of this crate — is solved as given, so its numbers do not change. Any other is scaled by
+//! the `s = 2ᵏ` that brings that entry into `[1, 2)`. The means are not scaled (the gains, and
+//! so the fused mean, do not depend on `s`).
+
+use nalgebra::DMatrix;
+
+use super::FusionProblem;
+
+/// The largest diagonal entries for which a problem is solved as given (module docs).
+pub(crate) const ORDER_ONE: std::ops::RangeInclusive<f64> = (1.0 / 16.0)..=16.0;
+
+/// A power of two `2ᵏ` by which a problem's covariances are multiplied.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Pow2 {
+    k: i32,
+}
+
+/// `2ᵏ` as a float, for `k` in the normal range `[−1022, 1023]`.
+fn two_to(k: i32) -> f64 {
+    debug_assert!((-1022..=1023).contains(&k));
+    f64::from_bits(((k + 1023) as u64) << 52)
+}
+
+/// The least float above finite `x` (`f64::next_up`, which needs Rust 1.86).
+fn next_up(x: f64) -> f64 {
+    if x == 0.0 {
+        f64::from_bits(1)
+    } else if x > 0.0 {
+        f64::from_bits(x.to_bits() + 1)
+    } else {
+        f64::from_bits(x.to_bits() - 1)
+    }
+}
+
+/// The greatest float below finite `x`.
+fn next_down(x: f64) -> f64 {
+    -next_up(-x)
+}
+
+/// `x · 2ᵏ` when that product is exact (it maps back to `x`), else `None`.
+fn exact_times(x: f64, k: i32) -> Option<f64> {
+    let y = x * two_to(k);
+    (y.is_finite() && y * two_to(-k) == x).then_some(y)
+}
+
+impl Pow2 {
+    /// No scaling.
+    pub(crate) const ONE: Pow2 = Pow2 { k: 0 };
+
+    /// [`Pow2::ONE`] when the largest diagonal entry of `P_a` and `P_b` lies in
+    /// [`ORDER_ONE`] (or is not positive and finite), else the scale that brings it into
+    /// `[1, 2)` (module docs).
+    pub(crate) fn normalising(problem: &FusionProblem) -> Pow2 {
+        let largest = problem
+            .P_a
+            .diagonal()
+            .iter()
+            .chain(problem.P_b.diagonal().iter())
+            .fold(0.0_f64, |m, &d| m.max(d));
+        if !(largest.is_finite() && largest > 0.0) || ORDER_ONE.contains(&largest) {
+            return Pow2::ONE;
+        }
+        // The exponent e with 2ᵉ ≤ largest < 2ᵉ⁺¹ (subnormals: below −1022, clamped).
+        let e = if largest >= f64::MIN_POSITIVE {
+            ((largest.to_bits() >> 52) & 0x7ff) as i32 - 1023
+        } else {
+            -1022
+        };
+        Pow2 {
+            k: (-e).clamp(-1022, 1022),
+        }
+    }
+
+    /// `(2ᵏ P_a, 2ᵏ P_b)` with the means and pattern unchanged, and the scale used: this
+    /// one when every entry scales exactly, else [`Pow2::ONE`] with the problem as given.
+    #[allow(non_snake_case)]
+    pub(crate) fn scaled_problem(self, problem: &FusionProblem) -> (FusionProblem, Pow2) {
+        if self.k == 0 {
+            return (problem.clone(), Pow2::ONE);
+        }
+        let scale = |m: &DMatrix<f64>| -> Option<DMatrix<f64>> {
+            let mut out = m.clone();
+            for v in out.iter_mut() {
+                *v = exact_times(*v, self.k)?;
+            }
+            Some(out)
+        };
+        match (scale(&problem.P_a), scale(&problem.P_b)) {
+            (Some(P_a), Some(P_b)) => (
+                FusionProblem {
+                    P_a,
+                    P_b,
+                    ..problem.clone()
+                },
+                self,
+            ),
+            _ => (problem.clone(), Pow2::ONE),
+        }
+    }
+
+    /// `2ᵏ m`, rounded (for data that is not part of a proof: samples, a solver's point).
+    pub(crate) fn scale(self, m: &DMatrix<f64>) -> DMatrix<f64> {
+        if self.k == 0 {
+            return m.clone();
+        }
+        m * two_to(self.k)
+    }
+
+    /// `2⁻ᵏ m`, rounded (a solver's point, not a proof).
+    pub(crate) fn unscale(self, m: &DMatrix<f64>) -> DMatrix<f64> {
+        Pow2 { k: -self.k }.scale(m)
+    }
+
+    /// `2⁻ᵏ m` when every entry maps back exactly (a proven bound stays proven), else `None`.
+    pub(crate) fn unscale_exact(self, m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+        let mut out = m.clone();
+        for v in out.iter_mut() {
+            *v = exact_times(*v, -self.k)?;
+        }
+        Some(out)
+    }
+
+    /// `2⁻ᵏ x`, rounded (a solver's objective, a violation).
+    pub(crate) fn unscale_value(self, x: f64) -> f64 {
+        x * two_to(-self.k)
+    }
+
+    /// A float no larger than `2⁻ᵏ x` (for a proven lower bound `x`).
+    pub(crate) fn unscale_down(self, x: f64) -> f64 {
+        exact_times(x, -self.k).unwrap_or_else(|| {
+            let y = x * two_to(-self.k);
+            if y.is_nan() {
+                y
+            } else {
+                next_down(y)
+            }
+        })
+    }
+
+    /// A float no smaller than `2⁻ᵏ x` (for a proven upper bound `x`).
+    pub(crate) fn unscale_up(self, x: f64) -> f64 {
+        exact_times(x, -self.k).unwrap_or_else(|| {
+            let y = x * two_to(-self.k);
+            if y.is_nan() {
+                y
+            } else {
+                next_up(y)
+            }
+        })
+    }
+}
+
+/// `D m D` with `D = diag(2^{k_i})` chosen so that every diagonal entry lands in `[1, 4)`
+/// (Jacobi equilibration by powers of two), when every diagonal entry is positive and every
+/// product is exact; else `None`. A congruence with a positive diagonal `D` keeps positive
+/// definiteness both ways, and powers of two keep the entries exact, so a proof for `D m D`
+/// is one for `m` — for covariances whose variances span many orders of magnitude (mixed
+/// units), where a proof on `m` itself needs its smallest eigenvalue above about `n u tr m`.
+pub(crate) fn equilibrated(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = m.nrows();
+    let mut k = Vec::with_capacity(n);
+    for i in 0..n {
+        let d = m[(i, i)];
+        if !(d.is_finite() && d >= f64::MIN_POSITIVE) {
+            return None;
+        }
+        let e = ((d.to_bits() >> 52) & 0x7ff) as i32 - 1023;
+        k.push(-e.div_euclid(2));
+    }
+    let mut out = m.clone();
+    for j in 0..n {
+        for i in 0..n {
+            let v = exact_times(exact_times(m[(i, j)], k[i])?, k[j])?;
+            out[(i, j)] = v;
+        }
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::CrossPattern;
+    use nalgebra::DVector;
+
+    fn problem(s: f64) -> FusionProblem {
+        let m = |v: &[f64]| DMatrix::from_row_slice(2, 2, v) * s;
+        FusionProblem::new(
+            DVector::from_vec(vec![1.0, 2.0]),
+            m(&[3.0, 0.5, 0.5, 1.0]),
+            DVector::zeros(2),
+            m(&[1.0, -0.3, -0.3, 4.0]),
+            CrossPattern::fully_unknown(2),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn the_scale_brings_the_largest_diagonal_entry_into_one_to_two_exactly() {
+        for s in [1e-300, 1e-12, 1e-3, 30.0, 1e12, 1e300] {
+            let p = problem(s);
+            let (scaled, used) = Pow2::normalising(&p).scaled_problem(&p);
+            let largest = scaled.P_a.diagonal().max().max(scaled.P_b.diagonal().max());
+            assert!((1.0..2.0).contains(&largest), "s {s}: {largest}");
+            assert_ne!(used, Pow2::ONE);
+            assert_eq!(used, Pow2::normalising(&p), "s {s}");
+            assert_eq!(used.unscale_exact(&scaled.P_a).unwrap(), p.P_a, "s {s}");
+            assert_eq!(used.unscale_exact(&scaled.P_b).unwrap(), p.P_b, "s {s}");
+            assert_eq!(scaled.x_a, p.x_a);
+        }
+    }
+
+    #[test]
+    fn problems_of_order_one_are_left_as_they_are() {
+        // Largest diagonal entries 4 s: from 2⁻⁴ to 2⁴ inclusive.
+        for s in [1.0 / 64.0, 0.1, 1.0, 2.5, 4.0] {
+            let p = problem(s);
+            assert_eq!(Pow2::normalising(&p), Pow2::ONE, "s {s}");
+            assert_eq!(Pow2::normalising(&p).scaled_problem(&p), (p, Pow2::ONE));
+        }
+        assert_ne!(Pow2::normalising(&problem(4.1)), Pow2::ONE);
+        assert_ne!(Pow2::normalising(&problem(0.97 / 64.0)), Pow2::ONE);
+    }
+
+    #[test]
+    fn next_up_and_down_are_the_neighbouring_floats() {
+        for x in [0.0, 1.0, -1.0, 3e-310, -3e-310, 1e300, f64::MIN_POSITIVE] {
+            let (u, d) = (next_up(x), next_down(x));
+            assert!(d < x && x < u, "{x}");
+            assert!(next_down(u) == x || x == 0.0, "{x}");
+            assert!(next_up(d) == x || x == 0.0, "{x}");
+        }
+        assert_eq!(next_up(1.0), 1.0 + f64::EPSILON);
+    }
+
+    #[test]
+    fn equilibration_puts_the_diagonal_in_one_to_four_exactly() {
+        let m = DMatrix::from_row_slice(
+            3,
+            3,
+            &[1e160, 1e79, 0.0, 1e79, 1.0, 0.25, 0.0, 0.25, 3e-200],
+        );
+        let e = equilibrated(&m).unwrap();
+        for i in 0..3 {
+            assert!((1.0..4.0).contains(&e[(i, i)]), "{}", e[(i, i)]);
+        }
+        // Each entry is m's times 2^(k_i + k_j), exactly: the ratios are powers of two.
+        for (a, b) in e.iter().zip(m.iter()) {
+            if *b != 0.0 {
+                let r = a / b;
+                assert_eq!(r, 2f64.powi(r.log2().round() as i32));
+            }
+        }
+        assert!(equilibrated(&DMatrix::from_row_slice(1, 1, &[-1.0])).is_none());
+        assert!(equilibrated(&DMatrix::from_row_slice(1, 1, &[0.0])).is_none());
+    }
+
+    #[test]
+    fn an_inexact_scaling_is_not_used_and_inexact_values_round_outwards() {
+        // An entry that would become subnormal when scaled down.
+        let mut p = problem(1e200);
+        p.P_a[(0, 1)] = 1e-300;
+        p.P_a[(1, 0)] = 1e-300;
+        let (same, used) = Pow2::normalising(&p).scaled_problem(&p);
+        assert_eq!(used, Pow2::ONE);
+        assert_eq!(same, p);
+        let down = Pow2 { k: 1060 - 1022 };
+        // (2⁻¹⁰²² + 2⁻¹⁰⁷⁴) · 2⁻³⁸ needs a bit below the subnormal range.
+        let x = next_up(f64::MIN_POSITIVE);
+        assert!(down
+            .unscale_exact(&DMatrix::from_element(1, 1, x))
+            .is_none());
+        let rounded = down.unscale_value(x);
+        assert!(down.unscale_down(x) < rounded && rounded < down.unscale_up(x));
+        assert_eq!(Pow2 { k: 3 }.unscale_down(8.0), 1.0);
+        assert_eq!(Pow2 { k: 3 }.unscale_up(8.0), 1.0);
+    }
+}
