@@ -730,8 +730,9 @@ struct BlockOutcome {
 
 /// One block of [`certify`]: `sub` is the block's problem, `sub_gain` its part of a given gain.
 ///
-/// Certified at unit scale (`fusion::scale`): the block's covariances multiplied by the power
-/// of two that brings their largest diagonal entry into `[1, 2)` — exactly, or not at all —
+/// Certified at unit scale (`fusion::scale`): a block whose largest diagonal entry is outside
+/// `[2⁻⁴, 2⁴]` has its covariances multiplied by the power of two that brings that entry into
+/// `[1, 2)` — exactly, or not at all —
 /// so the solver's absolute tolerances meet data of order one whatever the units. The bound
 /// proven for the scaled block is mapped back by the inverse power of two; where an entry
 /// would not map back exactly (near the bottom of the float range) the block is certified as

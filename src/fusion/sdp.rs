@@ -348,9 +348,9 @@ struct BlockSolution {
     lower_bound: f64,
 }
 
-/// The working-set loop on one block, at unit scale (`fusion::scale`): the block's
-/// covariances and samples multiplied by the power of two that brings its largest diagonal
-/// entry into `[1, 2)`, so the solver's absolute tolerances and the LMIs' identity blocks
+/// The working-set loop on one block, at unit scale (`fusion::scale`): a block whose largest
+/// diagonal entry is outside `[2⁻⁴, 2⁴]` has its covariances and samples multiplied by the
+/// power of two that brings that entry into `[1, 2)`, so the solver's absolute tolerances and the LMIs' identity blocks
 /// meet data of order one whatever the units. `P̄` is mapped back (rounded: the sampled
 /// optimum is not a proof). The proven lower bound is proven for the scaled block, which is
 /// exactly the scale times the block as given (`Pow2::scaled_problem` checks it), and mapped
