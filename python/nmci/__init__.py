@@ -187,13 +187,14 @@ def fuse(request: Mapping[str, Any]) -> Dict[str, Any]:
     response is a plain dict with lists. Errors raise the exceptions of this package with the
     CLI's messages.
     """
-    at = _non_finite(request, "")
-    if at is not None:
-        field = re.split(r"[.\[]", at, maxsplit=1)[0]
-        raise RequestError(f"invalid request: `{at}` is NaN or infinite (JSON has no such numbers)", field)
     try:
         text = json.dumps(request, default=_jsonable, allow_nan=False)
     except (TypeError, ValueError) as e:
+        # JSON has no NaN or infinity: name where the first one is (searched only then).
+        at = _non_finite(request, "")
+        if at is not None:
+            field = re.split(r"[.\[]", at, maxsplit=1)[0]
+            raise RequestError(f"invalid request: `{at}` is NaN or infinite (JSON has no such numbers)", field) from None
         raise RequestError(f"invalid request: {e}") from None
     return json.loads(_nmci.fuse_json(text))
 
