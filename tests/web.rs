@@ -108,6 +108,31 @@ fn certified_rule_in_wasm() {
 }
 
 #[wasm_bindgen_test]
+fn the_solver_based_rules_do_not_depend_on_the_units_in_wasm() {
+    // As natively (`tests/native/scale.rs`), on wasm's KKT solver: the paper's covariances
+    // with one known zero in km²-like and 10¹²-sized units give the robust optimum 2 s.
+    for (s, method) in [
+        (1e-8, "sdp"),
+        (1e-8, "certified"),
+        (1e12, "sdp"),
+        (1e12, "certified"),
+    ] {
+        let body = format!(
+            r#"{{"pa": [[{a}, 0], [0, {s}]], "pb": [[{s}, 0], [0, {b}]],
+                "pab_unknown": [[true, true], [false, true]], "method": "{method}"}}"#,
+            a = 3.0 * s,
+            b = 4.0 * s
+        );
+        let r = call(JSON::parse(&body).unwrap()).unwrap();
+        assert!(
+            (r.trace / s - 2.0).abs() < 1e-6,
+            "{method}, s {s}: {}",
+            r.trace / s
+        );
+    }
+}
+
+#[wasm_bindgen_test]
 fn invalid_requests_throw_with_their_message() {
     let not_pd =
         JSON::parse(r#"{"pa": [[1, 2], [2, 1]], "pb": [[1, 0], [0, 4]], "method": "ci"}"#).unwrap();
