@@ -24,6 +24,7 @@ table=(
   "check|src/fusion/check.rs|check rules:: sample:: nmci_rule:: ci::"
   "sample|src/fusion/sample.rs|sample::"
   "coin|src/sim/coin.rs|study_coin:: coin::tests::"
+  "scale|src/fusion/scale.rs|scale::tests validation::"
 )
 
 export CARGO_TARGET_DIR=$PWD/target/mutants/build

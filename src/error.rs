@@ -201,8 +201,8 @@ pub enum SolveError {
         /// The matrix that failed the verified test.
         what: String,
     },
-    /// A proven bound left the range of floating point: covariances whose products overflow
-    /// (of order `10¹⁵⁴` and above) and which cannot be scaled to order one exactly
+    /// A proven bound left the range of floating point: covariances so large that the
+    /// proof's products of entries overflow, and which cannot be scaled to order one exactly
     /// (`fusion::scale`: an entry would fall below the normal range).
     #[error("the {what} overflowed: the covariances (largest diagonal entry {largest:e}) are too large for its floating-point proof and could not be scaled exactly (rescale the problem's units)")]
     Overflow {
