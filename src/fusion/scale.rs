@@ -252,6 +252,33 @@ mod tests {
     }
 
     #[test]
+    fn degenerate_and_subnormal_diagonals() {
+        // No positive diagonal entry: nothing to normalise by.
+        let mut zero = problem(1.0);
+        zero.P_a.fill(0.0);
+        zero.P_b.fill(0.0);
+        assert_eq!(Pow2::normalising(&zero), Pow2::ONE);
+        // Subnormal variances scale up exactly (by 2¹⁰²², the most the exponent allows).
+        let mut tiny = problem(1.0);
+        tiny.P_a *= 1e-310;
+        tiny.P_b *= 1e-310;
+        let (scaled, used) = Pow2::normalising(&tiny).scaled_problem(&tiny);
+        assert_eq!(used, Pow2 { k: 1022 });
+        assert!(scaled.P_b[(1, 1)] >= f64::MIN_POSITIVE);
+        assert_eq!(used.unscale_exact(&scaled.P_b).unwrap(), tiny.P_b);
+    }
+
+    #[test]
+    fn scale_and_unscale_multiply_by_the_power_of_two() {
+        let m = DMatrix::from_row_slice(2, 2, &[3.0, -0.5, 0.25, 1e-300]);
+        assert_eq!(Pow2 { k: 3 }.scale(&m), &m * 8.0);
+        assert_eq!(Pow2 { k: -3 }.scale(&m), &m / 8.0);
+        assert_eq!(Pow2 { k: 3 }.unscale(&m), &m / 8.0);
+        assert_eq!(Pow2::ONE.scale(&m), m);
+        assert_eq!(Pow2 { k: 3 }.unscale_value(8.0), 1.0);
+    }
+
+    #[test]
     fn next_up_and_down_are_the_neighbouring_floats() {
         for x in [0.0, 1.0, -1.0, 3e-310, -3e-310, 1e300, f64::MIN_POSITIVE] {
             let (u, d) = (next_up(x), next_down(x));
