@@ -330,5 +330,7 @@ mod tests {
         assert!(down.unscale_down(x) < rounded && rounded < down.unscale_up(x));
         assert_eq!(Pow2 { k: 3 }.unscale_down(8.0), 1.0);
         assert_eq!(Pow2 { k: 3 }.unscale_up(8.0), 1.0);
+        assert_eq!(Pow2 { k: 3 }.unscale_down(24.0), 3.0);
+        assert_eq!(Pow2 { k: -3 }.unscale_up(3.0), 24.0);
     }
 }
