@@ -328,6 +328,9 @@ mod tests {
             .is_none());
         let rounded = down.unscale_value(x);
         assert!(down.unscale_down(x) < rounded && rounded < down.unscale_up(x));
+        // One float outwards of the rounded product, no further.
+        assert_eq!(down.unscale_down(x), next_down(rounded));
+        assert_eq!(down.unscale_up(x), next_up(rounded));
         assert_eq!(Pow2 { k: 3 }.unscale_down(8.0), 1.0);
         assert_eq!(Pow2 { k: 3 }.unscale_up(8.0), 1.0);
         assert_eq!(Pow2 { k: 3 }.unscale_down(24.0), 3.0);
