@@ -159,7 +159,7 @@ use serde::{Deserialize, Serialize};
 
 use super::bracket::{trace_upper_bound, young_bound, young_omega};
 use super::ci::covariance_intersection;
-use super::scale::Pow2;
+use super::scale::{largest_variance, Pow2};
 use super::sdp::{solve_program, svec_index, Deadline, Kkt, SdpStatus};
 use super::verify::{is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::{per_block, Criterion, Fused, FusionProblem};
@@ -681,15 +681,9 @@ fn certify(
             _ => certify_one_block(&sub, sub_gain.as_ref(), settings)?,
         };
         if outcome.P.iter().any(|v| !v.is_finite()) {
-            let largest = sub
-                .P_a
-                .diagonal()
-                .iter()
-                .chain(sub.P_b.diagonal().iter())
-                .fold(0.0_f64, |m, &d| m.max(d));
             return Err(SolveError::Overflow {
                 what: "certified bound".into(),
-                largest,
+                largest: largest_variance(&sub),
             });
         }
         ci_blocks.push(outcome.ci_used);

@@ -38,6 +38,16 @@ use super::FusionProblem;
 /// The largest diagonal entries for which a problem is solved as given (module docs).
 pub(crate) const ORDER_ONE: std::ops::RangeInclusive<f64> = (1.0 / 16.0)..=16.0;
 
+/// The largest diagonal entry of `P_a` and `P_b` (0 if none is positive).
+pub(crate) fn largest_variance(problem: &FusionProblem) -> f64 {
+    problem
+        .P_a
+        .diagonal()
+        .iter()
+        .chain(problem.P_b.diagonal().iter())
+        .fold(0.0_f64, |m, &d| m.max(d))
+}
+
 /// A power of two `2ᵏ` by which a problem's covariances are multiplied.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Pow2 {
@@ -80,12 +90,7 @@ impl Pow2 {
     /// [`ORDER_ONE`] (or is not positive and finite), else the scale that brings it into
     /// `[1, 2)` (module docs).
     pub(crate) fn normalising(problem: &FusionProblem) -> Pow2 {
-        let largest = problem
-            .P_a
-            .diagonal()
-            .iter()
-            .chain(problem.P_b.diagonal().iter())
-            .fold(0.0_f64, |m, &d| m.max(d));
+        let largest = largest_variance(problem);
         if !(largest.is_finite() && largest > 0.0) || ORDER_ONE.contains(&largest) {
             return Pow2::ONE;
         }
@@ -156,24 +161,22 @@ impl Pow2 {
 
     /// A float no larger than `2⁻ᵏ x` (for a proven lower bound `x`).
     pub(crate) fn unscale_down(self, x: f64) -> f64 {
-        exact_times(x, -self.k).unwrap_or_else(|| {
-            let y = x * two_to(-self.k);
-            if y.is_nan() {
-                y
-            } else {
-                next_down(y)
-            }
-        })
+        self.unscale_outwards(x, next_down)
     }
 
     /// A float no smaller than `2⁻ᵏ x` (for a proven upper bound `x`).
     pub(crate) fn unscale_up(self, x: f64) -> f64 {
+        self.unscale_outwards(x, next_up)
+    }
+
+    /// `2⁻ᵏ x` exactly, or the rounded product moved one float by `step` (outwards).
+    fn unscale_outwards(self, x: f64, step: fn(f64) -> f64) -> f64 {
         exact_times(x, -self.k).unwrap_or_else(|| {
-            let y = x * two_to(-self.k);
+            let y = self.unscale_value(x);
             if y.is_nan() {
                 y
             } else {
-                next_up(y)
+                step(y)
             }
         })
     }
