@@ -31,6 +31,8 @@
 //! the `s = 2ᵏ` that brings that entry into `[1, 2)`. The means are not scaled (the gains, and
 //! so the fused mean, do not depend on `s`).
 
+use std::borrow::Cow;
+
 use nalgebra::DMatrix;
 
 use super::FusionProblem;
@@ -106,11 +108,12 @@ impl Pow2 {
     }
 
     /// `(2ᵏ P_a, 2ᵏ P_b)` with the means and pattern unchanged, and the scale used: this
-    /// one when every entry scales exactly, else [`Pow2::ONE`] with the problem as given.
+    /// one when every entry scales exactly, else [`Pow2::ONE`] with the problem as given
+    /// (borrowed: no copy when nothing is scaled).
     #[allow(non_snake_case)]
-    pub(crate) fn scaled_problem(self, problem: &FusionProblem) -> (FusionProblem, Pow2) {
+    pub(crate) fn scaled_problem(self, problem: &FusionProblem) -> (Cow<'_, FusionProblem>, Pow2) {
         if self.k == 0 {
-            return (problem.clone(), Pow2::ONE);
+            return (Cow::Borrowed(problem), Pow2::ONE);
         }
         let scale = |m: &DMatrix<f64>| -> Option<DMatrix<f64>> {
             let mut out = m.clone();
@@ -121,15 +124,26 @@ impl Pow2 {
         };
         match (scale(&problem.P_a), scale(&problem.P_b)) {
             (Some(P_a), Some(P_b)) => (
-                FusionProblem {
+                Cow::Owned(FusionProblem {
                     P_a,
                     P_b,
-                    ..problem.clone()
-                },
+                    x_a: problem.x_a.clone(),
+                    x_b: problem.x_b.clone(),
+                    cross_pattern: problem.cross_pattern.clone(),
+                }),
                 self,
             ),
-            _ => (problem.clone(), Pow2::ONE),
+            _ => (Cow::Borrowed(problem), Pow2::ONE),
         }
+    }
+
+    /// `2ᵏ m` for each of `ms`, rounded (samples: data that is not part of a proof); borrowed
+    /// when nothing is scaled.
+    pub(crate) fn scale_all(self, ms: &[DMatrix<f64>]) -> Cow<'_, [DMatrix<f64>]> {
+        if self.k == 0 {
+            return Cow::Borrowed(ms);
+        }
+        Cow::Owned(ms.iter().map(|m| self.scale(m)).collect())
     }
 
     /// `2ᵏ m`, rounded (for data that is not part of a proof: samples, a solver's point).
@@ -248,7 +262,8 @@ mod tests {
         for s in [1.0 / 64.0, 0.1, 1.0, 2.5, 4.0] {
             let p = problem(s);
             assert_eq!(Pow2::normalising(&p), Pow2::ONE, "s {s}");
-            assert_eq!(Pow2::normalising(&p).scaled_problem(&p), (p, Pow2::ONE));
+            let (same, used) = Pow2::normalising(&p).scaled_problem(&p);
+            assert!(matches!(same, Cow::Borrowed(_)) && used == Pow2::ONE);
         }
         assert_ne!(Pow2::normalising(&problem(4.1)), Pow2::ONE);
         assert_ne!(Pow2::normalising(&problem(0.97 / 64.0)), Pow2::ONE);
@@ -322,7 +337,7 @@ mod tests {
         p.P_a[(1, 0)] = 1e-300;
         let (same, used) = Pow2::normalising(&p).scaled_problem(&p);
         assert_eq!(used, Pow2::ONE);
-        assert_eq!(same, p);
+        assert_eq!(*same, p);
         let down = Pow2 { k: 1060 - 1022 };
         // (2⁻¹⁰²² + 2⁻¹⁰⁷⁴) · 2⁻³⁸ needs a bit below the subnormal range.
         let x = next_up(f64::MIN_POSITIVE);

@@ -363,7 +363,7 @@ fn solve_block(
     deadline: &Deadline,
 ) -> Result<BlockSolution, SolveError> {
     let (scaled, scale) = Pow2::normalising(problem).scaled_problem(problem);
-    let scaled_cross: Vec<DMatrix<f64>> = cross.iter().map(|c| scale.scale(c)).collect();
+    let scaled_cross = scale.scale_all(cross);
     let factors: Vec<DMatrix<f64>> = scaled_cross
         .iter()
         .map(|p| difference_factor(&scaled, p))
