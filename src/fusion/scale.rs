@@ -270,6 +270,19 @@ mod tests {
     }
 
     #[test]
+    fn scaling_down_is_exact_up_to_about_308_orders_below_the_largest_variance() {
+        // Largest variance 1e10, scaled by 2⁻³³: an entry 1e-290 lands at ~1.2e-300 (normal,
+        // exact), 1e-300 at ~1.2e-310 (subnormal, bits lost): then nothing is scaled.
+        for (entry, scaled) in [(1e-290, true), (1e-300, false)] {
+            let mut p = problem(2.5e9);
+            p.P_a[(0, 1)] = entry;
+            p.P_a[(1, 0)] = entry;
+            let (_, used) = Pow2::normalising(&p).scaled_problem(&p);
+            assert_eq!(used != Pow2::ONE, scaled, "{entry}");
+        }
+    }
+
+    #[test]
     fn degenerate_and_subnormal_diagonals() {
         // No positive diagonal entry: nothing to normalise by.
         let mut zero = problem(1.0);

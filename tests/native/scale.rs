@@ -135,4 +135,15 @@ fn a_certified_bound_that_overflows_is_an_error_not_a_response() {
     )
     .unwrap();
     assert!(fuse(&request).is_err());
+    // Scaled exactly, the same order gives a finite bound; its `det` (a product) is not finite,
+    // as it does for any method at this size.
+    let request: FuseRequest = serde_json::from_str(
+        r#"{"pa": [[3e200, 0], [0, 1e200]], "pb": [[1e200, 0], [0, 4e200]],
+            "pab_unknown": [[true, true], [false, true]], "method": "certified"}"#,
+    )
+    .unwrap();
+    let r = fuse(&request).unwrap();
+    assert!(r.p.iter().flatten().all(|v| v.is_finite()) && r.trace.is_finite());
+    assert!((r.trace / 1e200 - 2.0).abs() < 1e-6);
+    assert!(!r.det.is_finite());
 }
