@@ -17,8 +17,9 @@ if [ ! -x "$py" ]; then
   say "creating the virtual environment $venv"
   python3 -m venv "$venv"
 fi
-# distributed: Dask's local cluster, which examples/python/sharded_study.py runs shards on.
-need=(maturin numpy pytest scipy distributed)
+# distributed: Dask's local cluster, which examples/python/sharded_study.py runs shards on;
+# mpmath: the 50-digit references of the accuracy tests.
+need=(maturin numpy pytest scipy distributed mpmath)
 [ "$what" = bench ] && need+=(cvxpy clarabel)
 missing=()
 for p in "${need[@]}"; do

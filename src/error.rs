@@ -70,6 +70,16 @@ pub enum InputError {
         /// Its largest eigenvalue as computed.
         max_eigenvalue: f64,
     },
+    /// `P_a` and `P_b`, each positive definite, so far apart along some axis that the ratio of
+    /// `P_a` to `P_b` there (a generalized eigenvalue of the pair) is lost to rounding: the
+    /// CI family's pencil cannot be computed (`fusion::ci`'s module docs).
+    #[error("P_a and P_b are each positive definite, but the ratios of P_a to P_b along their common axes span more than floating point resolves (computed from {min_ratio:.3e} to {max_ratio:.3e}); rescale the states to comparable units")]
+    UnresolvedPair {
+        /// The smallest ratio as computed (NaN when the computation failed before it).
+        min_ratio: f64,
+        /// The largest ratio as computed.
+        max_ratio: f64,
+    },
     /// A covariance whose positive definiteness cannot be judged in floating point: its
     /// eigenvalue computation overflows (entries near the largest float) or all its entries
     /// are below the normal range (subnormal).
@@ -297,7 +307,9 @@ impl InputError {
             | InputError::IllConditioned { name, .. }
             | InputError::NotBlockDiagonal { name, .. }
             | InputError::SizeMismatch { name, .. } => Some(name),
-            InputError::InvalidBlocks { .. } | InputError::Estimates(_) => None,
+            InputError::InvalidBlocks { .. }
+            | InputError::UnresolvedPair { .. }
+            | InputError::Estimates(_) => None,
         }
     }
 

@@ -1,11 +1,10 @@
 //! Covariance intersection with the exactly optimal weight.
 //!
 //! CI (paper eq. (CI)): `P⁻¹ = ω P_a⁻¹ + (1−ω) P_b⁻¹`, `P⁻¹x = ω P_a⁻¹x_a + (1−ω) P_b⁻¹x_b`,
-//! `ω ∈ [0, 1]`. With `P_b = L Lᵀ` and the eigendecomposition `L⁻¹ P_a L⁻ᵀ = V diag(μ) Vᵀ`
-//! (one generalized symmetric eigenproblem of the pencil `(P_a, P_b)`), every candidate is
-//! diagonal in the same basis:
+//! `ω ∈ [0, 1]`. In a basis `W` that diagonalizes the pencil `(P_a, P_b)` (`P_b = W Wᵀ`,
+//! `P_a = W diag(μ) Wᵀ`, one generalized symmetric eigenproblem) every candidate is diagonal:
 //!
-//! `P(ω) = W diag(1 / dᵢ(ω)) Wᵀ`, `W = L V`, `dᵢ(ω) = 1 + ω(λᵢ − 1)`, `λᵢ = 1/μᵢ`,
+//! `P(ω) = W diag(1 / dᵢ(ω)) Wᵀ`, `dᵢ(ω) = (1 − ω) + ω λᵢ`, `λᵢ = 1/μᵢ`,
 //!
 //! so `tr P(ω) = Σ ‖wᵢ‖²/dᵢ(ω)` and `log det P(ω) = log det WWᵀ − Σ ln dᵢ(ω)`. Both are convex
 //! in `ω`; the optimum is an endpoint when the derivative does not change sign on `[0, 1]`
@@ -17,6 +16,41 @@
 //! or a step moves `ω` by less than `4ε` relative: at most 8 steps on 40 random problems
 //! (tested).
 //!
+//! ## The balanced pencil (accuracy)
+//!
+//! The textbook reduction factors `P_b = L Lᵀ` and diagonalizes `L⁻¹ P_a L⁻ᵀ`, whose
+//! eigenvalues are the `μᵢ`. A symmetric eigensolver returns them with an *absolute* error of a
+//! few `ε max μ`, so the small ones lose their relative accuracy: with the ratios `μ` spanning
+//! `s = μ_max/μ_min`, some `dᵢ` carry a relative error of about `ε s`. Each of `P_a`, `P_b` of
+//! condition number `κ` lets `s` reach `κ²`, while the inputs determine `P(ω)` only to about
+//! `ε κ` anyway; at large `κ` it even returns negative `μᵢ` for positive definite inputs
+//! (docs/methods.md has the measurements).
+//!
+//! Here the pencil is balanced instead:
+//!
+//! - `S = P_a + t P_b = L Lᵀ`, with `t = 2ᵏ` from the diagonal ratios ([`balance`]), so
+//!   `t P_b` is exact and `S` rounds once per entry.
+//! - `L⁻¹ P_a L⁻ᵀ = V diag(ν) Vᵀ` and `L⁻¹ (t P_b) L⁻ᵀ = I − V diag(ν) Vᵀ`, so
+//!   `νᵢ = μᵢ/(μᵢ + t)` and `ηᵢ = 1 − νᵢ = t/(μᵢ + t)` both lie in `(0, 1)`. Their absolute
+//!   error of a few `ε` is a relative error of a few `ε` for every `νᵢ, ηᵢ ≥ ½`. `ηᵢ = 1 − νᵢ`
+//!   is exact for `νᵢ ≥ ½` (Sterbenz) and rounds once below.
+//! - An end below `2⁻¹⁰` is recomputed as a Rayleigh quotient of the original matrices at the
+//!   generalized eigenvector `sᵢ = L⁻ᵀ vᵢ`: `νᵢ = sᵢᵀ P_a sᵢ`, `ηᵢ = t sᵢᵀ P_b sᵢ`. The
+//!   quadratic form's rounding is relative to the matrix it is taken of, so a direction in which
+//!   `P_b` is small keeps the accuracy of `P_b` there.
+//! - Then `μᵢ = t νᵢ/ηᵢ`, `λᵢ = ηᵢ/(t νᵢ)` and `W = L V diag(√(ηᵢ/t))`. This is the
+//!   representation above: `W Wᵀ = L (I − V diag(ν) Vᵀ) Lᵀ / t = P_b`, `W diag(μ) Wᵀ = P_a`.
+//!   `dᵢ = (1 − ω) + ω λᵢ` is a sum of non-negative terms, so it keeps their accuracy.
+//!
+//! Accuracy is a tested statement, not a proven one: against 50-digit references of random
+//! pairs of condition number `κ = 10²…10¹⁵` the relative error of `P` is within `4 ε κ` (the
+//! Python tests), and on exact co-diagonal pairs of `κ = 2²⁰, 2⁴⁰` (ratios spanning `κ²`) within
+//! `16 ε κ` of the exact answer (`tests/native/ci.rs`); ICI and EI, which use this basis, are
+//! tested alike. CI's conservativeness holds to the same relative accuracy. Where a bound must
+//! hold in floating point, the bracket recomputes CI's with enclosed rounding
+//! ([`bracket`](super::bracket)). When a computed `νᵢ` or `ηᵢ` is still not positive, the pair
+//! is beyond what floating point resolves and [`InputError::UnresolvedPair`] says so.
+//!
 //! Filters that keep their estimates in blocks (the tracking study) use the in-place forms
 //! `ci_in_place` / `nmci_in_place`: means and covariances only, endpoints decided from the
 //! derivative at `ω = 0` and `1` before any eigenproblem, and blocks with equal covariances
@@ -24,6 +58,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::scale::two_to;
 use super::{
     covariance_twins, scatter_block, BlockMean, Criterion, Fused, FusionProblem, MeanPlan,
 };
@@ -42,6 +77,15 @@ pub struct CiResult {
     pub omega: f64,
 }
 
+/// The pair's pencil is beyond what the computation resolves (module docs), with the range of
+/// `P_a`-to-`P_b` ratios as computed.
+fn unresolved(min_ratio: f64, max_ratio: f64) -> InputError {
+    InputError::UnresolvedPair {
+        min_ratio,
+        max_ratio,
+    }
+}
+
 fn not_pd(name: &str, m: &DMatrix<f64>) -> InputError {
     InputError::NotPositiveDefinite {
         name: name.into(),
@@ -49,8 +93,8 @@ fn not_pd(name: &str, m: &DMatrix<f64>) -> InputError {
     }
 }
 
-/// The first half of a pencil: `P_b = L Lᵀ` and `X = L⁻¹ P_a` — what the derivative of the
-/// criterion at `ω = 1` needs.
+/// `P_b = L Lᵀ` and `X = L⁻¹ P_a`: what the derivative of the criterion at `ω = 1` needs, so
+/// that an endpoint optimum is found without the pencil's eigenproblem.
 #[allow(non_snake_case)]
 struct HalfPencil {
     L: DMatrix<f64>,
@@ -115,69 +159,178 @@ impl HalfPencil {
 }
 
 /// The CI family of one problem in its diagonalizing basis (shared with ICI and EI, which are
-/// diagonal in the same basis: `P_b = W Wᵀ`, `P_a = W diag(μ) Wᵀ`).
+/// diagonal in the same basis: `P_b = W Wᵀ`, `P_a = W diag(μ) Wᵀ`), computed through the
+/// balanced pencil of the module docs (`S = P_a + t P_b = L Lᵀ`).
 #[allow(non_snake_case)]
 pub(super) struct Pencil {
-    /// Cholesky factor `L` of `P_b`.
+    /// Cholesky factor `L` of `S = P_a + t P_b`.
     L: DMatrix<f64>,
     /// Eigenvectors `V` of `L⁻¹ P_a L⁻ᵀ`.
     V: DMatrix<f64>,
-    /// `W = L V`.
+    /// `√(ηᵢ/t)`: `W = L V diag(√(ηᵢ/t))`.
+    scales: Vec<f64>,
+    /// `W`, with `P_b = W Wᵀ`.
     pub(super) basis: DMatrix<f64>,
     /// `‖wᵢ‖²`.
     pub(super) weights: Vec<f64>,
-    /// `λᵢ − 1`, with `λᵢ = 1/μᵢ` the generalized eigenvalues of `(P_a⁻¹, P_b⁻¹)`.
+    /// `λᵢ = 1/μᵢ = ηᵢ/(t νᵢ)`, the generalized eigenvalues of `(P_a⁻¹, P_b⁻¹)`.
+    lambda: Vec<f64>,
+    /// `λᵢ − 1`, the derivative of `dᵢ(ω)`.
     slopes: Vec<f64>,
-    /// `μᵢ`: the eigenvalues of `L⁻¹ P_a L⁻ᵀ` (`P_a = W diag(μ) Wᵀ`).
+    /// `μᵢ = t νᵢ/ηᵢ` (`P_a = W diag(μ) Wᵀ`).
     pub(super) mu: Vec<f64>,
+}
+
+/// The balancing power of two `t = 2ᵏ` of the pencil `(P_a, P_a + t P_b)`: `k` the rounded
+/// mean of the extreme `log₂` ratios of the diagonals, `log₂(P_a[i,i]/P_b[i,i])`. These are
+/// Rayleigh quotients of the pencil, so `t` is within a factor `√2` (the rounding of `k`) of
+/// `[μ_min, μ_max]`, near its middle on a log scale when the diagonal ratios span it (module
+/// docs).
+#[allow(non_snake_case)]
+fn balance(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> f64 {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..P_a.nrows() {
+        let r = P_a[(i, i)].log2() - P_b[(i, i)].log2();
+        lo = lo.min(r);
+        hi = hi.max(r);
+    }
+    let k = (0.5 * (lo + hi)).round();
+    // Positive definite inputs have positive finite diagonals; anything else is balanced by 1.
+    if k.is_finite() {
+        two_to(k.clamp(-1000.0, 1000.0) as i32)
+    } else {
+        1.0
+    }
+}
+
+/// Below this, an eigenvalue `νᵢ` of the balanced pencil (or its complement `ηᵢ = 1 − νᵢ`)
+/// is recomputed as a Rayleigh quotient: its absolute error of a few `ε` would be more than
+/// about `10³ ε` relative (module docs).
+const RAYLEIGH_BELOW: f64 = 1.0 / 1024.0;
+
+/// `s = L⁻ᵀ v` (back substitution with the transpose of the lower-triangular `L`): the
+/// generalized eigenvector of the pencil whose eigenvector of `L⁻¹ P_a L⁻ᵀ` is `v`.
+#[allow(non_snake_case)]
+fn generalized_vector(L: &DMatrix<f64>, v: &[f64]) -> Vec<f64> {
+    let n = L.nrows();
+    let l = L.as_slice();
+    let mut s = v.to_vec();
+    for i in (0..n).rev() {
+        let col = &l[i * n..(i + 1) * n];
+        let mut x = s[i];
+        for k in i + 1..n {
+            x -= col[k] * s[k];
+        }
+        s[i] = x / col[i];
+    }
+    s
+}
+
+/// `sᵀ A s`.
+fn quadratic_form(a: &DMatrix<f64>, s: &[f64]) -> f64 {
+    let n = s.len();
+    let mut sum = 0.0;
+    for (j, col) in a.as_slice().chunks_exact(n).enumerate() {
+        let dot: f64 = col.iter().zip(s).map(|(x, y)| x * y).sum();
+        sum += s[j] * dot;
+    }
+    sum
 }
 
 #[allow(non_snake_case)]
 impl Pencil {
     pub(super) fn new(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> Result<Self, InputError> {
-        Self::from_half(HalfPencil::new(P_a, P_b)?, P_a)
-    }
-
-    fn from_half(half: HalfPencil, P_a: &DMatrix<f64>) -> Result<Self, InputError> {
+        let t = balance(P_a, P_b);
+        // t P_b is exact (a power of two, inside the range: module docs); S rounds once.
+        let S = P_a + P_b * t;
+        let L = cholesky(&S)
+            .ok_or_else(|| unresolved(f64::NAN, f64::NAN))?
+            .unpack();
+        // M = L⁻¹ P_a L⁻ᵀ, symmetrized (P_a symmetric, so its buffer is row-major too).
+        let mut Xt = P_a.clone();
+        solve_lower_rows(&L, Xt.as_mut_slice());
+        let mut M = Xt.transpose();
+        solve_lower_rows(&L, M.as_mut_slice());
+        let M = symmetrize(&M);
         // Off-diagonal entries below 4ε relative to their diagonal neighbours count as zero
-        // (nalgebra's default is ε): eigenvalues still accurate to ~1e-15 ‖M‖, ~15 % fewer QR
-        // sweeps. nalgebra's `SymmetricEigen` without an iteration limit, bit for bit
+        // (nalgebra's default is ε): eigenvalues still accurate to ~1e-15 ‖M‖ = 1e-15, ~15 %
+        // fewer QR sweeps. nalgebra's `SymmetricEigen` without an iteration limit, bit for bit
         // (`linalg::symmetric_eigen`, whose docs say why it ends).
-        let (mu, V) = symmetric_eigen(half.pencil_matrix(), 4.0 * f64::EPSILON)
-            .ok_or_else(|| not_pd("P_a", P_a))?;
-        let L = half.L;
-        let basis = &L * &V;
-        let weights = basis.column_iter().map(|c| c.norm_squared()).collect();
-        let mut slopes = Vec::with_capacity(mu.len());
-        for &mu in mu.iter() {
-            if !(mu > 0.0 && mu.is_finite()) {
-                return Err(not_pd("P_a", P_a));
+        let (nu, V) =
+            symmetric_eigen(M, 4.0 * f64::EPSILON).ok_or_else(|| unresolved(f64::NAN, f64::NAN))?;
+        // νᵢ and ηᵢ = 1 − νᵢ (exact for νᵢ ≥ ½, one rounding below), then the end that is small
+        // enough to have lost relative accuracy recomputed as a Rayleigh quotient (module docs).
+        let mut ends: Vec<(f64, f64)> = nu.iter().map(|&nu| (nu, 1.0 - nu)).collect();
+        for (i, (nu, eta)) in ends.iter_mut().enumerate() {
+            if *nu < RAYLEIGH_BELOW || *eta < RAYLEIGH_BELOW {
+                let s = generalized_vector(&L, V.column(i).as_slice());
+                if *nu < RAYLEIGH_BELOW {
+                    *nu = quadratic_form(P_a, &s);
+                }
+                if *eta < RAYLEIGH_BELOW {
+                    *eta = t * quadratic_form(P_b, &s);
+                }
             }
-            slopes.push(1.0 / mu - 1.0);
         }
+        // Both are positive for positive definite P_a, P_b; a non-positive or non-finite one
+        // is beyond what the computation resolves.
+        if !ends
+            .iter()
+            .all(|&(nu, eta)| nu > 0.0 && eta > 0.0 && nu.is_finite() && eta.is_finite())
+        {
+            let ratios = ends.iter().map(|&(nu, eta)| t * nu / eta);
+            let lo = ratios.clone().fold(f64::INFINITY, f64::min);
+            let hi = ratios.fold(f64::NEG_INFINITY, f64::max);
+            return Err(unresolved(lo, hi));
+        }
+        let scales: Vec<f64> = ends.iter().map(|&(_, eta)| (eta / t).sqrt()).collect();
+        let lambda: Vec<f64> = ends.iter().map(|&(nu, eta)| eta / (t * nu)).collect();
+        let slopes = lambda.iter().map(|l| l - 1.0).collect();
+        let mu = ends.iter().map(|&(nu, eta)| t * nu / eta).collect();
+        let mut basis = &L * &V;
+        for (mut col, s) in basis.column_iter_mut().zip(&scales) {
+            col *= *s;
+        }
+        let weights = basis.column_iter().map(|c| c.norm_squared()).collect();
         Ok(Self {
             L,
             V,
+            scales,
             basis,
             weights,
+            lambda,
             slopes,
-            mu: mu.iter().copied().collect(),
+            mu,
         })
     }
 
-    /// `W⁻¹ x = Vᵀ L⁻¹ x`: a vector's coordinates in the basis (`O(n²)`, no inverse formed).
+    /// `dᵢ(ω) = (1 − ω) + ω λᵢ`: `P(ω)⁻¹ = W⁻ᵀ diag(dᵢ) W⁻¹`; a sum of two non-negative terms,
+    /// so it keeps its relative accuracy for every `λᵢ`.
+    fn d(&self, i: usize, omega: f64) -> f64 {
+        (1.0 - omega) + omega * self.lambda[i]
+    }
+
+    /// `W⁻¹ x = diag(√(t/ηᵢ)) Vᵀ L⁻¹ x`: a vector's coordinates in the basis (`O(n²)`, no
+    /// inverse formed).
     pub(super) fn coordinates(&self, x: &DVector<f64>) -> DVector<f64> {
         let mut y = x.clone();
         solve_lower_in_place(&self.L, y.as_mut_slice());
-        self.V.tr_mul(&y)
+        let mut c = self.V.tr_mul(&y);
+        for (c, s) in c.iter_mut().zip(&self.scales) {
+            *c /= s;
+        }
+        c
     }
 
-    /// `W⁻¹ = Vᵀ L⁻¹`.
+    /// `W⁻¹ = diag(√(t/ηᵢ)) Vᵀ L⁻¹`.
     pub(super) fn basis_inv(&self) -> DMatrix<f64> {
         // The column-major buffer of Vᵀ is V row by row; the row solve leaves (L⁻ᵀV)ᵀ = Vᵀ L⁻¹
         // in it, column-major.
         let mut Z = self.V.transpose();
         solve_lower_transposed_rows(&self.L, Z.as_mut_slice());
+        for (mut row, s) in Z.row_iter_mut().zip(&self.scales) {
+            row /= *s;
+        }
         Z
     }
 
@@ -198,8 +351,8 @@ impl Pencil {
     fn covariance(&self, omega: f64) -> DMatrix<f64> {
         // P = U Uᵀ with U = W diag(1/√dᵢ) (dᵢ > 0 on [0, 1]).
         let mut U = self.basis.clone();
-        for (mut col, s) in U.column_iter_mut().zip(&self.slopes) {
-            col /= (1.0 + omega * s).sqrt();
+        for (i, mut col) in U.column_iter_mut().enumerate() {
+            col /= self.d(i, omega).sqrt();
         }
         let mut P = &U * U.transpose();
         symmetrize_in_place(&mut P);
@@ -208,10 +361,7 @@ impl Pencil {
 
     /// `K_b = (1−ω) P P_b⁻¹ = W diag((1−ω)/dᵢ) W⁻¹` (since `P_b⁻¹ = W⁻ᵀ W⁻¹`).
     fn gain_b(&self, omega: f64) -> DMatrix<f64> {
-        let s = self
-            .slopes
-            .iter()
-            .map(|s| (1.0 - omega) / (1.0 + omega * s));
+        let s = (0..self.lambda.len()).map(|i| (1.0 - omega) / self.d(i, omega));
         self.scaled_product(s, &self.basis_inv())
     }
 
@@ -226,8 +376,7 @@ impl Pencil {
     ) -> DVector<f64> {
         let (u_a, u_b) = (self.coordinates(x_a), self.coordinates(x_b));
         let coords = DVector::from_fn(u_a.len(), |i, _| {
-            let s = self.slopes[i];
-            (omega * (s + 1.0) * u_a[i] + (1.0 - omega) * u_b[i]) / (1.0 + omega * s)
+            (omega * self.lambda[i] * u_a[i] + (1.0 - omega) * u_b[i]) / self.d(i, omega)
         });
         &self.basis * coords
     }
@@ -286,8 +435,8 @@ fn derivatives(pencils: &Weighted, criterion: Criterion, omega: f64) -> (f64, f6
     let (mut d1, mut d2, mut size) = (0.0, 0.0, 0.0);
     for &(pencil, count) in pencils {
         let (mut p1, mut p2, mut psize) = (0.0, 0.0, 0.0);
-        for (c, s) in pencil.weights.iter().zip(&pencil.slopes) {
-            let d = 1.0 + omega * s;
+        for (i, (c, s)) in pencil.weights.iter().zip(&pencil.slopes).enumerate() {
+            let d = pencil.d(i, omega);
             match criterion {
                 Criterion::Trace => {
                     p1 -= c * s / (d * d);
@@ -677,7 +826,7 @@ fn ci_block_in_place(
     if g1 <= ENDPOINT_TIE * size1 {
         return Ok((1.0, None));
     }
-    let pencil = Pencil::from_half(half, P_a)?;
+    let pencil = Pencil::new(P_a, P_b)?;
     let omega = optimal_omega(&[(&pencil, 1.0)], criterion);
     pencil.fuse_covariance_into(P_a, P_b, omega, None);
     Ok((omega, Some(pencil)))

@@ -10,7 +10,7 @@
 //! estimate's covariance and cancels).
 //!
 //! In the basis of the CI pencil (`P_b = W Wᵀ`, `P_a = W diag(μ) Wᵀ`, one generalized
-//! eigenproblem) everything is diagonal: `Γ = W diag(gᵢ) Wᵀ` with `gᵢ(ω) = 1 + ω(μᵢ − 1)`,
+//! eigenproblem) everything is diagonal: `Γ = W diag(gᵢ) Wᵀ` with `gᵢ(ω) = (1 − ω) + ω μᵢ`,
 //! `P = W diag(1/hᵢ) Wᵀ` with `hᵢ = 1/μᵢ + 1 − 1/gᵢ` (between `min(1/μᵢ, 1)` and
 //! `max(1/μᵢ, 1)`, so positive), so `tr P(ω) = Σ ‖wᵢ‖²/hᵢ` and `log det P = log det WWᵀ −
 //! Σ ln hᵢ` cost `O(n)` per `ω`.
@@ -40,10 +40,18 @@ pub struct IciResult {
     pub omega: f64,
 }
 
-/// Per-axis quantities of ICI at `ω`: `gᵢ`, `hᵢ`.
+/// Per-axis quantities of ICI at `ω`: `gᵢ`, `hᵢ = 1/μᵢ + 1 − 1/gᵢ`, each as a sum of
+/// non-negative terms so that it keeps its relative accuracy (the plain form cancels when
+/// `1/gᵢ` is close to `1/μᵢ` or to `1`): `hᵢ = 1 + (1−ω)(1−μᵢ)/(μᵢ gᵢ)` for `μᵢ ≤ 1` and
+/// `hᵢ = 1/μᵢ + ω(μᵢ−1)/gᵢ` above.
 fn axis(mu: f64, omega: f64) -> (f64, f64) {
-    let g = 1.0 + omega * (mu - 1.0);
-    (g, 1.0 / mu + 1.0 - 1.0 / g)
+    let g = (1.0 - omega) + omega * mu;
+    let h = if mu <= 1.0 {
+        1.0 + (1.0 - omega) * (1.0 - mu) / (mu * g)
+    } else {
+        1.0 / mu + omega * (mu - 1.0) / g
+    };
+    (g, h)
 }
 
 /// The criterion's first and second derivative at `ω` summed over `pencils` (with their

@@ -57,7 +57,7 @@ pub(crate) struct Pow2 {
 }
 
 /// `2ᵏ` as a float, for `k` in the normal range `[−1022, 1023]`.
-fn two_to(k: i32) -> f64 {
+pub(crate) fn two_to(k: i32) -> f64 {
     debug_assert!((-1022..=1023).contains(&k));
     f64::from_bits(((k + 1023) as u64) << 52)
 }
