@@ -70,10 +70,23 @@ pub enum InputError {
         /// Its largest eigenvalue as computed.
         max_eigenvalue: f64,
     },
-    /// `P_a` and `P_b`, each positive definite, so far apart along some axis that the ratio of
-    /// `P_a` to `P_b` there (a generalized eigenvalue of the pair) is lost to rounding: the
-    /// CI family's pencil cannot be computed (`fusion::ci`'s module docs).
-    #[error("P_a and P_b are each positive definite, but the ratios of P_a to P_b along their common axes span more than floating point resolves (computed from {min_ratio:.3e} to {max_ratio:.3e}); rescale the states to comparable units")]
+    /// A covariance whose definiteness floating point cannot decide: not proven positive
+    /// definite (as given or equilibrated by powers of two), and not proven otherwise either
+    /// (no vector with `vᵀ P v ≤ 0` is proven): its smallest eigenvalue is within rounding of
+    /// zero next to its largest.
+    #[error("{name} is singular to working precision: its smallest eigenvalue (computed {min_eigenvalue:.6e}) is within rounding of zero next to its largest ({max_eigenvalue:.6e}), so floating point cannot tell whether it is positive definite")]
+    Singular {
+        /// Which input.
+        name: String,
+        /// Its smallest eigenvalue as computed.
+        min_eigenvalue: f64,
+        /// Its largest eigenvalue as computed.
+        max_eigenvalue: f64,
+    },
+    /// `P_a` and `P_b`, each accepted as positive definite, so far apart along some axis that
+    /// the ratio of `P_a` to `P_b` there (a generalized eigenvalue of the pair) is lost to
+    /// rounding: the CI family's pencil cannot be computed (`fusion::ci`'s module docs).
+    #[error("P_a and P_b are each accepted as positive definite, but the ratios of P_a to P_b along their common axes span more than nmci's computation resolves in floating point (computed from {min_ratio:.3e} to {max_ratio:.3e}); rescale the states to comparable units")]
     UnresolvedPair {
         /// The smallest ratio as computed (NaN when the computation failed before it).
         min_ratio: f64,
@@ -305,6 +318,7 @@ impl InputError {
             | InputError::NotPositiveDefinite { name, .. }
             | InputError::OutOfRange { name, .. }
             | InputError::IllConditioned { name, .. }
+            | InputError::Singular { name, .. }
             | InputError::NotBlockDiagonal { name, .. }
             | InputError::SizeMismatch { name, .. } => Some(name),
             InputError::InvalidBlocks { .. }

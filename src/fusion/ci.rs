@@ -22,9 +22,9 @@
 //! eigenvalues are the `μᵢ`. A symmetric eigensolver returns them with an *absolute* error of a
 //! few `ε max μ`, so the small ones lose their relative accuracy: with the ratios `μ` spanning
 //! `s = μ_max/μ_min`, some `dᵢ` carry a relative error of about `ε s`. Each of `P_a`, `P_b` of
-//! condition number `κ` lets `s` reach `κ²`, while the inputs determine `P(ω)` only to about
-//! `ε κ` anyway; at large `κ` it even returns negative `μᵢ` for positive definite inputs
-//! (docs/methods.md has the measurements).
+//! condition number `κ` lets `s` reach `κ²`, while a relative change of `ε` in the inputs
+//! moves `P(ω)` by about `ε κ`; at large `κ` it even returns negative `μᵢ` for positive
+//! definite inputs (docs/methods.md has the measurements).
 //!
 //! Here the pencil is balanced instead:
 //!

@@ -63,6 +63,9 @@ pub struct FusionProblem {
 /// both but is proven positive definite once equilibrated by powers of two
 /// (`scale::equilibrated`: variances of very different orders) is refused as
 /// ill-conditioned, not as indefinite: the rules compute in floating point with it as given.
+/// Any other refused matrix is called not positive definite only when a vector with
+/// `vᵀ P v ≤ 0` is proven (`verify::is_not_positive_definite`, on it or its equilibrated form),
+/// and singular to working precision otherwise: floating point cannot decide it.
 pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
     if m.nrows() == 0 {
         return Err(InputError::Empty { name: name.into() });
@@ -131,9 +134,21 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
                 max_eigenvalue: max_eigenvalue(&sym),
             });
         }
-        return Err(InputError::NotPositiveDefinite {
+        // Indefinite (or singular) only when a vector with vᵀ P v ≤ 0 is proven, on the matrix
+        // or on its equilibrated congruent form; otherwise floating point cannot decide, and
+        // the error says that instead of a definiteness it cannot know.
+        if verify::is_not_positive_definite(&sym)
+            || scale::equilibrated(&sym).is_some_and(|e| verify::is_not_positive_definite(&e))
+        {
+            return Err(InputError::NotPositiveDefinite {
+                name: name.into(),
+                min_eigenvalue: lambda_min,
+            });
+        }
+        return Err(InputError::Singular {
             name: name.into(),
             min_eigenvalue: lambda_min,
+            max_eigenvalue: max_eigenvalue(&sym),
         });
     }
     Ok(())

@@ -324,6 +324,46 @@ pub(crate) fn is_positive_definite(m: &DMatrix<f64>) -> bool {
     m.nrows() == 0 || psd_within(m, 0.0)
 }
 
+/// Proves that the symmetric float matrix `m` is **not** positive definite: a vector `v ≠ 0`
+/// (the computed eigenvector of its smallest eigenvalue) whose quadratic form `vᵀ m v`,
+/// enclosed in a [`Ball`] by [`Dot`] (`w = m v` entry by entry as balls, then `Σ vᵢ wᵢ`), has
+/// an upper end `≤ 0`, or that is exactly `0` (`m` zero on the support of `v`). `false` means
+/// "not proven" (positive definite, or within rounding of singular); it never returns `true`
+/// for a positive definite `m`.
+pub(crate) fn is_not_positive_definite(m: &DMatrix<f64>) -> bool {
+    let n = m.nrows();
+    if n == 0 {
+        return false;
+    }
+    let Some((values, vectors)) = crate::linalg::symmetric_eigen(m.clone(), f64::EPSILON) else {
+        return false;
+    };
+    let k = values.imin();
+    let v = vectors.column(k);
+    if v.iter().all(|&x| x == 0.0) || !v.iter().all(|x| x.is_finite()) {
+        return false;
+    }
+    // vᵀ m v = 0 exactly when m vanishes wherever both factors are non-zero (the enclosure
+    // below keeps an underflow slack and cannot show that).
+    let support: Vec<usize> = (0..n).filter(|&i| v[i] != 0.0).collect();
+    if support
+        .iter()
+        .all(|&i| support.iter().all(|&j| m[(i, j)] == 0.0))
+    {
+        return true;
+    }
+    let mut form = Dot::new();
+    for i in 0..n {
+        let mut w = Dot::new();
+        for j in 0..n {
+            w.add_exact_prod(m[(i, j)], v[j]);
+        }
+        form.add_prod(Ball::exact(v[i]), w.ball());
+    }
+    let ball = form.ball();
+    ball.mid.is_finite() && ball.rad.is_finite() && ball.upper() <= 0.0
+}
+
 wide! {
 /// Plain floating-point Cholesky `B = R̃ᵀR̃`; whether every pivot is positive (and finite).
 /// Left-looking on the columns of the lower factor `R̃ᵀ`: each entry is `b` minus its
@@ -397,6 +437,45 @@ pub(crate) fn psd_shift(m: &BallMatrix) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The witness of indefiniteness never fires on a matrix proven positive definite (random
+    /// ones, and ones shifted to a smallest eigenvalue of 1e-12 relative), and fires on clearly
+    /// indefinite ones and on exactly singular ones.
+    #[test]
+    fn the_witness_of_indefiniteness_is_never_found_for_a_positive_definite_matrix() {
+        let mut seed = 41;
+        let (mut proven_pd, mut indefinite) = (0, 0);
+        for n in [1, 2, 3, 6, 14] {
+            for shift in [1e-12, 1e-6, -1e-9, -1e-3] {
+                let a = crate::linalg::test_spd(n, &mut seed, 0.0);
+                let eig = nalgebra::SymmetricEigen::new(a.clone()).eigenvalues;
+                let (lmin, lmax) = (eig.min(), eig.max());
+                let mut b = a.clone();
+                for i in 0..n {
+                    b[(i, i)] += shift * lmax - lmin;
+                }
+                if is_positive_definite(&b) {
+                    proven_pd += 1;
+                    assert!(!is_not_positive_definite(&b), "n {n} shift {shift}");
+                }
+                if shift < 0.0 {
+                    indefinite += 1;
+                    assert!(is_not_positive_definite(&b), "n {n} shift {shift}");
+                }
+            }
+        }
+        assert!(
+            proven_pd >= 8 && indefinite == 10,
+            "{proven_pd} {indefinite}"
+        );
+        assert!(is_not_positive_definite(&DMatrix::from_row_slice(
+            2,
+            2,
+            &[1.0, 0.0, 0.0, 0.0]
+        )));
+        assert!(is_not_positive_definite(&DMatrix::zeros(3, 3)));
+        assert!(!is_not_positive_definite(&DMatrix::identity(3, 3)));
+    }
 
     /// The verified test decides the same on both copies of `cholesky_succeeds` ([`wide!`]):
     /// matrices shifted across their smallest eigenvalue in steps of 1e−14 relative, where

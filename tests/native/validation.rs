@@ -108,6 +108,91 @@ fn covariance_errors_name_the_problem() {
     );
 }
 
+/// Matrices whose definiteness floating point cannot decide (condition numbers near 1/ε,
+/// rotated away from the axes) are called singular to working precision. Both below are
+/// positive definite as floats (smallest eigenvalues 1.1044 and 5696.21, computed with 60
+/// digits); they were refused as "not positive definite (smallest eigenvalue 0)" and
+/// "(… −32768)". A vector with `vᵀ P v ≤ 0` is proven before a matrix is called indefinite.
+#[test]
+fn matrices_floating_point_cannot_decide_are_called_singular_not_indefinite() {
+    let I = DMatrix::<f64>::identity(2, 2);
+    for m in [
+        [
+            1.5547804921864044e16,
+            -2.2527755614633864e16,
+            -2.2527755614633864e16,
+            3.264124907555265e16,
+        ],
+        [
+            6.99001839616835e18,
+            -5.88638978442722e19,
+            -5.88638978442722e19,
+            4.9570090850122354e20,
+        ],
+    ] {
+        let e = problem(I.clone(), DMatrix::from_row_slice(2, 2, &m)).unwrap_err();
+        assert!(matches!(e, InputError::Singular { .. }), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with("P_b is singular to working precision"),
+            "{e}"
+        );
+    }
+    // A clearly indefinite matrix of the same size and scale is still called indefinite.
+    let e = problem(
+        I.clone(),
+        DMatrix::from_row_slice(2, 2, &[1.5e16, 3.0e16, 3.0e16, 3.2e16]),
+    )
+    .unwrap_err();
+    assert!(matches!(e, InputError::NotPositiveDefinite { .. }), "{e}");
+}
+
+/// A pair that passes validation but whose ratios the balanced pencil cannot resolve (found by
+/// a random search over condition numbers 10¹²…10¹⁷): a typed error naming the pair, not a
+/// false "not positive definite".
+#[test]
+fn a_pair_beyond_what_the_pencil_resolves_is_refused_by_name() {
+    let P_a = DMatrix::from_row_slice(
+        3,
+        3,
+        &[
+            9456971981890842.0,
+            1.7970854623290732e16,
+            -79469921559937.75,
+            1.7970854623290732e16,
+            3.414957949555273e16,
+            -151014876330897.53,
+            -79469921559937.75,
+            -151014876330897.53,
+            668006874683.9958,
+        ],
+    );
+    let P_b = DMatrix::from_row_slice(
+        3,
+        3,
+        &[
+            2.594663738022037e18,
+            -8.031768188167049e18,
+            -6.773475233204289e18,
+            -8.031768188167049e18,
+            2.4862324743716143e19,
+            2.096726153391973e19,
+            -6.773475233204289e18,
+            2.096726153391973e19,
+            1.7682433190657229e19,
+        ],
+    );
+    let p = FusionProblem::from_covariances(P_a, P_b, CrossPattern::fully_unknown(3)).unwrap();
+    for e in [
+        covariance_intersection(&p, Criterion::Trace).unwrap_err(),
+        inverse_covariance_intersection(&p, Criterion::Trace).unwrap_err(),
+        ellipsoidal_intersection(&p).unwrap_err(),
+    ] {
+        assert!(matches!(e, InputError::UnresolvedPair { .. }), "{e}");
+        assert!(e.to_string().contains("rescale the states"), "{e}");
+    }
+}
+
 #[test]
 fn vector_and_pattern_errors() {
     let I = DMatrix::<f64>::identity(2, 2);
