@@ -5,6 +5,7 @@
 #   scripts/python.sh build   -> the wheel, installed into target/py
 #   scripts/python.sh test    -> build, then pytest python/tests against the `nmci` CLI
 #   scripts/python.sh bench   -> build, then scripts/bench_python.py (installs scipy and cvxpy)
+#   scripts/python.sh accuracy -> build, then scripts/accuracy.py (50-digit references)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="$HOME/.cargo/bin:$PATH"
@@ -46,5 +47,8 @@ case "$what" in
   bench)
     "$py" scripts/bench_python.py
     ;;
-  *) echo "usage: scripts/python.sh build|test|bench" >&2; exit 2 ;;
+  accuracy)
+    "$py" scripts/accuracy.py
+    ;;
+  *) echo "usage: scripts/python.sh build|test|bench|accuracy" >&2; exit 2 ;;
 esac

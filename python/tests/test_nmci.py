@@ -213,8 +213,8 @@ def rotated_spd(rng, n, cond):
 def test_ci_ici_and_ei_keep_the_accuracy_their_conditioning_allows(cond):
     # Against 50-digit references (mpmath) of the same float inputs: the relative error of P
     # stays within 4 ε κ, κ the larger condition number of P_a, P_b. Through a pencil of P_a
-    # against P_b alone it was 2e-6 at κ = 1e6, 0.4 at 1e8 and a false "not positive
-    # definite" at 1e10 (the ratios' spread κ² entered instead of κ).
+    # against P_b alone it was 2e-6 at κ = 1e6, 0.7 at 1e8 and a false "not positive
+    # definite" from 1e10 (the ratios' spread κ² entered instead of κ; scripts/accuracy.py).
     import mpmath as mp
 
     mp.mp.dps = 50

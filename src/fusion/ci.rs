@@ -882,6 +882,23 @@ mod tests {
         (vec![a0, a1, a2, a3, a4], vec![b0, b1, b2, b3, b4])
     }
 
+    /// The balancing power of two is the rounded middle of the extreme diagonal log-ratios.
+    #[test]
+    fn the_balance_is_the_power_of_two_between_the_diagonal_ratios() {
+        let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+        // log₂ ratios 2 and −6: the middle −2.
+        assert_eq!(balance(&d(&[4.0, 1.0]), &d(&[1.0, 64.0])), 0.25);
+        // Scaling P_b by 2¹⁰⁰ moves it by 2⁻¹⁰⁰, exactly.
+        assert_eq!(
+            balance(&d(&[4.0, 1.0]), &d(&[2f64.powi(100), 2f64.powi(106)])),
+            2f64.powi(-102)
+        );
+        // log₂ ratios 0 and 1: the middle ½ rounds away from zero, to 2¹.
+        assert_eq!(balance(&d(&[1.0, 2.0]), &d(&[1.0, 1.0])), 2.0);
+        // Equal diagonals: 1.
+        assert_eq!(balance(&d(&[3.0, 5.0]), &d(&[3.0, 5.0])), 1.0);
+    }
+
     #[test]
     fn block_nmci_in_place_matches_per_block_ci() {
         for criterion in [Criterion::Trace, Criterion::Logdet] {

@@ -274,10 +274,14 @@ fn codiagonal_pairs(span: i32) -> Vec<(Vec<f64>, Vec<f64>)> {
             .collect();
         let a: Vec<f64> = e.iter().map(|&e| 2f64.powi(e)).collect();
         let b: Vec<f64> = a.iter().rev().copied().collect();
-        // The same pair with P_b scaled by 2^30 (a sensor far worse overall).
-        let b_far: Vec<f64> = b.iter().map(|v| v * 2f64.powi(30)).collect();
-        pairs.push((a.clone(), b));
-        pairs.push((a, b_far));
+        // The same pair with P_b scaled by 2^30 and 2^±70 (a sensor far worse or far better
+        // overall; beyond 2^53 apart, P_a + P_b would lose P_b to rounding without the
+        // balancing power of two).
+        for k in [30, 70, -70] {
+            let b_far: Vec<f64> = b.iter().map(|v| v * 2f64.powi(k)).collect();
+            pairs.push((a.clone(), b_far));
+        }
+        pairs.push((a, b));
     }
     pairs
 }
