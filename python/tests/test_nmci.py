@@ -200,53 +200,34 @@ def test_ci_matches_a_scipy_reference_on_random_problems():
         np.testing.assert_allclose(r.Ka + r.Kb, np.eye(n), atol=1e-12)
 
 
-def rotated_spd(rng, n, cond):
-    """A random rotation of diag(geomspace(1, cond, n)), shuffled: condition number `cond`."""
-    q, _ = np.linalg.qr(rng.standard_normal((n, n)))
-    ev = np.geomspace(1.0, cond, n)
-    rng.shuffle(ev)
-    p = (q * ev) @ q.T
-    return (p + p.T) / 2
-
-
 @pytest.mark.parametrize("cond", [1e2, 1e6, 1e10, 1e13, 1e15])
 def test_ci_ici_and_ei_keep_the_accuracy_their_conditioning_allows(cond):
     # Against 50-digit references (mpmath) of the same float inputs: the relative error of P
     # stays within 4 ε κ, κ the larger condition number of P_a, P_b. Through a pencil of P_a
     # against P_b alone it was 2e-6 at κ = 1e6, 0.7 at 1e8 and a false "not positive
-    # definite" from 1e10 (the ratios' spread κ² entered instead of κ; scripts/accuracy.py).
+    # definite" from 1e10 (the ratios' spread κ² entered instead of κ; scripts/accuracy.py,
+    # whose references these are).
     import mpmath as mp
 
-    mp.mp.dps = 50
-    rng = np.random.default_rng(int(np.log10(cond)))
-    mat = lambda m: mp.matrix(m.tolist())  # noqa: E731
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import accuracy as acc
 
-    def rel(x, e):
-        return float(mp.mnorm(mat(x) - e, "f") / mp.mnorm(e, "f"))
+    rng = np.random.default_rng(int(np.log10(cond)))
 
     def kappa(m):
-        ev = mp.eigsy(mat(m))[0]
+        ev = mp.eigsy(acc.mat(m))[0]
         return float(max(ev) / min(ev))
-
-    def ei_reference(A, B):
-        da, sa = mp.eigsy(A)
-        T = mp.diag([1 / mp.sqrt(d) for d in da]) * sa.T
-        db, sb = mp.eigsy(T * B * T.T)
-        G = T**-1 * sb * mp.diag([max(d, 1) for d in db]) * sb.T * (T**-1).T
-        return (A**-1 + B**-1 - G**-1) ** -1
 
     for n in (2, 3, 5):
         for _ in range(3):
-            a, b = rotated_spd(rng, n, cond), rotated_spd(rng, n, cond)
-            A, B = mat(a), mat(b)
+            a, b = acc.rotated(rng, n, cond), acc.rotated(rng, n, cond)
+            A, B = acc.mat(a), acc.mat(b)
             tol = 4 * np.finfo(float).eps * max(kappa(a), kappa(b))
             r = nmci.ci(a, b)
-            w = mp.mpf(r.omega[0])
-            assert rel(r.P, (w * A**-1 + (1 - w) * B**-1) ** -1) <= tol, ("ci", n)
+            assert acc.rel(r.P, acc.ci_ref(A, B, mp.mpf(r.omega[0]))) <= tol, ("ci", n)
             r = nmci.ici(a, b)
-            w = mp.mpf(r.omega[0])
-            assert rel(r.P, (A**-1 + B**-1 - (w * A + (1 - w) * B) ** -1) ** -1) <= tol, ("ici", n)
-            assert rel(nmci.ei(a, b).P, ei_reference(A, B)) <= tol, ("ei", n)
+            assert acc.rel(r.P, acc.ici_ref(A, B, mp.mpf(r.omega[0]))) <= tol, ("ici", n)
+            assert acc.rel(nmci.ei(a, b).P, acc.ei_ref(A, B)) <= tol, ("ei", n)
 
 
 def admissible_cross(rng, a, b, mask, radius):
