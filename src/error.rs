@@ -70,11 +70,11 @@ pub enum InputError {
         /// Its largest eigenvalue as computed.
         max_eigenvalue: f64,
     },
-    /// A covariance whose definiteness floating point cannot decide: not proven positive
+    /// A covariance whose definiteness nmci's floating-point checks cannot decide: not proven positive
     /// definite (as given or equilibrated by powers of two), and not proven otherwise either
     /// (no vector with `vᵀ P v ≤ 0` is proven): its smallest eigenvalue is within rounding of
     /// zero next to its largest.
-    #[error("{name} is singular to working precision: its smallest eigenvalue (computed {min_eigenvalue:.6e}) is within rounding of zero next to its largest ({max_eigenvalue:.6e}), so floating point cannot tell whether it is positive definite")]
+    #[error("{name} is singular to working precision: its smallest eigenvalue (computed {min_eigenvalue:.6e}) is within rounding of zero next to its largest ({max_eigenvalue:.6e}), so nmci cannot tell in floating point whether it is positive definite")]
     Singular {
         /// Which input.
         name: String,

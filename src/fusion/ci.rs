@@ -29,7 +29,7 @@
 //! Here the pencil is balanced instead:
 //!
 //! - `S = P_a + t P_b = L Lᵀ`, with `t = 2ᵏ` from the diagonal ratios ([`balance`]), so
-//!   `t P_b` is exact and `S` rounds once per entry.
+//!   `t P_b` is exact (unless an entry leaves the normal range) and `S` rounds once per entry.
 //! - `L⁻¹ P_a L⁻ᵀ = V diag(ν) Vᵀ` and `L⁻¹ (t P_b) L⁻ᵀ = I − V diag(ν) Vᵀ`, so
 //!   `νᵢ = μᵢ/(μᵢ + t)` and `ηᵢ = 1 − νᵢ = t/(μᵢ + t)` both lie in `(0, 1)`. Their absolute
 //!   error of a few `ε` is a relative error of a few `ε` for every `νᵢ, ηᵢ ≥ ½`. `ηᵢ = 1 − νᵢ`
@@ -241,7 +241,8 @@ fn quadratic_form(a: &DMatrix<f64>, s: &[f64]) -> f64 {
 impl Pencil {
     pub(super) fn new(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> Result<Self, InputError> {
         let t = balance(P_a, P_b);
-        // t P_b is exact (a power of two, inside the range: module docs); S rounds once.
+        // t P_b is exact (a power of two) unless an entry leaves the normal range; S rounds
+        // once per entry.
         let S = P_a + P_b * t;
         let L = cholesky(&S)
             .ok_or_else(|| unresolved(f64::NAN, f64::NAN))?
@@ -253,7 +254,7 @@ impl Pencil {
         solve_lower_rows(&L, M.as_mut_slice());
         let M = symmetrize(&M);
         // Off-diagonal entries below 4ε relative to their diagonal neighbours count as zero
-        // (nalgebra's default is ε): eigenvalues still accurate to ~1e-15 ‖M‖ = 1e-15, ~15 %
+        // (nalgebra's default is ε): eigenvalues still accurate to ~1e-15 ‖M‖ ≤ 1e-15, ~15 %
         // fewer QR sweeps. nalgebra's `SymmetricEigen` without an iteration limit, bit for bit
         // (`linalg::symmetric_eigen`, whose docs say why it ends).
         let (nu, V) =

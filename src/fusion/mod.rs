@@ -65,7 +65,7 @@ pub struct FusionProblem {
 /// ill-conditioned, not as indefinite: the rules compute in floating point with it as given.
 /// Any other refused matrix is called not positive definite only when a vector with
 /// `vᵀ P v ≤ 0` is proven (`verify::is_not_positive_definite`, on it or its equilibrated form),
-/// and singular to working precision otherwise: floating point cannot decide it.
+/// and singular to working precision otherwise: nmci's floating-point checks cannot decide it.
 pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
     if m.nrows() == 0 {
         return Err(InputError::Empty { name: name.into() });
@@ -135,7 +135,7 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
             });
         }
         // Indefinite (or singular) only when a vector with vᵀ P v ≤ 0 is proven, on the matrix
-        // or on its equilibrated congruent form; otherwise floating point cannot decide, and
+        // or on its equilibrated congruent form; otherwise these checks cannot decide, and
         // the error says that instead of a definiteness it cannot know.
         if verify::is_not_positive_definite(&sym)
             || scale::equilibrated(&sym).is_some_and(|e| verify::is_not_positive_definite(&e))

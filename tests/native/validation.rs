@@ -108,7 +108,7 @@ fn covariance_errors_name_the_problem() {
     );
 }
 
-/// Matrices whose definiteness floating point cannot decide (condition numbers near 1/ε,
+/// Matrices whose definiteness the floating-point checks cannot decide (condition numbers near 1/ε,
 /// rotated away from the axes) are called singular to working precision. Both below are
 /// positive definite as floats (smallest eigenvalues 1.1044 and 5696.21, computed with 60
 /// digits); they were refused as "not positive definite (smallest eigenvalue 0)" and
