@@ -208,24 +208,6 @@ fn balance(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> f64 {
 /// about `10³ ε` relative (module docs).
 const RAYLEIGH_BELOW: f64 = 1.0 / 1024.0;
 
-/// `s = L⁻ᵀ v` (back substitution with the transpose of the lower-triangular `L`): the
-/// generalized eigenvector of the pencil whose eigenvector of `L⁻¹ P_a L⁻ᵀ` is `v`.
-#[allow(non_snake_case)]
-fn generalized_vector(L: &DMatrix<f64>, v: &[f64]) -> Vec<f64> {
-    let n = L.nrows();
-    let l = L.as_slice();
-    let mut s = v.to_vec();
-    for i in (0..n).rev() {
-        let col = &l[i * n..(i + 1) * n];
-        let mut x = s[i];
-        for k in i + 1..n {
-            x -= col[k] * s[k];
-        }
-        s[i] = x / col[i];
-    }
-    s
-}
-
 /// `sᵀ A s`.
 fn quadratic_form(a: &DMatrix<f64>, s: &[f64]) -> f64 {
     let n = s.len();
@@ -264,7 +246,9 @@ impl Pencil {
         let mut ends: Vec<(f64, f64)> = nu.iter().map(|&nu| (nu, 1.0 - nu)).collect();
         for (i, (nu, eta)) in ends.iter_mut().enumerate() {
             if *nu < RAYLEIGH_BELOW || *eta < RAYLEIGH_BELOW {
-                let s = generalized_vector(&L, V.column(i).as_slice());
+                // sᵢ = L⁻ᵀ vᵢ, the generalized eigenvector (one row for the row solve).
+                let mut s = V.column(i).as_slice().to_vec();
+                solve_lower_transposed_rows(&L, &mut s);
                 if *nu < RAYLEIGH_BELOW {
                     *nu = quadratic_form(P_a, &s);
                 }
