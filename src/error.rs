@@ -88,10 +88,21 @@ pub enum InputError {
     /// rounding: the CI family's pencil cannot be computed (`fusion::ci`'s module docs).
     #[error("P_a and P_b are each accepted as positive definite, but the ratios of P_a to P_b along their common axes span more than nmci's computation resolves in floating point (computed from {min_ratio:.3e} to {max_ratio:.3e}); rescale the states to comparable units")]
     UnresolvedPair {
-        /// The smallest ratio as computed (NaN when the computation failed before it).
+        /// The smallest ratio as computed.
         min_ratio: f64,
         /// The largest ratio as computed.
         max_ratio: f64,
+    },
+    /// A matrix nmci forms from inputs it accepted (`P_a + t P_b`, a fused information matrix,
+    /// ICI's `Γ`) that is positive definite in exact arithmetic but whose factorization fails
+    /// in floating point: the inputs are too far apart to fuse at working precision. No input
+    /// is named, because no single one is at fault.
+    #[error("{inputs} are each accepted as positive definite, but {matrix}, positive definite in exact arithmetic, cannot be factored in floating point: they are too far apart to fuse at working precision; rescale the states to comparable units")]
+    Unfactored {
+        /// The matrix whose factorization failed, as a formula.
+        matrix: String,
+        /// The inputs it was formed from.
+        inputs: String,
     },
     /// A covariance whose positive definiteness cannot be judged in floating point: its
     /// eigenvalue computation overflows (entries near the largest float) or all its entries
@@ -323,6 +334,7 @@ impl InputError {
             | InputError::SizeMismatch { name, .. } => Some(name),
             InputError::InvalidBlocks { .. }
             | InputError::UnresolvedPair { .. }
+            | InputError::Unfactored { .. }
             | InputError::Estimates(_) => None,
         }
     }

@@ -181,10 +181,7 @@ pub fn conservativeness_index(
 #[allow(non_snake_case)]
 fn bound_factor(P: &DMatrix<f64>) -> Result<DMatrix<f64>, crate::error::InputError> {
     Ok(crate::linalg::cholesky(P)
-        .ok_or_else(|| crate::error::InputError::NotPositiveDefinite {
-            name: "P".into(),
-            min_eigenvalue: min_eigenvalue(P),
-        })?
+        .ok_or_else(|| super::definiteness_error("P", P))?
         .unpack())
 }
 

@@ -49,7 +49,9 @@
 //! tested alike. CI's conservativeness holds to the same relative accuracy. Where a bound must
 //! hold in floating point, the bracket recomputes CI's with enclosed rounding
 //! ([`bracket`](super::bracket)). When a computed `νᵢ` or `ηᵢ` is still not positive, the pair
-//! is beyond what floating point resolves and [`InputError::UnresolvedPair`] says so.
+//! is beyond what floating point resolves and [`InputError::UnresolvedPair`] says so; when `S`
+//! itself does not factor, [`InputError::Unfactored`] does (no input is named: each was
+//! accepted).
 //!
 //! Filters that keep their estimates in blocks (the tracking study) use the in-place forms
 //! `ci_in_place` / `nmci_in_place`: means and covariances only, endpoints decided from the
@@ -60,12 +62,13 @@ use nalgebra::{DMatrix, DVector};
 
 use super::scale::two_to;
 use super::{
-    covariance_twins, scatter_block, BlockMean, Criterion, Fused, FusionProblem, MeanPlan,
+    covariance_twins, definiteness_error, scatter_block, BlockMean, Criterion, Fused,
+    FusionProblem, MeanPlan,
 };
 use crate::error::InputError;
 use crate::linalg::{
-    cholesky, min_eigenvalue, solve_lower_in_place, solve_lower_rows, solve_lower_transposed_rows,
-    symmetric_eigen, symmetrize, symmetrize_in_place,
+    cholesky, solve_lower_in_place, solve_lower_rows, solve_lower_transposed_rows, symmetric_eigen,
+    symmetrize, symmetrize_in_place,
 };
 
 /// CI result: the fused estimate and the optimal weight `ω` on estimate `a`.
@@ -77,20 +80,32 @@ pub struct CiResult {
     pub omega: f64,
 }
 
-/// The pair's pencil is beyond what the computation resolves (module docs), with the range of
-/// `P_a`-to-`P_b` ratios as computed.
-fn unresolved(min_ratio: f64, max_ratio: f64) -> InputError {
-    InputError::UnresolvedPair {
-        min_ratio,
-        max_ratio,
+/// `P_a + t P_b` (positive definite in exact arithmetic for accepted `P_a`, `P_b`) or the
+/// pencil matrix formed from its factor could not be factored (module docs).
+fn unfactored(matrix: &str) -> InputError {
+    InputError::Unfactored {
+        matrix: matrix.into(),
+        inputs: "P_a and P_b".into(),
     }
 }
 
-fn not_pd(name: &str, m: &DMatrix<f64>) -> InputError {
-    InputError::NotPositiveDefinite {
-        name: name.into(),
-        min_eigenvalue: min_eigenvalue(m),
-    }
+/// `X = L⁻¹ A` for lower-triangular `L` and symmetric `A`, returned as its transpose `Xᵀ`:
+/// `A`'s column-major buffer is also row-major, so the row solve leaves `X` row by row, i.e.
+/// the column-major buffer holds `Xᵀ`.
+#[allow(non_snake_case)]
+fn left_solve(L: &DMatrix<f64>, A: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut Xt = A.clone();
+    solve_lower_rows(L, Xt.as_mut_slice());
+    Xt
+}
+
+/// `L⁻¹ A L⁻ᵀ = L⁻¹ Xᵀ` (symmetrized) from [`left_solve`]'s `Xᵀ`: the column-major transpose
+/// of `Xᵀ` is `Xᵀ` in row-major order, so one more row solve.
+#[allow(non_snake_case)]
+fn congruence(L: &DMatrix<f64>, Xt: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut M = Xt.transpose();
+    solve_lower_rows(L, M.as_mut_slice());
+    symmetrize(&M)
 }
 
 /// `P_b = L Lᵀ` and `X = L⁻¹ P_a`: what the derivative of the criterion at `ω = 1` needs, so
@@ -105,20 +120,16 @@ struct HalfPencil {
 #[allow(non_snake_case)]
 impl HalfPencil {
     fn new(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>) -> Result<Self, InputError> {
-        let L = cholesky(P_b).ok_or_else(|| not_pd("P_b", P_b))?.unpack();
-        // P_a is symmetric, so its storage is also row-major: the row solve leaves X = L⁻¹P_a
-        // in row-major order, i.e. the column-major buffer holds Xᵀ.
-        let mut Xt = P_a.clone();
-        solve_lower_rows(&L, Xt.as_mut_slice());
+        let L = cholesky(P_b)
+            .ok_or_else(|| definiteness_error("P_b", P_b))?
+            .unpack();
+        let Xt = left_solve(&L, P_a);
         Ok(Self { L, Xt })
     }
 
     /// `M = L⁻¹ P_a L⁻ᵀ = L⁻¹ Xᵀ` (symmetrized).
     fn pencil_matrix(&self) -> DMatrix<f64> {
-        // The column-major transpose of Xᵀ is Xᵀ in row-major order.
-        let mut M = self.Xt.transpose();
-        solve_lower_rows(&self.L, M.as_mut_slice());
-        symmetrize(&M)
+        congruence(&self.L, &self.Xt)
     }
 
     /// The criterion's derivative at `ω = 1` (where `P = P_a`): `−tr P_a + tr(P_a P_b⁻¹ P_a)`
@@ -141,7 +152,9 @@ impl HalfPencil {
         P_b: &DMatrix<f64>,
         criterion: Criterion,
     ) -> Result<(f64, f64), InputError> {
-        let L_a = cholesky(P_a).ok_or_else(|| not_pd("P_a", P_a))?.unpack();
+        let L_a = cholesky(P_a)
+            .ok_or_else(|| definiteness_error("P_a", P_a))?
+            .unpack();
         let (plus, minus) = match criterion {
             Criterion::Trace => {
                 let mut Y = P_b.clone();
@@ -227,20 +240,15 @@ impl Pencil {
         // once per entry.
         let S = P_a + P_b * t;
         let L = cholesky(&S)
-            .ok_or_else(|| unresolved(f64::NAN, f64::NAN))?
+            .ok_or_else(|| unfactored("P_a + t P_b"))?
             .unpack();
-        // M = L⁻¹ P_a L⁻ᵀ, symmetrized (P_a symmetric, so its buffer is row-major too).
-        let mut Xt = P_a.clone();
-        solve_lower_rows(&L, Xt.as_mut_slice());
-        let mut M = Xt.transpose();
-        solve_lower_rows(&L, M.as_mut_slice());
-        let M = symmetrize(&M);
+        let M = congruence(&L, &left_solve(&L, P_a));
         // Off-diagonal entries below 4ε relative to their diagonal neighbours count as zero
         // (nalgebra's default is ε): eigenvalues still accurate to ~1e-15 ‖M‖ ≤ 1e-15, ~15 %
         // fewer QR sweeps. nalgebra's `SymmetricEigen` without an iteration limit, bit for bit
         // (`linalg::symmetric_eigen`, whose docs say why it ends).
         let (nu, V) =
-            symmetric_eigen(M, 4.0 * f64::EPSILON).ok_or_else(|| unresolved(f64::NAN, f64::NAN))?;
+            symmetric_eigen(M, 4.0 * f64::EPSILON).ok_or_else(|| unfactored("L⁻¹ P_a L⁻ᵀ"))?;
         // νᵢ and ηᵢ = 1 − νᵢ (exact for νᵢ ≥ ½, one rounding below), then the end that is small
         // enough to have lost relative accuracy recomputed as a Rayleigh quotient (module docs).
         let mut ends: Vec<(f64, f64)> = nu.iter().map(|&nu| (nu, 1.0 - nu)).collect();
@@ -266,7 +274,10 @@ impl Pencil {
             let ratios = ends.iter().map(|&(nu, eta)| t * nu / eta);
             let lo = ratios.clone().fold(f64::INFINITY, f64::min);
             let hi = ratios.fold(f64::NEG_INFINITY, f64::max);
-            return Err(unresolved(lo, hi));
+            return Err(InputError::UnresolvedPair {
+                min_ratio: lo,
+                max_ratio: hi,
+            });
         }
         let scales: Vec<f64> = ends.iter().map(|&(_, eta)| (eta / t).sqrt()).collect();
         let lambda: Vec<f64> = ends.iter().map(|&(nu, eta)| eta / (t * nu)).collect();
@@ -868,6 +879,36 @@ mod tests {
     }
 
     /// The balancing power of two is the rounded middle of the extreme diagonal log-ratios.
+    /// The endpoint test's factorizations of `P_b` and `P_a` (the study's filter covariances,
+    /// not checked per step) name a failure as the input checks do: not positive definite only
+    /// when proven. `P_b` below is positive definite as floats (smallest eigenvalue 1.1044);
+    /// it was called "P_b is not positive definite (smallest eigenvalue 0)" before.
+    #[test]
+    fn the_endpoint_test_calls_a_covariance_indefinite_only_when_proven() {
+        let I = DMatrix::<f64>::identity(2, 2);
+        let undecidable = DMatrix::from_row_slice(
+            2,
+            2,
+            &[
+                1.5547804921864044e16,
+                -2.2527755614633864e16,
+                -2.2527755614633864e16,
+                3.264124907555265e16,
+            ],
+        );
+        let indefinite = DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 1.0]);
+        let e = HalfPencil::new(&I, &undecidable).err().unwrap();
+        assert!(matches!(e, InputError::Singular { .. }), "{e}");
+        assert!(e.to_string().starts_with("P_b is singular"), "{e}");
+        let e = HalfPencil::new(&I, &indefinite).err().unwrap();
+        assert!(matches!(e, InputError::NotPositiveDefinite { .. }), "{e}");
+        let half = HalfPencil::new(&I, &I).unwrap();
+        let e = half
+            .derivative_at_zero(&undecidable, &I, Criterion::Trace)
+            .unwrap_err();
+        assert!(e.to_string().starts_with("P_a is singular"), "{e}");
+    }
+
     #[test]
     fn the_balance_is_the_power_of_two_between_the_diagonal_ratios() {
         let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));

@@ -123,35 +123,62 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
         });
     }
     if cholesky_of(sym.clone()).is_none() || lambda_min <= 0.0 {
-        // Variances of very different orders (mixed units) can make a positive definite
-        // matrix look singular in floating point; the verified test on the matrix
-        // equilibrated by powers of two (a congruence that keeps definiteness,
-        // `scale::equilibrated`) tells the two apart, and the error says which it is.
-        if scale::equilibrated(&sym).is_some_and(|e| verify::is_positive_definite(&e)) {
-            return Err(InputError::IllConditioned {
-                name: name.into(),
-                min_eigenvalue: lambda_min,
-                max_eigenvalue: max_eigenvalue(&sym),
-            });
-        }
-        // Indefinite (or singular) only when a vector with vᵀ P v ≤ 0 is proven, on the matrix
-        // or on its equilibrated congruent form; otherwise these checks cannot decide, and
-        // the error says that instead of a definiteness it cannot know.
-        if verify::is_not_positive_definite(&sym)
-            || scale::equilibrated(&sym).is_some_and(|e| verify::is_not_positive_definite(&e))
-        {
-            return Err(InputError::NotPositiveDefinite {
-                name: name.into(),
-                min_eigenvalue: lambda_min,
-            });
-        }
-        return Err(InputError::Singular {
-            name: name.into(),
-            min_eigenvalue: lambda_min,
-            max_eigenvalue: max_eigenvalue(&sym),
-        });
+        return Err(refusal(name, &sym, lambda_min));
     }
     Ok(())
+}
+
+/// Why the symmetric `sym` (smallest eigenvalue `lambda_min` as computed) cannot be used as a
+/// covariance: the three refusals of [`validate_covariance`], each said only when it is true.
+fn refusal(name: &str, sym: &DMatrix<f64>, lambda_min: f64) -> InputError {
+    // Variances of very different orders (mixed units) can make a positive definite matrix
+    // look singular in floating point; the verified test on the matrix equilibrated by powers
+    // of two (a congruence that keeps definiteness, `scale::equilibrated`) tells the two apart,
+    // and the error says which it is.
+    if verify::is_positive_definite(sym)
+        || scale::equilibrated(sym).is_some_and(|e| verify::is_positive_definite(&e))
+    {
+        return InputError::IllConditioned {
+            name: name.into(),
+            min_eigenvalue: lambda_min,
+            max_eigenvalue: max_eigenvalue(sym),
+        };
+    }
+    // Indefinite (or singular) only when a vector with vᵀ P v ≤ 0 is proven, on the matrix or
+    // on its equilibrated congruent form; otherwise these checks cannot decide, and the error
+    // says that instead of a definiteness it cannot know.
+    if verify::is_not_positive_definite(sym)
+        || scale::equilibrated(sym).is_some_and(|e| verify::is_not_positive_definite(&e))
+    {
+        return InputError::NotPositiveDefinite {
+            name: name.into(),
+            min_eigenvalue: lambda_min,
+        };
+    }
+    InputError::Singular {
+        name: name.into(),
+        min_eigenvalue: lambda_min,
+        max_eigenvalue: max_eigenvalue(sym),
+    }
+}
+
+/// The error for a covariance `m` (an input, or a covariance the filter or a rule computed)
+/// whose Cholesky factorization failed inside a computation: the refusal
+/// [`validate_covariance`] would give, so a matrix is called not positive definite only when
+/// that is proven. A matrix that factors nonetheless (the failing factorization was of another
+/// form of it) is named ill-conditioned: positive definite, but not usable in floating point
+/// as given.
+pub(crate) fn definiteness_error(name: &str, m: &DMatrix<f64>) -> InputError {
+    let sym = symmetrize(m);
+    let lambda_min = min_eigenvalue(&sym);
+    let scale = m.amax();
+    if !lambda_min.is_finite() || !scale.is_finite() || (scale > 0.0 && scale < f64::MIN_POSITIVE) {
+        return InputError::OutOfRange {
+            name: name.into(),
+            largest: scale,
+        };
+    }
+    refusal(name, &sym, lambda_min)
 }
 
 pub(crate) fn validate_vector(name: &str, v: &DVector<f64>, n: usize) -> Result<(), InputError> {

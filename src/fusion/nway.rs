@@ -31,7 +31,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::ci::covariance_intersection;
-use super::{scatter_block, Criterion, Estimate, FusionProblem};
+use super::{definiteness_error, scatter_block, Criterion, Estimate, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::{cholesky, symmetrize};
 use crate::structure::{connected_components, CrossPattern};
@@ -216,11 +216,16 @@ fn fuse_block(
     let info = sub
         .iter()
         .enumerate()
-        .map(|(i, e)| inverse(&e.P).ok_or_else(|| not_pd(i, &e.P)))
+        .map(|(i, e)| {
+            inverse(&e.P).ok_or_else(|| definiteness_error(&format!("estimates[{i}].p"), &e.P))
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let (omega, iterations) = simplex_newton(&info, criterion)?;
     let Y = weighted_sum(&info, &omega);
-    let P = inverse(&Y).ok_or_else(|| not_pd(0, &Y))?;
+    let P = inverse(&Y).ok_or_else(|| InputError::Unfactored {
+        matrix: "the fused information Σ ωᵢ Pᵢ⁻¹".into(),
+        inputs: "the estimates' covariances".into(),
+    })?;
     let gains: Vec<DMatrix<f64>> = info
         .iter()
         .zip(&omega)
@@ -238,13 +243,6 @@ fn fuse_block(
         omega: vec![omega],
         iterations,
     })
-}
-
-fn not_pd(i: usize, m: &DMatrix<f64>) -> InputError {
-    InputError::NotPositiveDefinite {
-        name: format!("estimates[{i}].p"),
-        min_eigenvalue: crate::linalg::min_eigenvalue(m),
-    }
 }
 
 /// The inverse of an SPD matrix (symmetrized), `None` if Cholesky fails.

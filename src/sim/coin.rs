@@ -388,13 +388,9 @@ fn gain_b(
         (Rule::Ci | Rule::Nmci, Some(0.0)) | (Rule::Ici, Some(1.0)) => return Ok(Gain::Take),
         _ => {}
     }
-    let not_pd = |name: &str, M: &DMatrix<f64>| InputError::NotPositiveDefinite {
-        name: name.into(),
-        min_eigenvalue: crate::linalg::min_eigenvalue(M),
-    };
     // P P_b⁻¹ = (P_b⁻¹ P)ᵀ (both symmetric).
     let over_b = crate::linalg::cholesky(P_b)
-        .ok_or_else(|| not_pd("P_b", P_b))?
+        .ok_or_else(|| crate::fusion::definiteness_error("P_b", P_b))?
         .solve(P)
         .transpose();
     Ok(Gain::Mix(match (rule, weight) {
@@ -402,7 +398,10 @@ fn gain_b(
         (Rule::Ici, Some(w)) => {
             let Gamma = P_a * w + P_b * (1.0 - w);
             let over_gamma = crate::linalg::cholesky(&Gamma)
-                .ok_or_else(|| not_pd("Γ", &Gamma))?
+                .ok_or_else(|| InputError::Unfactored {
+                    matrix: "Γ = ω P_a + (1−ω) P_b".into(),
+                    inputs: "P_a and P_b".into(),
+                })?
                 .solve(P)
                 .transpose();
             over_b - over_gamma * (1.0 - w)

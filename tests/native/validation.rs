@@ -147,6 +147,51 @@ fn matrices_floating_point_cannot_decide_are_called_singular_not_indefinite() {
     assert!(matches!(e, InputError::NotPositiveDefinite { .. }), "{e}");
 }
 
+/// A covariance whose factorization fails inside a rule (here N-way CI's inverses, reached with
+/// estimates built without [`Estimate::new`]'s checks) gets the checks' own refusal: called
+/// not positive definite only when that is proven. The first matrix of the test above was
+/// called "estimates[2].p is not positive definite (smallest eigenvalue 0)" here before.
+#[test]
+fn a_covariance_that_fails_to_factor_inside_a_rule_is_not_called_indefinite_unless_proven() {
+    let I = DMatrix::<f64>::identity(2, 2);
+    let estimate = |P: DMatrix<f64>| Estimate {
+        x: DVector::zeros(2),
+        P,
+    };
+    let undecidable = DMatrix::from_row_slice(
+        2,
+        2,
+        &[
+            1.5547804921864044e16,
+            -2.2527755614633864e16,
+            -2.2527755614633864e16,
+            3.264124907555265e16,
+        ],
+    );
+    let indefinite = DMatrix::from_row_slice(2, 2, &[1.5e16, 3.0e16, 3.0e16, 3.2e16]);
+    let fuse = |third: DMatrix<f64>| {
+        covariance_intersection_nway(
+            &[estimate(I.clone()), estimate(&I * 2.0), estimate(third)],
+            Criterion::Trace,
+        )
+        .unwrap_err()
+    };
+    let e = fuse(undecidable);
+    assert!(matches!(e, InputError::Singular { .. }), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("estimates[2].p is singular to working precision"),
+        "{e}"
+    );
+    let e = fuse(indefinite);
+    assert!(matches!(e, InputError::NotPositiveDefinite { .. }), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("estimates[2].p is not positive definite"),
+        "{e}"
+    );
+}
+
 /// A pair that passes validation but whose ratios the balanced pencil cannot resolve (found by
 /// a random search over condition numbers 10¹²…10¹⁷): a typed error naming the pair, not a
 /// false "not positive definite".
