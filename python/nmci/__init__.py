@@ -523,7 +523,10 @@ def nmci_nway(
 
 
 def conservativeness_index(P: ArrayLike, E: ArrayLike) -> float:
-    """``λ_max(P^{-1/2} E P^{-1/2})``: ``≤ 1`` when ``P`` bounds the error covariance ``E``."""
+    """``λ_max(P^{-1/2} E P^{-1/2})``: ``≤ 1`` exactly when ``P`` bounds the error covariance ``E``.
+
+    ``P`` must be a covariance and ``E`` of its size, finite and symmetric (``InputError``
+    otherwise); ``E`` need not be definite. An index beyond the largest float is ``inf``."""
     return _nmci.conservativeness_index(_matrix("P", P), _matrix("E", E))
 
 

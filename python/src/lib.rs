@@ -297,30 +297,8 @@ fn conservativeness_index(
     P: PyReadonlyArray2<'_, f64>,
     E: PyReadonlyArray2<'_, f64>,
 ) -> PyResult<f64> {
+    // P a covariance; E of its size, finite and symmetric (checked by the Rust API).
     let (P, E) = (matrix(&P), matrix(&E));
-    // P: a covariance (square, finite, symmetric, positive definite). E: square and finite
-    // (an error covariance may be singular); its size is checked against P's by the Rust API.
-    let square = |name: &str, m: &nalgebra::DMatrix<f64>| -> Result<(), InputError> {
-        if m.nrows() != m.ncols() || m.nrows() == 0 {
-            return Err(InputError::NotSquare {
-                name: name.into(),
-                rows: m.nrows(),
-                cols: m.ncols(),
-            });
-        }
-        if let Some(k) = m.iter().position(|v| !v.is_finite()) {
-            return Err(InputError::NotFinite {
-                name: name.into(),
-                row: k % m.nrows(),
-                col: k / m.nrows(),
-            });
-        }
-        Ok(())
-    };
-    square("P", &P)
-        .and_then(|_| nmci::validate_covariance("P", &P))
-        .and_then(|_| square("E", &E))
-        .map_err(|e| error_at(py, "InputError", e.to_string(), e.request_field()))?;
     detached(py, move || nmci::conservativeness_index(&P, &E))?
         .map_err(|e| error_at(py, "InputError", e.to_string(), e.request_field()))
 }

@@ -344,6 +344,7 @@ BAD_CALLS = [
     (lambda: nmci.conservativeness_index(np.eye(2), np.eye(3)), nmci.InputError, "E has size 3"),
     (lambda: nmci.conservativeness_index(-np.eye(2), np.eye(2)), nmci.InputError, "P is not positive definite"),
     (lambda: nmci.conservativeness_index(np.eye(2), np.full((2, 2), np.inf)), nmci.InputError, "E has a non-finite entry at (0, 0)"),
+    (lambda: nmci.conservativeness_index(np.eye(2), np.array([[1.0, 2.0], [3.0, 1.0]])), nmci.InputError, "E is not symmetric"),
     (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), sampler="x"), nmci.RequestError, "sampler: unknown variant `x`, expected one of `rejection`, `hit_and_run`, `auto`"),
     (lambda: nmci.track({"runs": 0}), nmci.StudyError, "runs at least 1"),
     (lambda: nmci.track({"rnus": 3}), nmci.StudyError, "unknown field `rnus`"),

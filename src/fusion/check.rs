@@ -19,6 +19,7 @@
 
 use nalgebra::DMatrix;
 
+use super::scale::two_to;
 use super::{Fused, FusionProblem};
 use crate::linalg::{max_eigenvalue, min_eigenvalue, symmetrize};
 use crate::structure::independent_blocks;
@@ -148,6 +149,15 @@ fn worst_margin_dense(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f
 /// more conservative (`P` inflated by `c` gives `1/c`); `> 1` is not conservative. A single
 /// number for "less conservative" (the paper's open question (i)).
 ///
+/// `P` must be a covariance ([`validate_covariance`](super::validate_covariance)); `E` of the
+/// same size, finite and symmetric (to the same tolerance), not necessarily definite: the
+/// equivalence with `P ⪰ E` holds for any symmetric `E` (a singular true covariance is
+/// common, and one a little indefinite from rounding gets the index its floats define).
+/// When an intermediate result overflows (`P` small against `E`), the index is recomputed
+/// with both scaled to unit size by powers of two (`P` by a power of four, so that its
+/// Cholesky factor scales exactly) and scaled back; in the normal range such scalings change
+/// no rounding (tested bit for bit). An index beyond the largest float is then `+∞`.
+///
 /// ```
 /// use nalgebra::DMatrix;
 /// use nmci::conservativeness_index;
@@ -160,7 +170,8 @@ pub fn conservativeness_index(
     P: &DMatrix<f64>,
     E: &DMatrix<f64>,
 ) -> Result<f64, crate::error::InputError> {
-    let L = bound_factor(P)?;
+    super::validate_covariance("P", P)?;
+    super::validate_symmetric("E", E)?;
     if E.shape() != P.shape() {
         return Err(crate::error::InputError::SizeMismatch {
             name: "E".into(),
@@ -168,6 +179,33 @@ pub fn conservativeness_index(
             expected: P.nrows(),
         });
     }
+    let coin = coin_of(P, E)?;
+    if coin.is_finite() {
+        return Ok(coin);
+    }
+    // Both scaled by powers of two to a largest entry near 1 (E only when non-zero; a zero E
+    // gives a finite index above). The index scales by 2^(k_E − k_P), applied in two halves so
+    // that an intermediate product overflows only when the index does.
+    let exponent = |m: &DMatrix<f64>| {
+        let a = m.amax();
+        if a > 0.0 {
+            (a.log2().floor() as i32).clamp(-1021, 1021)
+        } else {
+            0
+        }
+    };
+    // k_P even: P's Cholesky factor then scales by exactly 2^(k_P/2).
+    let (k_P, k_E) = (exponent(P) & !1, exponent(E));
+    let c = coin_of(&(P * two_to(-k_P)), &(E * two_to(-k_E)))?;
+    let d = k_E - k_P;
+    Ok(c * two_to(d / 2) * two_to(d - d / 2))
+}
+
+/// `λ_max(L⁻¹ E L⁻ᵀ)` with `P = L Lᵀ`, no checks: [`conservativeness_index`] for matrices a
+/// rule or the study computed (and [`fused_coin`]).
+#[allow(non_snake_case)]
+pub(crate) fn coin_of(P: &DMatrix<f64>, E: &DMatrix<f64>) -> Result<f64, crate::error::InputError> {
+    let L = bound_factor(P)?;
     // W = L⁻¹ E L⁻ᵀ: two triangular solves.
     let mut W = E.clone();
     L.solve_lower_triangular_mut(&mut W);
@@ -193,7 +231,7 @@ pub fn fused_coin(
     P_ab: &DMatrix<f64>,
 ) -> Result<f64, crate::error::InputError> {
     let E = fused_error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
-    conservativeness_index(&fused.P, &E)
+    coin_of(&fused.P, &E)
 }
 
 /// [`fused_coin`] for each of many cross-covariances (module docs: the parts that do not

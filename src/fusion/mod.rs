@@ -54,19 +54,11 @@ pub struct FusionProblem {
     pub cross_pattern: CrossPattern,
 }
 
-/// Checks that `m` is a usable covariance: non-empty, square, finite, symmetric, positive definite.
-///
-/// Positive definite means: proven so for `(m + mᵀ)/2` by a verified Cholesky test (Rump,
-/// BIT 2006; `fusion::verify`), or, for a matrix too close to singular for that proof, a
-/// floating-point Cholesky factorization that completes and a positive computed smallest
-/// eigenvalue (a numerical judgement at rounding level, not a proof). A matrix that fails
-/// both but is proven positive definite once equilibrated by powers of two
-/// (`scale::equilibrated`: variances of very different orders) is refused as
-/// ill-conditioned, not as indefinite: the rules compute in floating point with it as given.
-/// Any other refused matrix is called not positive definite only when a vector with
-/// `vᵀ P v ≤ 0` is proven (`verify::is_not_positive_definite`, on it or its equilibrated form),
-/// and singular to working precision otherwise: nmci's floating-point checks cannot decide it.
-pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
+/// Checks that `m` is non-empty, square, finite and symmetric to a relative
+/// [`SYMMETRY_RTOL`] of its largest entry: what [`validate_covariance`] checks before
+/// definiteness, and all that is asked of a matrix that need not be definite (the true error
+/// covariance of a conservativeness index).
+pub(crate) fn validate_symmetric(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
     if m.nrows() == 0 {
         return Err(InputError::Empty { name: name.into() });
     }
@@ -104,6 +96,24 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
             }
         }
     }
+    Ok(())
+}
+
+/// Checks that `m` is a usable covariance: non-empty, square, finite, symmetric, positive definite.
+///
+/// Positive definite means: proven so for `(m + mᵀ)/2` by a verified Cholesky test (Rump,
+/// BIT 2006; `fusion::verify`), or, for a matrix too close to singular for that proof, a
+/// floating-point Cholesky factorization that completes and a positive computed smallest
+/// eigenvalue (a numerical judgement at rounding level, not a proof). A matrix that fails
+/// both but is proven positive definite once equilibrated by powers of two
+/// (`scale::equilibrated`: variances of very different orders) is refused as
+/// ill-conditioned, not as indefinite: the rules compute in floating point with it as given.
+/// Any other refused matrix is called not positive definite only when a vector with
+/// `vᵀ P v ≤ 0` is proven (`verify::is_not_positive_definite`, on it or its equilibrated form),
+/// and singular to working precision otherwise: nmci's floating-point checks cannot decide it.
+pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
+    validate_symmetric(name, m)?;
+    let scale = m.amax();
     let sym = symmetrize(m);
     // The common case in one factorization: proven positive definite by the verified
     // Cholesky test (`verify::is_positive_definite`). A matrix too close to singular for

@@ -38,7 +38,7 @@
 //!   use, so the two cannot drift apart.
 //!
 //! The agent's COIN is then `λ_max(L⁻¹ E L⁻ᵀ)` with `P = L Lᵀ` its covariance and `E` its
-//! diagonal block of `Σ` ([`conservativeness_index`]); both are block-diagonal over the model
+//! diagonal block of `Σ` ([`conservativeness_index`](crate::conservativeness_index)); both are block-diagonal over the model
 //! blocks, so it is the largest block value. `≤ 1` means the agent's covariance bounds its
 //! true error covariance (conservative); `> 1` means it is overconfident. The centralized
 //! filter is the optimal Kalman filter of the model, so its `E` equals its `P` (COIN `= 1`):
@@ -50,7 +50,7 @@ use super::model::Model;
 use super::study::{exchange, fuse, BlockCovariance, Partition};
 use super::{Estimator, Rule, SimError, Storage};
 use crate::error::InputError;
-use crate::fusion::check::conservativeness_index;
+use crate::fusion::check::coin_of;
 
 /// The exact error covariances of one estimator of the study (the centralized filter or the
 /// agents of one rule), advanced a step at a time as [`super::RunState`] advances a run.
@@ -333,7 +333,7 @@ impl ErrorPropagation {
         self.covariance(i)
             .iter()
             .zip(self.error_covariance(i))
-            .map(|(P, E)| conservativeness_index(P, &E).unwrap_or_else(|_| floored_coin(P, &E)))
+            .map(|(P, E)| coin_of(P, &E).unwrap_or_else(|_| floored_coin(P, &E)))
             .fold(f64::NEG_INFINITY, f64::max)
     }
 }
@@ -445,7 +445,7 @@ mod tests {
     }
 
     /// Where `P` is well conditioned nothing is floored, and the floored COIN is the COIN of
-    /// [`conservativeness_index`] (Cholesky and triangular solves: another computation).
+    /// [`coin_of`] (Cholesky and triangular solves: another computation).
     #[test]
     fn floored_coin_equals_the_coin_where_nothing_is_floored() {
         let P = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
@@ -453,7 +453,7 @@ mod tests {
             DMatrix::from_row_slice(3, 3, &[2.0, -0.3, 0.1, -0.3, 5.0, 1.0, 0.1, 1.0, 1.5]),
             DMatrix::from_row_slice(3, 3, &[0.5, 0.1, 0.0, 0.1, 0.2, 0.0, 0.0, 0.0, 0.1]),
         ] {
-            let expected = conservativeness_index(&P, &E).unwrap();
+            let expected = coin_of(&P, &E).unwrap();
             let got = floored_coin(&P, &E);
             assert!(
                 (got - expected).abs() <= 1e-13 * expected,

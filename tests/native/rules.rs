@@ -168,6 +168,45 @@ fn coin_is_one_for_the_exact_covariance_and_below_one_when_inflated() {
     assert!(bad.to_string().contains("not positive definite"), "{bad}");
 }
 
+/// Bad input to the COIN is refused by name, as every covariance is; before, a NaN or infinite
+/// `E` gave `Ok(NaN)` and an asymmetric one the index of its symmetric part. An overflow inside
+/// (a tiny `P` against a huge `E`) is computed again at unit scale: the index below is
+/// `−10³⁰⁸` exactly in real arithmetic (`L⁻¹ E L⁻ᵀ`'s entries, `2·10³⁰⁸`, overflow), and one
+/// beyond the largest float is `+∞`, where it was NaN.
+#[test]
+fn the_coin_refuses_bad_input_by_name_and_survives_overflow() {
+    let I = DMatrix::<f64>::identity(2, 2);
+    let mut nan = I.clone();
+    nan[(1, 0)] = f64::NAN;
+    let e = conservativeness_index(&I, &nan).unwrap_err();
+    assert_eq!(e.to_string(), "E has a non-finite entry at (1, 0)");
+    let mut asym = I.clone();
+    asym[(1, 0)] = 5.0;
+    let e = conservativeness_index(&I, &asym).unwrap_err();
+    assert!(e.to_string().starts_with("E is not symmetric"), "{e}");
+    let e = conservativeness_index(&I, &DMatrix::identity(3, 3)).unwrap_err();
+    assert!(matches!(e, InputError::SizeMismatch { .. }), "{e}");
+    let e = conservativeness_index(&nan, &I).unwrap_err();
+    assert_eq!(e.to_string(), "P has a non-finite entry at (1, 0)");
+
+    let E = DMatrix::from_row_slice(2, 2, &[-2.0, 1.0, 1.0, -2.0]) * 1e298;
+    let coin = conservativeness_index(&(&I * 1e-10), &E).unwrap();
+    assert!((coin / -1e308 - 1.0).abs() < 1e-14, "{coin}");
+    let coin = conservativeness_index(&(&I * 1e-300), &(&I * 1e300)).unwrap();
+    assert_eq!(coin, f64::INFINITY);
+    // Scaling P by a power of four and E by a power of two scales the index exactly, bit for
+    // bit (what the recomputation at unit scale relies on), in closed form (n = 2) and by the
+    // QR iteration (n = 4).
+    let mut r = rng(8);
+    for n in [2, 4] {
+        let P = random_spd(n, &mut r);
+        let E = random_spd(n, &mut r) - DMatrix::identity(n, n) * 0.5;
+        let coin = conservativeness_index(&P, &E).unwrap();
+        let scaled = conservativeness_index(&(&P * 2f64.powi(-200)), &(&E * 2f64.powi(301)));
+        assert_eq!(scaled.unwrap(), coin * 2f64.powi(501), "n = {n}");
+    }
+}
+
 /// Over many cross-covariances, `worst_margin` and `fused_coins` compute the `P_ab`-free
 /// parts once; they agree with the per-sample `conservativeness_margin` and `fused_coin`
 /// (summed in the textbook order) to rounding, for n = 1, 2, 3, 5 and rules whose gains are
