@@ -455,7 +455,7 @@ impl FuseRequest {
             if self.pair.pa.is_empty() && self.pair.pb.is_empty() {
                 return Err(RequestError::invalid(
                     "pa",
-                    "`pa` and `pb` are required (or `estimates` for N-way fusion)",
+                    "`pa` and `pb` are missing or empty: two non-empty covariances are required (or `estimates` for N-way fusion)",
                 ));
             }
         }

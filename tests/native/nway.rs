@@ -287,7 +287,10 @@ fn json_nway_errors() {
         e(r#"{"pa": [[1]], "pb": [[1]], "patterns": [], "method": "ci"}"#)
             .contains("`patterns` applies to N-way fusion only")
     );
-    assert!(e(r#"{"method": "ci"}"#).contains("`pa` and `pb` are required"));
+    assert!(e(r#"{"method": "ci"}"#).contains("`pa` and `pb` are missing or empty"));
+    assert!(
+        e(r#"{"method": "ci", "pa": [], "pb": []}"#).contains("`pa` and `pb` are missing or empty")
+    );
     assert!(e(r#"{"estimates": [{"p": [[1]]}], "method": "ci"}"#).contains("at least 2 estimates"));
     assert!(
         e(r#"{"estimates": [{"p": [[1]]}, {"p": [[1,0],[0,1]]}], "method": "ci"}"#)
