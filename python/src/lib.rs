@@ -20,7 +20,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use nmci::sim::{MergeError, SimError, StudyConfig, StudyShard};
-use nmci::{FuseRequest, FuseResponse, Gains, InputError, RequestError, SampleError, SolveError};
+use nmci::{FuseRequest, FuseResponse, Gains, RequestError, SampleError, SolveError};
 
 /// The exception of `nmci._errors` named `kind`, carrying `message`.
 fn error(py: Python<'_>, kind: &str, message: String) -> PyErr {
