@@ -51,7 +51,7 @@ fn main() {
                 let fresh =
                     sample_cross_covariances(&p, 10_000, 99, SamplerSettings::hit_and_run())
                         .unwrap();
-                let margin = worst_margin(&p, &c.fused, &fresh.cross) / c.fused.trace();
+                let margin = worst_margin(&p, &c.fused, &fresh.cross).unwrap() / c.fused.trace();
                 println!("n={n} certify={certify}: tr {:.6} proven lower {:.6} certified {:?} closed {} stop {:?} it {} cons {} of {} viol {:.1e} ({seconds:.1}s) fresh margin/tr {margin:.1e}", c.fused.trace(), c.lower_bound, c.certified_trace, c.gap_closed, c.stop, c.iterations, c.constraints, c.constraints_generated, c.violation);
             }
         }

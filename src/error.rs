@@ -93,6 +93,14 @@ pub enum InputError {
         /// The largest ratio as computed.
         max_ratio: f64,
     },
+    /// A weight outside its interval: CI's `ω` must lie in `[0, 1]`.
+    #[error("{name} must be in [0, 1] (got {value})")]
+    WeightOutOfRange {
+        /// Which weight (`omega`).
+        name: String,
+        /// The value given.
+        value: f64,
+    },
     /// A matrix nmci forms from inputs it accepted (`P_a + t P_b`, a fused information matrix,
     /// ICI's `Γ`) that is positive definite in exact arithmetic but whose factorization fails
     /// in floating point: the inputs are too far apart to fuse at working precision. No input
@@ -330,6 +338,7 @@ impl InputError {
             | InputError::OutOfRange { name, .. }
             | InputError::IllConditioned { name, .. }
             | InputError::Singular { name, .. }
+            | InputError::WeightOutOfRange { name, .. }
             | InputError::NotBlockDiagonal { name, .. }
             | InputError::SizeMismatch { name, .. } => Some(name),
             InputError::InvalidBlocks { .. }

@@ -18,8 +18,8 @@ use crate::fusion::bracket::{
     bracket_certificate, upper_bounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
 use crate::fusion::certify::{CertificateMemo, Certificates};
-use crate::fusion::check::{fused_coins, worst_margin};
-use crate::fusion::known::known_correlation_fusion;
+use crate::fusion::check::{fused_coins, lowest_margin};
+use crate::fusion::known::known_fusion;
 use crate::fusion::rules::{Method, RULES};
 use crate::fusion::sample::{sample_cross_covariances, AutoChoice};
 use crate::fusion::{Fused, FusionProblem};
@@ -289,7 +289,7 @@ fn analyse(
             Ok(drawn) => {
                 region.reserve(drawn.len() * n * n);
                 for P_ab in &drawn.cross {
-                    let best = known_correlation_fusion(&problem, P_ab);
+                    let best = known_fusion(&problem, P_ab);
                     region.extend(rows_flat(&best.P));
                 }
                 region_count = drawn.len();
@@ -309,7 +309,7 @@ fn analyse(
             };
             let (margin, coin) = match (&fused, &drawn_cross) {
                 (Some(f), Some(cross)) => (
-                    Some(worst_margin(&problem, f, cross)),
+                    Some(lowest_margin(&problem, f, cross)),
                     Some(coin_stats(&problem, f, cross)?),
                 ),
                 _ => (None, None),

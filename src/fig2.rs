@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 #[cfg(not(target_arch = "wasm32"))]
 use crate::error::ReportError;
 use crate::error::RequestError;
-use crate::fusion::check::{conservativeness_margin, fused_coin};
+use crate::fusion::check::{fused_coin, margin};
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::sample::{sample_cross_covariances, SamplerSettings};
 use crate::fusion::sdp::{optimal_fusion_for_samples, SdpSettings};
@@ -112,7 +112,7 @@ pub fn fig2_run(config: &Fig2Config, run: usize) -> Result<Vec<Fig2Record>, Requ
     let truth = sample_cross_covariances(&problem, 1, run_seed(config.seed, run, 0), sampler)?;
     let P_true = &truth.cross[0];
     let nm = non_monolithic_ci(&problem, Criterion::Trace)?;
-    let eig_nmci = conservativeness_margin(&problem, &nm.fused, P_true);
+    let eig_nmci = margin(&problem, &nm.fused, P_true);
     let coin_nmci = fused_coin(&problem, &nm.fused, P_true)?;
     let mut records = Vec::with_capacity(config.sizes.len());
     for (k, &samples) in config.sizes.iter().enumerate() {
@@ -131,7 +131,7 @@ pub fn fig2_run(config: &Fig2Config, run: usize) -> Result<Vec<Fig2Record>, Requ
                 samples,
                 deviation: Some(spectral_norm(&(&nm.fused.P - &opt.fused.P))),
                 eig_nmci,
-                eig_opt: Some(conservativeness_margin(&problem, &opt.fused, P_true)),
+                eig_opt: Some(margin(&problem, &opt.fused, P_true)),
                 coin_nmci,
                 coin_opt: Some(fused_coin(&problem, &opt.fused, P_true)?),
                 failure: None,

@@ -21,6 +21,7 @@ use nalgebra::DMatrix;
 
 use super::scale::two_to;
 use super::{Fused, FusionProblem};
+use crate::error::InputError;
 use crate::linalg::{max_eigenvalue, min_eigenvalue, symmetrize};
 use crate::structure::independent_blocks;
 
@@ -77,9 +78,24 @@ fn on_block(
 }
 
 /// The fused error covariance `K P' Kᵀ = K_a P_a K_aᵀ + K_a P_ab K_bᵀ + K_b P_abᵀ K_aᵀ + K_b P_b K_bᵀ`
-/// (the paper's `P_f`) of the gains in `fused` when the cross-covariance is `P_ab`.
+/// (the paper's `P_f`) of the gains `K_a`, `K_b` when the cross-covariance is `P_ab`: each
+/// `n × n` and finite, else an error naming it.
 #[allow(non_snake_case)]
 pub fn fused_error_covariance(
+    problem: &FusionProblem,
+    K_a: &DMatrix<f64>,
+    K_b: &DMatrix<f64>,
+    P_ab: &DMatrix<f64>,
+) -> Result<DMatrix<f64>, InputError> {
+    check_square("K_a", K_a, problem.dim())?;
+    check_square("K_b", K_b, problem.dim())?;
+    check_square("P_ab", P_ab, problem.dim())?;
+    Ok(error_covariance(problem, K_a, K_b, P_ab))
+}
+
+/// [`fused_error_covariance`] without the checks, for the rules' own gains and samples.
+#[allow(non_snake_case)]
+pub(crate) fn error_covariance(
     problem: &FusionProblem,
     K_a: &DMatrix<f64>,
     K_b: &DMatrix<f64>,
@@ -92,10 +108,69 @@ pub fn fused_error_covariance(
         + K_b * &problem.P_b * K_b.transpose()
 }
 
-/// `λ_min(P̄ − K P' Kᵀ)` for one cross-covariance: `≥ 0` means conservative for it.
+/// `m` is `n × n` and finite; the error names it otherwise. What the public checks of this
+/// module ask of a gain, a cross-covariance or a fused bound given by the caller (the rules'
+/// own results need none).
+pub(crate) fn check_square(name: &str, m: &DMatrix<f64>, n: usize) -> Result<(), InputError> {
+    if m.nrows() != m.ncols() {
+        return Err(InputError::NotSquare {
+            name: name.into(),
+            rows: m.nrows(),
+            cols: m.ncols(),
+        });
+    }
+    if m.nrows() != n {
+        return Err(InputError::SizeMismatch {
+            name: name.into(),
+            found: m.nrows(),
+            expected: n,
+        });
+    }
+    if let Some(k) = m.iter().position(|v| !v.is_finite()) {
+        return Err(InputError::NotFinite {
+            name: name.into(),
+            row: k % n,
+            col: k / n,
+        });
+    }
+    Ok(())
+}
+
+/// A fused result given by the caller: `P`, `K_a`, `K_b` `n × n` and `x` of size `n`, finite.
+fn check_fused(problem: &FusionProblem, fused: &Fused) -> Result<(), InputError> {
+    let n = problem.dim();
+    check_square("P", &fused.P, n)?;
+    check_square("K_a", &fused.K_a, n)?;
+    check_square("K_b", &fused.K_b, n)?;
+    super::validate_vector("x", &fused.x, n)
+}
+
+/// A set of cross-covariances given by the caller, each checked as `cross[i]`.
 #[allow(non_snake_case)]
-pub fn conservativeness_margin(problem: &FusionProblem, fused: &Fused, P_ab: &DMatrix<f64>) -> f64 {
-    let P_f = fused_error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
+fn check_cross(problem: &FusionProblem, cross: &[DMatrix<f64>]) -> Result<(), InputError> {
+    for (i, P_ab) in cross.iter().enumerate() {
+        check_square(&format!("cross[{i}]"), P_ab, problem.dim())?;
+    }
+    Ok(())
+}
+
+/// `λ_min(P̄ − K P' Kᵀ)` for one cross-covariance: `≥ 0` means conservative for it. The fused
+/// result's matrices and `P_ab` must be `n × n` and finite (an error names the one that is not).
+#[allow(non_snake_case)]
+pub fn conservativeness_margin(
+    problem: &FusionProblem,
+    fused: &Fused,
+    P_ab: &DMatrix<f64>,
+) -> Result<f64, InputError> {
+    check_fused(problem, fused)?;
+    check_square("P_ab", P_ab, problem.dim())?;
+    Ok(margin(problem, fused, P_ab))
+}
+
+/// [`conservativeness_margin`] without the checks.
+#[allow(non_snake_case)]
+pub(crate) fn margin(problem: &FusionProblem, fused: &Fused, P_ab: &DMatrix<f64>) -> f64 {
+    let P_f = error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
     min_eigenvalue(&(&fused.P - P_f))
 }
 
@@ -109,10 +184,25 @@ pub fn conservativeness_margin(problem: &FusionProblem, fused: &Fused, P_ab: &DM
 ///     CrossPattern::diagonal(2)).unwrap();
 /// let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap();
 /// let s = sample_cross_covariances(&p, 100, 1, SamplerSettings::default()).unwrap();
-/// assert!(worst_margin(&p, &nm.fused, &s.cross) >= -1e-12);
+/// assert!(worst_margin(&p, &nm.fused, &s.cross).unwrap() >= -1e-12);
 /// ```
+///
+/// The fused result's matrices and each `cross[i]` must be `n × n` and finite (an error names
+/// the one that is not).
 #[allow(non_snake_case)]
-pub fn worst_margin(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f64>]) -> f64 {
+pub fn worst_margin(
+    problem: &FusionProblem,
+    fused: &Fused,
+    cross: &[DMatrix<f64>],
+) -> Result<f64, InputError> {
+    check_fused(problem, fused)?;
+    check_cross(problem, cross)?;
+    Ok(lowest_margin(problem, fused, cross))
+}
+
+/// [`worst_margin`] without the checks.
+#[allow(non_snake_case)]
+pub(crate) fn lowest_margin(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f64>]) -> f64 {
     if cross.is_empty() {
         return f64::INFINITY;
     }
@@ -223,25 +313,30 @@ fn bound_factor(P: &DMatrix<f64>) -> Result<DMatrix<f64>, crate::error::InputErr
         .unpack())
 }
 
-/// COIN of a fused result for one cross-covariance: `E = K P' Kᵀ`.
+/// COIN of a fused result for one cross-covariance: `E = K P' Kᵀ`. The fused result's
+/// matrices and `P_ab` must be `n × n` and finite (an error names the one that is not).
 #[allow(non_snake_case)]
 pub fn fused_coin(
     problem: &FusionProblem,
     fused: &Fused,
     P_ab: &DMatrix<f64>,
 ) -> Result<f64, crate::error::InputError> {
-    let E = fused_error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
+    check_fused(problem, fused)?;
+    check_square("P_ab", P_ab, problem.dim())?;
+    let E = error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
     coin_of(&fused.P, &E)
 }
 
 /// [`fused_coin`] for each of many cross-covariances (module docs: the parts that do not
-/// depend on `P_ab` are computed once).
+/// depend on `P_ab` are computed once), with the checks of [`worst_margin`].
 #[allow(non_snake_case)]
 pub fn fused_coins(
     problem: &FusionProblem,
     fused: &Fused,
     cross: &[DMatrix<f64>],
 ) -> Result<Vec<f64>, crate::error::InputError> {
+    check_fused(problem, fused)?;
+    check_cross(problem, cross)?;
     let L = bound_factor(&fused.P)?;
     if let Some(blocks) = decoupled(problem, fused, cross) {
         let mut coins = vec![f64::NEG_INFINITY; cross.len()];

@@ -532,10 +532,17 @@ fn fuse_at(
     (P, K_a, K_b)
 }
 
-/// The CI covariance `P(ω) = (ω P_a⁻¹ + (1−ω) P_b⁻¹)⁻¹` for a given weight
-/// (`ω = 0` gives `P_b` and `ω = 1` gives `P_a`, exactly).
+/// The CI covariance `P(ω) = (ω P_a⁻¹ + (1−ω) P_b⁻¹)⁻¹` for a given weight `ω ∈ [0, 1]`
+/// (`ω = 0` gives `P_b` and `ω = 1` gives `P_a`, exactly; any other `ω`, NaN included, is
+/// [`InputError::WeightOutOfRange`]).
 #[allow(non_snake_case)]
 pub fn ci_covariance(problem: &FusionProblem, omega: f64) -> Result<DMatrix<f64>, InputError> {
+    if !(0.0..=1.0).contains(&omega) {
+        return Err(InputError::WeightOutOfRange {
+            name: "omega".into(),
+            value: omega,
+        });
+    }
     if omega == 0.0 {
         return Ok(problem.P_b.clone());
     }

@@ -59,7 +59,7 @@ use super::bracket::trace_upper_bound;
 use super::certify::{
     certification_blocks, certified_fusion, check_time_limit, Certificates, CertifySettings,
 };
-use super::check::{conservativeness_margin, fused_error_covariance, worst_margin};
+use super::check::{error_covariance, lowest_margin, margin};
 use super::nmci::non_monolithic_ci;
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
 use super::scale::Pow2;
@@ -541,7 +541,7 @@ fn prune(
     let (kept, dropped): (Vec<DMatrix<f64>>, Vec<DMatrix<f64>>) = cross
         .iter()
         .cloned()
-        .partition(|P_ab| conservativeness_margin(problem, &full.fused, P_ab) <= 1e-6 * scale);
+        .partition(|P_ab| margin(problem, &full.fused, P_ab) <= 1e-6 * scale);
     if dropped.is_empty() || kept.is_empty() {
         return Ok(None);
     }
@@ -557,7 +557,7 @@ fn prune(
         Err(e) => return Err(e),
     };
     if reduced.fused.trace() < full.fused.trace() - threshold
-        || worst_margin(problem, &reduced.fused, &dropped) < -threshold
+        || lowest_margin(problem, &reduced.fused, &dropped) < -threshold
     {
         return Ok(None);
     }
@@ -600,7 +600,7 @@ fn random_starts(
         .cross
         .iter()
         .enumerate()
-        .map(|(i, P_ab)| (-conservativeness_margin(problem, fused, P_ab), i))
+        .map(|(i, P_ab)| (-margin(problem, fused, P_ab), i))
         .filter(|(v, _)| *v > threshold)
         .collect();
     scored.sort_by(|a, b| b.0.total_cmp(&a.0));
@@ -651,7 +651,7 @@ const RANDOM_SEARCH_SAMPLES: usize = 2000;
 /// `K P' Kᵀ − P̄` for one cross-covariance.
 #[allow(non_snake_case)]
 fn violation_matrix(problem: &FusionProblem, fused: &Fused, P_ab: &DMatrix<f64>) -> DMatrix<f64> {
-    symmetrize(&(fused_error_covariance(problem, &fused.K_a, &fused.K_b, P_ab) - &fused.P))
+    symmetrize(&(error_covariance(problem, &fused.K_a, &fused.K_b, P_ab) - &fused.P))
 }
 
 /// Largest eigenvalue and its unit eigenvector.

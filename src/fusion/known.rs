@@ -8,7 +8,9 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
+use super::check::check_square;
 use super::{covariance_twins, BlockMean, Fused, FusionProblem, MeanPlan};
+use crate::error::InputError;
 use crate::linalg::{
     cholesky_of, solve_lower_in_place, solve_lower_rows, symmetrize, symmetrize_in_place,
 };
@@ -22,12 +24,27 @@ use crate::linalg::{
 /// let I = DMatrix::<f64>::identity(2, 2);
 /// let p = FusionProblem::from_covariances(I.clone() * 2.0, I.clone() * 2.0,
 ///     CrossPattern::independent(2)).unwrap();
-/// let f = known_correlation_fusion(&p, &DMatrix::zeros(2, 2));
+/// let f = known_correlation_fusion(&p, &DMatrix::zeros(2, 2)).unwrap();
 /// assert!((f.P - I.clone()).amax() < 1e-12);
 /// assert!((f.K_a - I * 0.5).amax() < 1e-12);
 /// ```
+///
+/// `P_ab` must be `n × n` and finite (an error names it otherwise). Whether it is admissible
+/// (the joint covariance positive semidefinite) is the caller's to know: the formulas give the
+/// best linear unbiased fusion only then.
 #[allow(non_snake_case)]
-pub fn known_correlation_fusion(problem: &FusionProblem, P_ab: &DMatrix<f64>) -> Fused {
+pub fn known_correlation_fusion(
+    problem: &FusionProblem,
+    P_ab: &DMatrix<f64>,
+) -> Result<Fused, InputError> {
+    check_square("P_ab", P_ab, problem.dim())?;
+    Ok(known_fusion(problem, P_ab))
+}
+
+/// [`known_correlation_fusion`] without the check, for the sampled `P_ab` of the region and
+/// naive fusion's zero.
+#[allow(non_snake_case)]
+pub(crate) fn known_fusion(problem: &FusionProblem, P_ab: &DMatrix<f64>) -> Fused {
     let n = problem.dim();
     let P_ba = P_ab.transpose();
     let S = symmetrize(&(&problem.P_a + &problem.P_b - P_ab - &P_ba));
@@ -61,7 +78,7 @@ pub fn known_correlation_fusion(problem: &FusionProblem, P_ab: &DMatrix<f64>) ->
 /// assert!((naive_fusion(&p).P - I).amax() < 1e-12); // half of either, whatever P_ab really is
 /// ```
 pub fn naive_fusion(problem: &FusionProblem) -> Fused {
-    known_correlation_fusion(problem, &DMatrix::zeros(problem.dim(), problem.dim()))
+    known_fusion(problem, &DMatrix::zeros(problem.dim(), problem.dim()))
 }
 
 /// Naive fusion of block-stored estimates in place (`P_a[k] ← naive(P_a[k], P_b[k])`), and

@@ -48,7 +48,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::bracket::lower_bound;
 use super::certify::check_time_limit;
-use super::check::{conservativeness_margin, worst_margin};
+use super::check::{lowest_margin, margin};
 use super::sample::{sample_cross_covariances, AutoChoice, CrossSamples, SamplerSettings};
 use super::scale::Pow2;
 use super::{per_block, Fused, FusionProblem};
@@ -318,7 +318,7 @@ pub(crate) fn solve_samples(
         lower += solved.lower_bound;
         Ok::<_, SolveError>((solved.fused.K_a, solved.fused.P))
     })?;
-    let worst_sample_margin = worst_margin(problem, &fused, &samples.cross);
+    let worst_sample_margin = lowest_margin(problem, &fused, &samples.cross);
     Ok(SdpResult {
         fused,
         status,
@@ -389,12 +389,7 @@ fn solve_block(
         }
         let mut violated: Vec<(f64, usize)> = (0..n_all)
             .filter(|&i| !in_set[i])
-            .map(|i| {
-                (
-                    conservativeness_margin(&scaled, &solved.fused, &scaled_cross[i]),
-                    i,
-                )
-            })
+            .map(|i| (margin(&scaled, &solved.fused, &scaled_cross[i]), i))
             .filter(|(m, _)| *m < -viol_tol)
             .collect();
         if violated.is_empty() {

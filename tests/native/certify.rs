@@ -10,7 +10,7 @@ use nmci::*;
 
 fn fresh_margin(p: &FusionProblem, fused: &Fused) -> f64 {
     let fresh = sample_cross_covariances(p, 10_000, 99, SamplerSettings::hit_and_run()).unwrap();
-    worst_margin(p, fused, &fresh.cross)
+    worst_margin(p, fused, &fresh.cross).unwrap()
 }
 
 /// [`margin_by_hand`] over 10 000 fresh hit-and-run samples (seed `seed`).

@@ -158,7 +158,7 @@ fn ci_is_conservative_for_sampled_admissible_cross_covariances() {
         assert_eq!(samples.len(), 1000);
         for criterion in [Criterion::Trace, Criterion::Logdet] {
             let ci = covariance_intersection(&p, criterion).unwrap();
-            let m = worst_margin(&p, &ci.fused, &samples.cross);
+            let m = worst_margin(&p, &ci.fused, &samples.cross).unwrap();
             assert!(m >= -1e-10, "n={n}: CI not conservative, margin {m}");
         }
     }
@@ -237,6 +237,15 @@ fn ci_covariance_is_the_ci_bound_at_any_weight() {
         }
         assert_eq!(ci_covariance(&p, 0.0).unwrap(), p.P_b);
         assert_eq!(ci_covariance(&p, 1.0).unwrap(), p.P_a);
+        // A weight outside [0, 1] is refused by name (it gave a matrix of NaN before).
+        for omega in [-0.5, 1.5, f64::NAN, f64::INFINITY] {
+            let e = ci_covariance(&p, omega).unwrap_err();
+            assert!(matches!(e, InputError::WeightOutOfRange { .. }), "{e}");
+            assert_eq!(
+                e.to_string(),
+                format!("omega must be in [0, 1] (got {omega})")
+            );
+        }
     }
 }
 

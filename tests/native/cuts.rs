@@ -29,7 +29,7 @@ fn conservative_on_random_non_separable_cases_against_fresh_samples() {
         assert!(cuts.converged, "n={n}: violation {}", cuts.violation);
         let fresh =
             sample_cross_covariances(&p, 10_000, 99, SamplerSettings::hit_and_run()).unwrap();
-        let margin = worst_margin(&p, &cuts.fused, &fresh.cross);
+        let margin = worst_margin(&p, &cuts.fused, &fresh.cross).unwrap();
         assert!(
             margin >= -1e-6 * cuts.fused.trace().max(1.0),
             "n={n}: margin {margin}"

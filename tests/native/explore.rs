@@ -15,7 +15,7 @@ fn known_correlation_fusion_is_the_blue() {
             sample_cross_covariances(&p, 20, 2, SamplerSettings::rejection(10_000_000)).unwrap();
         let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
         for P_ab in &s.cross {
-            let best = known_correlation_fusion(&p, P_ab);
+            let best = known_correlation_fusion(&p, P_ab).unwrap();
             // (Hᵀ P'⁻¹ H)⁻¹ with H = [I; I]
             let inv = p.joint_covariance(P_ab).try_inverse().unwrap();
             let info = inv.view((0, 0), (n, n))
@@ -26,9 +26,10 @@ fn known_correlation_fusion_is_the_blue() {
             assert!((&best.P - &reference).amax() < 1e-8 * reference.amax().max(1.0));
             assert_eq!(best.P, best.P.transpose());
             // It is the fused covariance of its own gains, and no other gain does better.
-            let own = fused_error_covariance(&p, &best.K_a, &best.K_b, P_ab);
+            let own = fused_error_covariance(&p, &best.K_a, &best.K_b, P_ab).unwrap();
             assert!((&own - &best.P).amax() < 1e-8 * own.amax().max(1.0));
-            let with_ci_gains = fused_error_covariance(&p, &ci.fused.K_a, &ci.fused.K_b, P_ab);
+            let with_ci_gains =
+                fused_error_covariance(&p, &ci.fused.K_a, &ci.fused.K_b, P_ab).unwrap();
             assert!(min_eigenvalue(&(with_ci_gains - &best.P)) > -1e-9);
         }
     }
@@ -49,14 +50,14 @@ fn known_correlation_fusion_on_the_boundary_takes_the_pseudo_inverse() {
         )
         .unwrap();
         let P_ab = diag(&[1.0, 0.0]);
-        let f = known_correlation_fusion(&p, &P_ab);
+        let f = known_correlation_fusion(&p, &P_ab).unwrap();
         let expected_P = diag(&[1.0, 0.8 * scale]);
         let expected_K_a = diag(&[0.0, 0.8]);
         assert!((&f.P - &expected_P).amax() <= 1e-12 * scale, "{}", f.P);
         assert!((&f.K_a - &expected_K_a).amax() <= 1e-12, "{}", f.K_a);
         assert_eq!(&f.K_a + &f.K_b, DMatrix::identity(2, 2));
         // Its gains attain it: the fused error covariance for this P_ab.
-        let own = fused_error_covariance(&p, &f.K_a, &f.K_b, &P_ab);
+        let own = fused_error_covariance(&p, &f.K_a, &f.K_b, &P_ab).unwrap();
         assert!((&own - &f.P).amax() <= 1e-12 * scale);
     }
 }
@@ -180,7 +181,7 @@ fn naive_fusion_is_the_independent_blue_and_not_conservative_under_correlation()
     let same =
         FusionProblem::from_covariances(I.clone(), I.clone(), CrossPattern::fully_unknown(2))
             .unwrap();
-    let m = conservativeness_margin(&same, &naive_fusion(&same), &(I * 0.9));
+    let m = conservativeness_margin(&same, &naive_fusion(&same), &(I * 0.9)).unwrap();
     assert!((m + 0.45).abs() < 1e-12, "margin {m}");
 }
 

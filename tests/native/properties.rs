@@ -56,7 +56,7 @@ proptest! {
             for f in [&ci.fused, &nm.fused] {
                 prop_assert_eq!(&f.P, &f.P.transpose());
                 prop_assert!(f.P.iter().all(|v| v.is_finite()));
-                let m = worst_margin(&p, f, &samples.cross);
+                let m = worst_margin(&p, f, &samples.cross).unwrap();
                 prop_assert!(m >= -1e-9 * scale, "margin {}", m);
             }
             prop_assert!(nm.fused.criterion(criterion) <= ci.fused.criterion(criterion) + 1e-9 * scale.max(1.0));

@@ -208,7 +208,7 @@ fn the_guarantees_are_true() {
             .zip(&draws)
             .map(|(p, cross)| {
                 let f = fused_of(p, rule, extra.clone());
-                worst_margin(p, &f, cross) / f.P.trace()
+                worst_margin(p, &f, cross).unwrap() / f.P.trace()
             })
             .collect();
         let lowest = worst.iter().copied().fold(f64::INFINITY, f64::min);

@@ -138,7 +138,7 @@ fn ei_is_not_conservative_for_a_fully_unknown_cross_covariance() {
     let ei = ellipsoidal_intersection(&p).unwrap();
     assert!((&ei.P - diag(&[1.0, 1.0])).amax() < 1e-12);
     let samples = sample_cross_covariances(&p, 2000, 3, SamplerSettings::hit_and_run()).unwrap();
-    assert!(worst_margin(&p, &ei, &samples.cross) < -0.05);
+    assert!(worst_margin(&p, &ei, &samples.cross).unwrap() < -0.05);
     let worst_coin = samples
         .cross
         .iter()
@@ -162,7 +162,7 @@ fn coin_is_one_for_the_exact_covariance_and_below_one_when_inflated() {
     // Exact fusion with the true P_ab (the known-correlation optimum) has COIN 1.
     let p = paper_example();
     let P_ab = diag(&[0.5, -0.3]);
-    let exact = known_correlation_fusion(&p, &P_ab);
+    let exact = known_correlation_fusion(&p, &P_ab).unwrap();
     assert!((fused_coin(&p, &exact, &P_ab).unwrap() - 1.0).abs() < 1e-10);
     let bad = conservativeness_index(&diag(&[1.0, -1.0]), &diag(&[1.0, 1.0])).unwrap_err();
     assert!(bad.to_string().contains("not positive definite"), "{bad}");
@@ -207,6 +207,54 @@ fn the_coin_refuses_bad_input_by_name_and_survives_overflow() {
     }
 }
 
+/// The analysis functions take the caller's matrices: a wrong size or a non-finite entry is an
+/// error naming it (each of these panicked in a matrix product before).
+#[test]
+fn the_analysis_functions_refuse_a_wrong_matrix_by_name() {
+    let p = paper_example();
+    let ci = covariance_intersection(&p, Criterion::Trace).unwrap().fused;
+    let good = diag(&[0.5, -0.3]);
+    let big = DMatrix::<f64>::zeros(3, 3);
+    let mut nan = good.clone();
+    nan[(0, 1)] = f64::NAN;
+    let msg = |e: InputError| e.to_string();
+    assert_eq!(
+        msg(known_correlation_fusion(&p, &big).unwrap_err()),
+        "P_ab has size 3, expected 2 (the size of P_a)"
+    );
+    assert_eq!(
+        msg(conservativeness_margin(&p, &ci, &nan).unwrap_err()),
+        "P_ab has a non-finite entry at (0, 1)"
+    );
+    assert_eq!(
+        msg(fused_coin(&p, &ci, &DMatrix::zeros(2, 3)).unwrap_err()),
+        "P_ab is not square (2×3)"
+    );
+    assert_eq!(
+        msg(worst_margin(&p, &ci, &[good.clone(), big.clone()]).unwrap_err()),
+        "cross[1] has size 3, expected 2 (the size of P_a)"
+    );
+    assert_eq!(
+        msg(fused_coins(&p, &ci, std::slice::from_ref(&nan)).unwrap_err()),
+        "cross[0] has a non-finite entry at (0, 1)"
+    );
+    let mut wrong = ci.clone();
+    wrong.K_a = big.clone();
+    assert_eq!(
+        msg(worst_margin(&p, &wrong, std::slice::from_ref(&good)).unwrap_err()),
+        "K_a has size 3, expected 2 (the size of P_a)"
+    );
+    let mut wrong = ci.clone();
+    wrong.x = DVector::zeros(1);
+    assert!(msg(fused_coin(&p, &wrong, &good).unwrap_err()).starts_with("x has size 1"));
+    assert_eq!(
+        msg(fused_error_covariance(&p, &ci.K_a, &big, &good).unwrap_err()),
+        "K_b has size 3, expected 2 (the size of P_a)"
+    );
+    // Good input still gives the margin.
+    assert!(worst_margin(&p, &ci, std::slice::from_ref(&good)).unwrap() >= 0.0);
+}
+
 /// Over many cross-covariances, `worst_margin` and `fused_coins` compute the `P_ab`-free
 /// parts once; they agree with the per-sample `conservativeness_margin` and `fused_coin`
 /// (summed in the textbook order) to rounding, for n = 1, 2, 3, 5 and rules whose gains are
@@ -228,10 +276,10 @@ fn region_margins_and_coins_match_the_per_sample_ones() {
             let scale = fused.P.amax();
             let each: Vec<f64> = cross
                 .iter()
-                .map(|c| conservativeness_margin(&p, fused, c))
+                .map(|c| conservativeness_margin(&p, fused, c).unwrap())
                 .collect();
             let worst = each.iter().copied().fold(f64::INFINITY, f64::min);
-            let got = worst_margin(&p, fused, &cross);
+            let got = worst_margin(&p, fused, &cross).unwrap();
             assert!(
                 (got - worst).abs() <= 1e-12 * scale,
                 "n {n}: {got} vs {worst}"
@@ -248,7 +296,10 @@ fn region_margins_and_coins_match_the_per_sample_ones() {
         }
     }
     let p = random_problem(2, CrossPattern::fully_unknown(2), &mut r);
-    assert_eq!(worst_margin(&p, &naive_fusion(&p), &[]), f64::INFINITY);
+    assert_eq!(
+        worst_margin(&p, &naive_fusion(&p), &[]).unwrap(),
+        f64::INFINITY
+    );
 }
 
 /// With independent blocks (here interleaved: {0, 2, 4} and {1, 3}, and {0, 3}, {1, 4}, {2, 5})
@@ -297,9 +348,9 @@ fn region_margins_and_coins_of_independent_blocks_match_the_per_sample_ones() {
             let scale = fused.P.amax();
             let worst = cross
                 .iter()
-                .map(|c| conservativeness_margin(&p, &fused, c))
+                .map(|c| conservativeness_margin(&p, &fused, c).unwrap())
                 .fold(f64::INFINITY, f64::min);
-            let got = worst_margin(&p, &fused, &cross);
+            let got = worst_margin(&p, &fused, &cross).unwrap();
             assert!(
                 (got - worst).abs() <= 1e-12 * scale,
                 "{groups:?}: {got} vs {worst}"

@@ -50,7 +50,7 @@ fn solver_based_rules_give_the_same_bound_in_any_unit() {
         );
         // Conservative, in the problem's units, for the samples the SDP used and more.
         let drawn = sample_cross_covariances(&p, 500, 7, SamplerSettings::default()).unwrap();
-        let margin = worst_margin(&p, &cert.fused, &drawn.cross);
+        let margin = worst_margin(&p, &cert.fused, &drawn.cross).unwrap();
         assert!(margin >= -1e-12 * s, "certified, s {s}: margin {margin}");
 
         let cuts = optimal_fusion_cuts(&p, &CutsSettings::default())
