@@ -20,7 +20,7 @@
 use nalgebra::DMatrix;
 
 use super::scale::two_to;
-use super::{Fused, FusionProblem};
+use super::{validate_square, Fused, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::{max_eigenvalue, min_eigenvalue, symmetrize};
 use crate::structure::independent_blocks;
@@ -87,9 +87,9 @@ pub fn fused_error_covariance(
     K_b: &DMatrix<f64>,
     P_ab: &DMatrix<f64>,
 ) -> Result<DMatrix<f64>, InputError> {
-    check_square("K_a", K_a, problem.dim())?;
-    check_square("K_b", K_b, problem.dim())?;
-    check_square("P_ab", P_ab, problem.dim())?;
+    validate_square("K_a", K_a, problem.dim())?;
+    validate_square("K_b", K_b, problem.dim())?;
+    validate_square("P_ab", P_ab, problem.dim())?;
     Ok(error_covariance(problem, K_a, K_b, P_ab))
 }
 
@@ -108,40 +108,12 @@ pub(crate) fn error_covariance(
         + K_b * &problem.P_b * K_b.transpose()
 }
 
-/// `m` is `n × n` and finite; the error names it otherwise. What the public checks of this
-/// module ask of a gain, a cross-covariance or a fused bound given by the caller (the rules'
-/// own results need none).
-pub(crate) fn check_square(name: &str, m: &DMatrix<f64>, n: usize) -> Result<(), InputError> {
-    if m.nrows() != m.ncols() {
-        return Err(InputError::NotSquare {
-            name: name.into(),
-            rows: m.nrows(),
-            cols: m.ncols(),
-        });
-    }
-    if m.nrows() != n {
-        return Err(InputError::SizeMismatch {
-            name: name.into(),
-            found: m.nrows(),
-            expected: n,
-        });
-    }
-    if let Some(k) = m.iter().position(|v| !v.is_finite()) {
-        return Err(InputError::NotFinite {
-            name: name.into(),
-            row: k % n,
-            col: k / n,
-        });
-    }
-    Ok(())
-}
-
 /// A fused result given by the caller: `P`, `K_a`, `K_b` `n × n` and `x` of size `n`, finite.
 fn check_fused(problem: &FusionProblem, fused: &Fused) -> Result<(), InputError> {
     let n = problem.dim();
-    check_square("P", &fused.P, n)?;
-    check_square("K_a", &fused.K_a, n)?;
-    check_square("K_b", &fused.K_b, n)?;
+    validate_square("P", &fused.P, n)?;
+    validate_square("K_a", &fused.K_a, n)?;
+    validate_square("K_b", &fused.K_b, n)?;
     super::validate_vector("x", &fused.x, n)
 }
 
@@ -149,7 +121,7 @@ fn check_fused(problem: &FusionProblem, fused: &Fused) -> Result<(), InputError>
 #[allow(non_snake_case)]
 fn check_cross(problem: &FusionProblem, cross: &[DMatrix<f64>]) -> Result<(), InputError> {
     for (i, P_ab) in cross.iter().enumerate() {
-        check_square(&format!("cross[{i}]"), P_ab, problem.dim())?;
+        validate_square(&format!("cross[{i}]"), P_ab, problem.dim())?;
     }
     Ok(())
 }
@@ -163,7 +135,7 @@ pub fn conservativeness_margin(
     P_ab: &DMatrix<f64>,
 ) -> Result<f64, InputError> {
     check_fused(problem, fused)?;
-    check_square("P_ab", P_ab, problem.dim())?;
+    validate_square("P_ab", P_ab, problem.dim())?;
     Ok(margin(problem, fused, P_ab))
 }
 
@@ -322,7 +294,7 @@ pub fn fused_coin(
     P_ab: &DMatrix<f64>,
 ) -> Result<f64, crate::error::InputError> {
     check_fused(problem, fused)?;
-    check_square("P_ab", P_ab, problem.dim())?;
+    validate_square("P_ab", P_ab, problem.dim())?;
     let E = error_covariance(problem, &fused.K_a, &fused.K_b, P_ab);
     coin_of(&fused.P, &E)
 }

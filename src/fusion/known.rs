@@ -8,8 +8,7 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
-use super::check::check_square;
-use super::{covariance_twins, BlockMean, Fused, FusionProblem, MeanPlan};
+use super::{covariance_twins, validate_square, BlockMean, Fused, FusionProblem, MeanPlan};
 use crate::error::InputError;
 use crate::linalg::{
     cholesky_of, solve_lower_in_place, solve_lower_rows, symmetrize, symmetrize_in_place,
@@ -37,7 +36,7 @@ pub fn known_correlation_fusion(
     problem: &FusionProblem,
     P_ab: &DMatrix<f64>,
 ) -> Result<Fused, InputError> {
-    check_square("P_ab", P_ab, problem.dim())?;
+    validate_square("P_ab", P_ab, problem.dim())?;
     Ok(known_fusion(problem, P_ab))
 }
 

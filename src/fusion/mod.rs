@@ -54,6 +54,33 @@ pub struct FusionProblem {
     pub cross_pattern: CrossPattern,
 }
 
+/// Checks that `m` is `n × n` and finite (an error names it otherwise): what is asked of a
+/// matrix given beside a problem of size `n` (a gain, a cross-covariance, a fused bound).
+pub(crate) fn validate_square(name: &str, m: &DMatrix<f64>, n: usize) -> Result<(), InputError> {
+    if m.nrows() != m.ncols() {
+        return Err(InputError::NotSquare {
+            name: name.into(),
+            rows: m.nrows(),
+            cols: m.ncols(),
+        });
+    }
+    if m.nrows() != n {
+        return Err(InputError::SizeMismatch {
+            name: name.into(),
+            found: m.nrows(),
+            expected: n,
+        });
+    }
+    if let Some(k) = m.iter().position(|v| !v.is_finite()) {
+        return Err(InputError::NotFinite {
+            name: name.into(),
+            row: k % n,
+            col: k / n,
+        });
+    }
+    Ok(())
+}
+
 /// Checks that `m` is non-empty, square, finite and symmetric to a relative
 /// [`SYMMETRY_RTOL`] of its largest entry: what [`validate_covariance`] checks before
 /// definiteness, and all that is asked of a matrix that need not be definite (the true error
@@ -62,25 +89,8 @@ pub(crate) fn validate_symmetric(name: &str, m: &DMatrix<f64>) -> Result<(), Inp
     if m.nrows() == 0 {
         return Err(InputError::Empty { name: name.into() });
     }
-    if m.nrows() != m.ncols() {
-        return Err(InputError::NotSquare {
-            name: name.into(),
-            rows: m.nrows(),
-            cols: m.ncols(),
-        });
-    }
+    validate_square(name, m, m.nrows())?;
     let n = m.nrows();
-    for j in 0..n {
-        for i in 0..n {
-            if !m[(i, j)].is_finite() {
-                return Err(InputError::NotFinite {
-                    name: name.into(),
-                    row: i,
-                    col: j,
-                });
-            }
-        }
-    }
     let scale = m.amax();
     for i in 0..n {
         for j in i + 1..n {

@@ -108,6 +108,15 @@ fn covariance_errors_name_the_problem() {
     );
 }
 
+/// A 2 × 2 covariance (row-major) that is positive definite as floats (smallest eigenvalue
+/// 1.1044 with 60 digits) but too close to singular for the floating-point checks to decide.
+const UNDECIDABLE: [f64; 4] = [
+    1.5547804921864044e16,
+    -2.2527755614633864e16,
+    -2.2527755614633864e16,
+    3.264124907555265e16,
+];
+
 /// Matrices whose definiteness the floating-point checks cannot decide (condition numbers near 1/ε,
 /// rotated away from the axes) are called singular to working precision. Both below are
 /// positive definite as floats (smallest eigenvalues 1.1044 and 5696.21, computed with 60
@@ -117,12 +126,7 @@ fn covariance_errors_name_the_problem() {
 fn matrices_floating_point_cannot_decide_are_called_singular_not_indefinite() {
     let I = DMatrix::<f64>::identity(2, 2);
     for m in [
-        [
-            1.5547804921864044e16,
-            -2.2527755614633864e16,
-            -2.2527755614633864e16,
-            3.264124907555265e16,
-        ],
+        UNDECIDABLE,
         [
             6.99001839616835e18,
             -5.88638978442722e19,
@@ -158,16 +162,7 @@ fn a_covariance_that_fails_to_factor_inside_a_rule_is_not_called_indefinite_unle
         x: DVector::zeros(2),
         P,
     };
-    let undecidable = DMatrix::from_row_slice(
-        2,
-        2,
-        &[
-            1.5547804921864044e16,
-            -2.2527755614633864e16,
-            -2.2527755614633864e16,
-            3.264124907555265e16,
-        ],
-    );
+    let undecidable = DMatrix::from_row_slice(2, 2, &UNDECIDABLE);
     let indefinite = DMatrix::from_row_slice(2, 2, &[1.5e16, 3.0e16, 3.0e16, 3.2e16]);
     let fuse = |third: DMatrix<f64>| {
         covariance_intersection_nway(
