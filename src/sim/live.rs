@@ -252,6 +252,7 @@ impl LiveCoin {
         here: impl Fn(Estimator) -> bool,
     ) -> Result<Self, SimError> {
         config.validate()?;
+        config.validate_coin()?;
         let model = Model::new(&config.scenario)?;
         let coin = estimators()
             .map(|e| {

@@ -76,10 +76,53 @@ pub enum SimError {
     Workers(String),
 }
 
+/// The most agents a scenario may have (`groups × agents_per_group`; the paper has 16). Each
+/// agent keeps covariances of the whole state, so memory and time grow with agents × dim².
+pub const MAX_AGENTS: usize = 64;
+
+/// The largest state dimension of a scenario (`4 × targets + 2 × agents`; the paper's is 112).
+pub const MAX_DIM: usize = 512;
+
+/// The largest `agents × dim` with the exact COIN: [`ErrorPropagation`] carries the joint error
+/// covariance of every agent's estimate, `(agents × dim)²` entries (2.1 GB at the limit; the
+/// paper's 16 × 112 is 0.03 GB).
+pub const MAX_COIN_SIZE: usize = 16_384;
+
+/// The most run-steps (`runs × steps`) one call of the study keeps: every run's per-step trace
+/// is held until the summary (about 0.7 kB per run and step on the paper's scenario, so about
+/// 3 GB at the limit; the default study is 6 000). Shards ([`run_shard`]) split a study's
+/// time across machines; their merge holds every trace too.
+pub const MAX_RUN_STEPS: usize = 4_000_000;
+
 impl Scenario {
     /// Checks every value.
     pub fn validate(&self) -> Result<(), SimError> {
         let bad = |m: String| Err(SimError::InvalidScenario(m));
+        // Sizes first, with overflow-free products: everything below allocates by them.
+        let agents = self.groups.checked_mul(self.agents_per_group);
+        let targets = self.groups.checked_mul(self.targets_per_group);
+        let dim = agents.zip(targets).and_then(|(a, t)| {
+            t.checked_mul(4)
+                .and_then(|t4| a.checked_mul(2).and_then(|a2| t4.checked_add(a2)))
+        });
+        match (agents, dim) {
+            (Some(a), _) if a > MAX_AGENTS => {
+                return bad(format!(
+                    "groups × agents_per_group = {a} agents, above the limit of {MAX_AGENTS}"
+                ))
+            }
+            (Some(_), Some(d)) if d > MAX_DIM => {
+                return bad(format!(
+                    "the state has 4 × targets + 2 × agents = {d} dimensions, above the limit of {MAX_DIM}"
+                ))
+            }
+            (None, _) | (_, None) => {
+                return bad(format!(
+                    "groups × agents_per_group and groups × targets_per_group must stay within {MAX_AGENTS} agents and {MAX_DIM} state dimensions"
+                ))
+            }
+            _ => {}
+        }
         if self.groups == 0 || self.agents_per_group == 0 {
             return bad("groups and agents_per_group must be at least 1".into());
         }
@@ -217,6 +260,9 @@ impl StudyConfig {
                 "steps must be at least 2 and runs at least 1".into(),
             ));
         }
+        if self.coin {
+            self.validate_coin()?;
+        }
         if self.agent == 0 || self.agent > agents || self.watched == 0 || self.watched > agents {
             return Err(SimError::InvalidScenario(format!(
                 "agent and watched must be agent ids in 1..={agents}"
@@ -229,6 +275,31 @@ impl StudyConfig {
             )));
         }
         Ok(())
+    }
+
+    /// Checks that the exact COIN of this study fits [`MAX_COIN_SIZE`] (its scenario already
+    /// checked): what [`StudyConfig::validate`] asks when `coin` is set, and every computation
+    /// of the COIN asks whatever `coin` says.
+    pub fn validate_coin(&self) -> Result<(), SimError> {
+        let (agents, dim) = (self.scenario.agents(), self.scenario.dim());
+        if agents * dim > MAX_COIN_SIZE {
+            return Err(SimError::InvalidScenario(format!(
+                "the exact COIN propagates agents × dim = {agents} × {dim} = {} error states, above the limit of {MAX_COIN_SIZE}: set coin = false (or --no-coin) for this scenario",
+                agents * dim
+            )));
+        }
+        Ok(())
+    }
+
+    /// Checks that `runs × steps` fits [`MAX_RUN_STEPS`], the traces one call keeps.
+    pub fn validate_run_steps(&self) -> Result<(), SimError> {
+        match self.runs.checked_mul(self.steps) {
+            Some(n) if n <= MAX_RUN_STEPS => Ok(()),
+            _ => Err(SimError::InvalidScenario(format!(
+                "runs × steps = {} × {} is above the limit of {MAX_RUN_STEPS} run-steps one study holds in memory (every run's per-step trace)",
+                self.runs, self.steps
+            ))),
+        }
     }
 
     /// A configuration from TOML text (the form of `configs/paper.toml`; missing keys take
@@ -364,6 +435,7 @@ pub fn simulate_rules_parallel(
 ) -> Result<Vec<RunTrace>, SimError> {
     use rayon::prelude::*;
     config.validate()?;
+    config.validate_run_steps()?;
     let slices = run_slices(config.runs, rules.len());
     let (first, runs) = (first_run as u64, config.runs as u64);
     let bounds = |s: usize| first + runs * s as u64 / slices as u64;
@@ -408,6 +480,7 @@ pub fn coin_parallel(
     on_piece: impl Fn() + Sync,
 ) -> Result<Vec<Vec<f64>>, SimError> {
     use rayon::prelude::*;
+    config.validate_coin()?;
     let pieces: Vec<Estimator> = estimators().collect();
     pieces
         .par_iter()
@@ -432,6 +505,7 @@ pub fn run_shard(
     on_piece: impl Fn() + Sync,
 ) -> Result<StudyShard, SimError> {
     config.validate()?;
+    config.validate_run_steps()?;
     if first_run.checked_add(config.runs).is_none() {
         return Err(SimError::InvalidScenario(format!(
             "first_run {first_run} + runs {} is past the last run index",
@@ -470,6 +544,7 @@ pub fn study_parallel(
 /// in parallel).
 pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), SimError> {
     config.validate()?;
+    config.validate_run_steps()?;
     let model = Model::new(&config.scenario)?;
     let spec = config.run_spec(0, Storage::Blocks);
     let mut batch = RunBatch::new(&model, &spec, 0..config.runs as u64, &RULES);

@@ -219,3 +219,69 @@ fn time_limits_beyond_the_clock_are_no_limit() {
         }
     }
 }
+
+/// The study's sizes (`sim::MAX_AGENTS`, `MAX_DIM`, `MAX_COIN_SIZE`, `MAX_RUN_STEPS`): one past
+/// each is refused by name before anything is allocated (a scenario of 4·10¹² agents and a
+/// study of 10⁸ runs aborted on a failed allocation before), the paper's study and a scenario
+/// at the limits are accepted.
+#[test]
+fn the_studys_sizes_are_limited_by_name() {
+    use nmci::sim::{
+        run_shard, Model, StudyConfig, MAX_AGENTS, MAX_COIN_SIZE, MAX_DIM, MAX_RUN_STEPS,
+    };
+    let config = |groups: usize, agents: usize, targets: usize, coin: bool| {
+        let mut c = StudyConfig {
+            agent: 1,
+            watched: 2,
+            coin,
+            ..StudyConfig::default()
+        };
+        c.scenario.groups = groups;
+        c.scenario.agents_per_group = agents;
+        c.scenario.targets_per_group = targets;
+        c.scenario.bridges = Vec::new();
+        c
+    };
+    let refusal = |c: &StudyConfig| c.validate().unwrap_err().to_string();
+    assert!(StudyConfig::default().validate().is_ok());
+    assert!(
+        refusal(&config(1_000_000_000_000, 4, 5, false)).contains(&format!(
+            "4000000000000 agents, above the limit of {MAX_AGENTS}"
+        ))
+    );
+    assert!(refusal(&config(usize::MAX, 4, 5, false)).contains("must stay within"));
+    assert!(
+        refusal(&config(1, MAX_AGENTS + 1, MAX_AGENTS + 2, false)).contains(&format!(
+            "{} agents, above the limit of {MAX_AGENTS}",
+            MAX_AGENTS + 1
+        ))
+    );
+    // 60 agents and 100 targets: 4·100 + 2·60 = 520 states.
+    assert!(refusal(&config(1, 60, 100, false))
+        .contains(&format!("520 dimensions, above the limit of {MAX_DIM}")));
+    // At the agent and state limits without the COIN: 64 agents, 4·96 + 2·64 = 512 states.
+    let at_limits = config(1, MAX_AGENTS, 96, false);
+    assert_eq!(at_limits.scenario.dim(), MAX_DIM);
+    assert!(at_limits.validate().is_ok());
+    // The COIN: 64 × 388 error states refused, 32 × 512 = 16 384 accepted.
+    assert!(refusal(&config(1, 64, 65, true)).contains(&format!(
+        "agents × dim = 64 × 388 = 24832 error states, above the limit of {MAX_COIN_SIZE}"
+    )));
+    let coin_limit = config(1, 32, 112, true);
+    assert_eq!(
+        coin_limit.scenario.agents() * coin_limit.scenario.dim(),
+        MAX_COIN_SIZE
+    );
+    assert!(coin_limit.validate().is_ok());
+    // Runs × steps: refused by the study itself, before any run.
+    let mut many = StudyConfig::default();
+    many.runs = MAX_RUN_STEPS / many.steps + 1;
+    let model = Model::new(&many.scenario).unwrap();
+    let e = run_shard(&many, &model, 0, || {}).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("above the limit of {MAX_RUN_STEPS} run-steps")),
+        "{e}"
+    );
+    many.runs = MAX_RUN_STEPS / many.steps;
+    assert!(many.validate_run_steps().is_ok());
+}
