@@ -45,16 +45,52 @@ impl Default for Fig2Config {
     }
 }
 
+/// The most runs of one fig. 2 study: every run's records are kept until the summary, and a
+/// run solves one sampled SDP per size (the paper's 1000 runs take seconds here).
+pub const MAX_FIG2_RUNS: usize = 100_000;
+
+/// The most sample-set sizes of one fig. 2 study.
+pub const MAX_FIG2_SIZES: usize = 64;
+
 impl Fig2Config {
-    /// Checks the settings.
+    /// Checks the settings: at least one run and at most [`MAX_FIG2_RUNS`]; one to
+    /// [`MAX_FIG2_SIZES`] sizes, each from 1 to the sampled SDP's
+    /// [`MAX_SAMPLES`](crate::MAX_SAMPLES).
     pub fn validate(&self) -> Result<(), RequestError> {
         if self.runs == 0 {
             return Err(RequestError::invalid("runs", "fig2 needs at least one run"));
+        }
+        if self.runs > MAX_FIG2_RUNS {
+            return Err(RequestError::invalid(
+                "runs",
+                format!(
+                    "fig2 takes at most {MAX_FIG2_RUNS} runs (got {})",
+                    self.runs
+                ),
+            ));
         }
         if self.sizes.is_empty() || self.sizes.contains(&0) {
             return Err(RequestError::invalid(
                 "sizes",
                 "fig2 needs sample-set sizes of at least 1",
+            ));
+        }
+        if self.sizes.len() > MAX_FIG2_SIZES {
+            return Err(RequestError::invalid(
+                "sizes",
+                format!(
+                    "fig2 takes at most {MAX_FIG2_SIZES} sample-set sizes (got {})",
+                    self.sizes.len()
+                ),
+            ));
+        }
+        if let Some(&n) = self.sizes.iter().find(|&&n| n > crate::MAX_SAMPLES) {
+            return Err(RequestError::invalid(
+                "sizes",
+                format!(
+                    "a sample-set size of {n} is above the sampled SDP's limit of {} samples",
+                    crate::MAX_SAMPLES
+                ),
             ));
         }
         Ok(())

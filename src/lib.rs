@@ -73,7 +73,10 @@ pub use explore::{
 };
 #[cfg(not(target_arch = "wasm32"))]
 pub use fig2::write_fig2;
-pub use fig2::{fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row};
+pub use fig2::{
+    fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row, MAX_FIG2_RUNS,
+    MAX_FIG2_SIZES,
+};
 pub use fusion::bracket::{
     ci_upper_bound, lower_bound as lagrangian_lower_bound, nmci_upper_bound, trace_upper_bound,
     Bracket, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,

@@ -82,6 +82,32 @@ fn invalid_fig2_settings_are_rejected() {
             "sizes",
             "fig2 needs sample-set sizes of at least 1",
         ),
+        // The limits (10¹² runs ran without end before; a size of 10⁸ ran out of sampler
+        // trials with a message about the acceptance rate).
+        (
+            Fig2Config {
+                runs: MAX_FIG2_RUNS + 1,
+                ..Fig2Config::default()
+            },
+            "runs",
+            "fig2 takes at most 100000 runs (got 100001)",
+        ),
+        (
+            Fig2Config {
+                sizes: vec![10, MAX_SAMPLES + 1],
+                ..Fig2Config::default()
+            },
+            "sizes",
+            "a sample-set size of 100001 is above the sampled SDP's limit of 100000 samples",
+        ),
+        (
+            Fig2Config {
+                sizes: vec![1; MAX_FIG2_SIZES + 1],
+                ..Fig2Config::default()
+            },
+            "sizes",
+            "fig2 takes at most 64 sample-set sizes (got 65)",
+        ),
     ] {
         let e = fig2_run(&config, 0).unwrap_err();
         assert!(e.to_string().contains(message), "{e}");
