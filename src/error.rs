@@ -105,7 +105,7 @@ pub enum InputError {
     /// ICI's `Γ`) that is positive definite in exact arithmetic but whose factorization fails
     /// in floating point: the inputs are too far apart to fuse at working precision. No input
     /// is named, because no single one is at fault.
-    #[error("{inputs} are each accepted as positive definite, but {matrix}, positive definite in exact arithmetic, cannot be factored in floating point: they are too far apart to fuse at working precision; rescale the states to comparable units")]
+    #[error("{matrix}, formed from {inputs} and positive definite in exact arithmetic when they are, cannot be factored in floating point: they are too far apart to fuse at working precision; rescale the states to comparable units")]
     Unfactored {
         /// The matrix whose factorization failed, as a formula.
         matrix: String,
