@@ -194,6 +194,26 @@ fn the_coin_refuses_bad_input_by_name_and_survives_overflow() {
     assert!((coin / -1e308 - 1.0).abs() < 1e-14, "{coin}");
     let coin = conservativeness_index(&(&I * 1e-300), &(&I * 1e300)).unwrap();
     assert_eq!(coin, f64::INFINITY);
+    // The recomputation is exact: bit for bit the index of the same matrices scaled into range
+    // by hand (P by a power of four), here with P's largest entry of odd binary exponent.
+    let mut r = rng(12);
+    for n in [2, 3, 5] {
+        let P = random_spd(n, &mut r) * 2e-10;
+        // Eigenvalues −1 and −(n + 1) times 10²⁹⁸: L⁻¹ E L⁻ᵀ overflows, its index does not.
+        let E = (DMatrix::identity(n, n) * -(n as f64 + 1.0) + DMatrix::from_element(n, n, 1.0))
+            * 1e298;
+        let by_hand = conservativeness_index(&(&P * 2f64.powi(40)), &(&E * 2f64.powi(-1000)))
+            .unwrap()
+            * 2f64.powi(520)
+            * 2f64.powi(520);
+        let coin = conservativeness_index(&P, &E).unwrap();
+        assert!(coin.is_finite() && coin < -1e300, "n = {n}: {coin}");
+        assert_eq!(
+            coin.to_bits(),
+            by_hand.to_bits(),
+            "n = {n}: {coin} vs {by_hand}"
+        );
+    }
     // Scaling P by a power of four and E by a power of two scales the index exactly, bit for
     // bit (what the recomputation at unit scale relies on), in closed form (n = 2) and by the
     // QR iteration (n = 4).
