@@ -106,7 +106,7 @@ pub use fusion::rules::{
 };
 pub use fusion::sample::{
     sample_cross_covariances, sample_cross_covariances_with, AutoChoice, CrossSamples, SamplerKind,
-    SamplerSettings, AUTO_MIN_ACCEPTED, AUTO_PILOT_TRIALS,
+    SamplerSettings, AUTO_MIN_ACCEPTED, AUTO_PILOT_TRIALS, MAX_SAMPLE_COUNT, MAX_SAMPLE_ENTRIES,
 };
 pub use fusion::sdp::{
     optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings, SdpStatus,

@@ -348,6 +348,7 @@ BAD_CALLS = [
     (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), sampler="x"), nmci.RequestError, "sampler: unknown variant `x`, expected one of `rejection`, `hit_and_run`, `auto`"),
     (lambda: nmci.track({"runs": 0}), nmci.StudyError, "runs at least 1"),
     (lambda: nmci.track({"scenario": {"groups": 10**12}}), nmci.StudyError, "agents, above the limit of 64"),
+    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=10**9), nmci.RequestError, "above the limit of 1000000 samples per call"),
     (lambda: nmci.track({"rnus": 3}), nmci.StudyError, "unknown field `rnus`"),
     (lambda: nmci.track({"agent": 7, "watched": 1}), nmci.StudyError, "agent 7 has no link to agent 1"),
     (lambda: nmci.track("/no/such/study.toml"), nmci.StudyError, "cannot read /no/such/study.toml"),

@@ -65,6 +65,30 @@ pub const AUTO_PILOT_TRIALS: u64 = 2000;
 /// the acceptance rate enough to choose the rejection sampler.
 pub const AUTO_MIN_ACCEPTED: u64 = 10;
 
+/// The most samples one call draws: they are returned together, one matrix each.
+pub const MAX_SAMPLE_COUNT: usize = 1_000_000;
+
+/// The most entries (`count × n²`) one call returns: 8 bytes each, 0.8 GB at the limit. Draw
+/// more in batches with different seeds.
+pub const MAX_SAMPLE_ENTRIES: usize = 100_000_000;
+
+/// `count` samples of an `n`-state problem within [`MAX_SAMPLE_COUNT`] and
+/// [`MAX_SAMPLE_ENTRIES`], checked before anything is allocated.
+fn check_count(problem: &FusionProblem, count: usize) -> Result<(), SampleError> {
+    let n2 = problem.dim() * problem.dim();
+    if count > MAX_SAMPLE_COUNT {
+        return Err(SampleError::InvalidSettings(format!(
+            "count {count} is above the limit of {MAX_SAMPLE_COUNT} samples per call; draw them in batches with different seeds"
+        )));
+    }
+    match count.checked_mul(n2) {
+        Some(entries) if entries <= MAX_SAMPLE_ENTRIES => Ok(()),
+        _ => Err(SampleError::InvalidSettings(format!(
+            "count × n² = {count} × {n2} entries is above the limit of {MAX_SAMPLE_ENTRIES} per call; draw them in batches with different seeds"
+        ))),
+    }
+}
+
 /// What [`SamplerKind::Auto`] chose, and the pilot it chose by.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct AutoChoice {
@@ -190,6 +214,7 @@ pub fn sample_cross_covariances(
     seed: u64,
     settings: SamplerSettings,
 ) -> Result<CrossSamples, SampleError> {
+    check_count(problem, count)?;
     if settings.kind == SamplerKind::Auto {
         settings.validate()?;
         let mut pilot_rng = ChaCha8Rng::seed_from_u64(pilot_seed(seed));
@@ -287,6 +312,7 @@ pub fn sample_cross_covariances_with<R: Rng>(
     rng: &mut R,
     settings: SamplerSettings,
 ) -> Result<CrossSamples, SampleError> {
+    check_count(problem, count)?;
     settings.validate()?;
     match settings.kind {
         SamplerKind::HitAndRun => hit_and_run(problem, count, rng, settings),

@@ -559,3 +559,33 @@ fn hit_and_run_in_one_dimension_is_the_textbook_chain() {
     assert_eq!(got.len(), count);
     assert!(expected.iter().any(|&e| e > 0.5) && expected.iter().any(|&e| e < -0.5));
 }
+
+/// One call draws at most `MAX_SAMPLE_COUNT` samples and `MAX_SAMPLE_ENTRIES` entries, refused
+/// before anything is allocated: a count of 10⁹ aborted the process (and a Python interpreter
+/// with it) on a 40 GB allocation. Both samplers, and the generic entry point, check it.
+#[test]
+fn the_count_of_one_call_is_limited_before_allocating() {
+    let p = paper_example();
+    for settings in [SamplerSettings::default(), SamplerSettings::hit_and_run()] {
+        let e = sample_cross_covariances(&p, 1_000_000_000, 1, settings).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("count 1000000000 is above the limit of 1000000 samples per call"),
+            "{e}"
+        );
+        let mut r = rng(2);
+        let e =
+            sample_cross_covariances_with(&p, MAX_SAMPLE_COUNT + 1, &mut r, settings).unwrap_err();
+        assert!(matches!(e, SampleError::InvalidSettings(_)), "{e}");
+    }
+    // 12 states: 694 445 samples are 100 000 080 entries, one past the limit.
+    let big = random_problem(12, CrossPattern::fully_unknown(12), &mut rng(3));
+    let count = MAX_SAMPLE_ENTRIES / 144 + 1;
+    let e = sample_cross_covariances(&big, count, 1, SamplerSettings::default()).unwrap_err();
+    assert!(
+        e.to_string().contains(&format!(
+            "count × n² = {count} × 144 entries is above the limit of {MAX_SAMPLE_ENTRIES}"
+        )),
+        "{e}"
+    );
+}
