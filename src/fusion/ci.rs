@@ -886,6 +886,20 @@ mod tests {
     }
 
     /// The balancing power of two is the rounded middle of the extreme diagonal log-ratios.
+    /// `P_a + t P_b` that does not factor is `InputError::Unfactored`, naming the matrix and
+    /// the pair (reached here with matrices the input checks would refuse: `P_a = −P_b`).
+    #[test]
+    fn a_pencil_that_does_not_factor_names_the_matrix() {
+        let I = DMatrix::<f64>::identity(2, 2);
+        let e = Pencil::new(&(-&I), &I).err().unwrap();
+        assert!(matches!(e, InputError::Unfactored { .. }), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with("P_a + t P_b, formed from P_a and P_b and positive definite in exact arithmetic when they are"),
+            "{e}"
+        );
+    }
+
     /// The endpoint test's factorizations of `P_b` and `P_a` (the study's filter covariances,
     /// not checked per step) name a failure as the input checks do: not positive definite only
     /// when proven. `P_b` below is positive definite as floats (smallest eigenvalue 1.1044);

@@ -148,16 +148,15 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
     Ok(())
 }
 
-/// Why the symmetric `sym` (smallest eigenvalue `lambda_min` as computed) cannot be used as a
-/// covariance: the three refusals of [`validate_covariance`], each said only when it is true.
+/// Why the symmetric `sym` (smallest eigenvalue `lambda_min` as computed), not proven positive
+/// definite as given, cannot be used as a covariance: the three refusals of
+/// [`validate_covariance`], each said only when it is true.
 fn refusal(name: &str, sym: &DMatrix<f64>, lambda_min: f64) -> InputError {
     // Variances of very different orders (mixed units) can make a positive definite matrix
     // look singular in floating point; the verified test on the matrix equilibrated by powers
     // of two (a congruence that keeps definiteness, `scale::equilibrated`) tells the two apart,
     // and the error says which it is.
-    if verify::is_positive_definite(sym)
-        || scale::equilibrated(sym).is_some_and(|e| verify::is_positive_definite(&e))
-    {
+    if scale::equilibrated(sym).is_some_and(|e| verify::is_positive_definite(&e)) {
         return InputError::IllConditioned {
             name: name.into(),
             min_eigenvalue: lambda_min,
@@ -196,6 +195,15 @@ pub(crate) fn definiteness_error(name: &str, m: &DMatrix<f64>) -> InputError {
         return InputError::OutOfRange {
             name: name.into(),
             largest: scale,
+        };
+    }
+    // Proven positive definite as given (only the factorization that failed was of another
+    // form of it): ill-conditioned. `validate_covariance` has already asked this.
+    if verify::is_positive_definite(&sym) {
+        return InputError::IllConditioned {
+            name: name.into(),
+            min_eigenvalue: lambda_min,
+            max_eigenvalue: max_eigenvalue(&sym),
         };
     }
     refusal(name, &sym, lambda_min)
