@@ -142,6 +142,38 @@ pub enum InputError {
         /// What is wrong.
         problem: String,
     },
+    /// An entry of `P_a` or `P_b` between two declared blocks above the coupling tolerance:
+    /// the blocks are not independent in it (`crate::absorb_couplings`).
+    #[error("{}[{row}][{col}] = {value} couples blocks {} and {} ({relative:.1e} relative to the square root of its diagonal entries, above coupling_tol {tol:e}): the declared blocks are not independent", request_field(name), blocks[0], blocks[1])]
+    CouplingTooLarge {
+        /// The covariance's request field (`pa`, `pb`, `estimates[i].p`).
+        name: String,
+        /// Row (0-based).
+        row: usize,
+        /// Column (0-based).
+        col: usize,
+        /// The entry.
+        value: f64,
+        /// Its size relative to `√(P[row,row] P[col,col])`.
+        relative: f64,
+        /// The declared blocks it links (indices into the declared list, the first smaller).
+        blocks: [usize; 2],
+        /// The coupling tolerance.
+        tol: f64,
+    },
+    /// An unknown entry of the pattern of `P_ab` between two declared blocks: declared blocks
+    /// have independent errors, so it must be a known zero (`crate::absorb_couplings`).
+    #[error("{field}[{row}][{col}] is true, but states {row} and {col} are in declared blocks {} and {}, whose errors are independent (make it false, or join the blocks)", blocks[0], blocks[1])]
+    PatternCrossesBlocks {
+        /// The pattern's request field (`pab_unknown`, `patterns[k].pab_unknown`).
+        field: String,
+        /// Row (0-based).
+        row: usize,
+        /// Column (0-based).
+        col: usize,
+        /// The declared blocks of `row` and `col`.
+        blocks: [usize; 2],
+    },
     /// An input whose size does not match `P_a`.
     #[error("{name} has size {found}, expected {expected} (the size of P_a)")]
     SizeMismatch {
@@ -340,7 +372,9 @@ impl InputError {
             | InputError::Singular { name, .. }
             | InputError::WeightOutOfRange { name, .. }
             | InputError::NotBlockDiagonal { name, .. }
+            | InputError::CouplingTooLarge { name, .. }
             | InputError::SizeMismatch { name, .. } => Some(name),
+            InputError::PatternCrossesBlocks { field, .. } => Some(field),
             InputError::InvalidBlocks { .. }
             | InputError::UnresolvedPair { .. }
             | InputError::Unfactored { .. }
@@ -351,8 +385,10 @@ impl InputError {
     /// The JSON request field of the input at fault ([`request_field`]); a set of estimates
     /// that cannot be fused is `estimates`.
     pub fn request_field(&self) -> Option<String> {
-        if let InputError::Estimates(_) = self {
-            return Some("estimates".into());
+        match self {
+            InputError::Estimates(_) => return Some("estimates".into()),
+            InputError::InvalidBlocks { .. } => return Some("blocks".into()),
+            _ => {}
         }
         self.name().map(request_field)
     }

@@ -58,7 +58,7 @@ pub mod wasm;
 pub use api::{
     fuse, fuse_json, CertifiedDetails, CovarianceSummary, CutsDetails, Details, FuseRequest,
     FuseResponse, Gains, NwayEstimate, NwayPair, Options, PairInput, Plan, Rows, SdpDetails,
-    MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
+    StructureDetails, MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
 };
 #[cfg(not(target_arch = "wasm32"))]
 pub use chart::charts_svg;
@@ -99,10 +99,11 @@ pub use fusion::ici::{inverse_covariance_intersection, IciResult};
 pub use fusion::known::{known_correlation_fusion, naive_fusion};
 pub use fusion::nmci::{non_monolithic_ci, NmciResult};
 pub use fusion::nway::{
-    covariance_intersection_nway, non_monolithic_ci_nway, NwayResult, PairPattern,
+    absorb_couplings_nway, covariance_intersection_nway, non_monolithic_ci_nway, NwayResult,
+    PairPattern,
 };
 pub use fusion::rules::{
-    rules, Criteria, Guarantee, Limits, Method, RequestOption, RuleInfo, RULES,
+    rules, BlockUse, Criteria, Guarantee, Limits, Method, RequestOption, RuleInfo, RULES,
 };
 pub use fusion::sample::{
     sample_cross_covariances, sample_cross_covariances_with, AutoChoice, CrossSamples, SamplerKind,
@@ -113,4 +114,7 @@ pub use fusion::sdp::{
 };
 pub use fusion::{validate_covariance, Criterion, Estimate, Fused, FusionProblem};
 pub use linalg::{logdet_spd, min_eigenvalue};
-pub use structure::{independent_blocks, CrossPattern};
+pub use structure::{
+    absorb_couplings, check_partition, independent_blocks, Absorbed, BlockStructure, Coupling,
+    CrossPattern, StructureSettings, COUPLING_HINT, DEFAULT_COUPLING_TOL,
+};

@@ -5,11 +5,20 @@
 //! may be non-zero. The blocks are the connected components of that graph. Across blocks
 //! every covariance and cross-covariance is zero, so the problem splits into one independent
 //! fusion per block (the paper's eq. for the non-monolithic GMD): this is what nmCI exploits.
-//! An entry of `P_a` or `P_b` counts as zero only when it is exactly `0.0`.
+//! An entry of `P_a` or `P_b` counts as zero only when it is exactly `0.0` here;
+//! [`absorb_couplings`] (module `absorb`) also keeps blocks that only near-zero entries link,
+//! by a proven inflation, and takes declared blocks.
+
+pub(crate) mod absorb;
 
 use nalgebra::DMatrix;
 
 use crate::error::InputError;
+
+pub use absorb::{
+    absorb_couplings, check_partition, Absorbed, BlockStructure, Coupling, StructureSettings,
+    COUPLING_HINT, DEFAULT_COUPLING_TOL,
+};
 
 /// Which entries of the `n × n` cross-covariance `P_ab = E[e_a e_bᵀ]` may be non-zero.
 ///

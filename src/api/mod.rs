@@ -9,6 +9,7 @@
 
 mod request;
 mod response;
+mod structure;
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -25,17 +26,22 @@ use crate::fusion::ici::inverse_covariance_intersection;
 use crate::fusion::known::naive_fusion;
 use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::nway::{
-    covariance_intersection_nway, non_monolithic_ci_nway, NwayResult, PairPattern,
+    absorb_couplings_nway, covariance_intersection_nway, non_monolithic_ci_nway, NwayResult,
+    PairPattern,
 };
 use crate::fusion::rules::Method;
 use crate::fusion::sdp::optimal_fusion;
 use crate::fusion::{Criterion, Estimate, Fused, FusionProblem};
 use crate::linalg::matrix_to_rows;
-use crate::structure::CrossPattern;
+use crate::structure::{CrossPattern, StructureSettings};
 
 pub(crate) use request::{check_blocks, check_count, matrix, unknown_field};
 pub use request::{FuseRequest, NwayEstimate, NwayPair, Options, PairInput, Plan};
-pub use response::{CertifiedDetails, CutsDetails, Details, FuseResponse, Gains, Rows, SdpDetails};
+pub use response::{
+    CertifiedDetails, CutsDetails, Details, FuseResponse, Gains, Rows, SdpDetails, StructureDetails,
+};
+use structure::details_of;
+pub(crate) use structure::{structured, Structured};
 
 /// The longest request text [`fuse_json`] (and so the CLI and Python's `fuse`) reads: two
 /// 1000-state covariances written with full precision take about 50 MB. Checked before the
@@ -96,6 +102,7 @@ fn response_of(
         det: summary.det,
         gains,
         details,
+        structure: None,
     }
 }
 
@@ -129,13 +136,18 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
         return fuse_nway(
             estimates,
             request.patterns.as_deref().unwrap_or_default(),
+            &request.pair.structure_settings(),
             request.method,
             plan.criterion,
         );
     }
-    let problem = request.problem()?;
+    let Structured { problem, details } = structured(
+        request.problem()?,
+        &request.pair.structure_settings(),
+        request.method,
+    )?;
     check_blocks(request.method, &problem)?;
-    match request.method {
+    let mut response = match request.method {
         Method::Ci => Ok(ci_response(&problem, plan.criterion)?.0),
         Method::Nmci => Ok(nmci_response(&problem, plan.criterion)?.0),
         Method::Ici => Ok(ici_response(&problem, plan.criterion)?.0),
@@ -172,14 +184,16 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                 certificates: cuts.certificates,
                 gain_certified_trace,
             });
-            Ok(response(
+            Ok::<_, RequestError>(response(
                 Method::SdpCuts,
                 Criterion::Trace,
                 &cuts.fused,
                 details,
             ))
         }
-    }
+    }?;
+    response.structure = details;
+    Ok(response)
 }
 
 /// N-way CI (`method` `ci`) or nmCI (`nmci`) of a request's `estimates` and `patterns`.
@@ -187,6 +201,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
 fn fuse_nway(
     estimates: &[NwayEstimate],
     patterns: &[NwayPair],
+    settings: &StructureSettings,
     method: Method,
     criterion: Criterion,
 ) -> Result<FuseResponse, RequestError> {
@@ -203,30 +218,41 @@ fn fuse_nway(
             Estimate::new(&name, x, P)
         })
         .collect::<Result<Vec<_>, InputError>>()?;
-    let result: NwayResult = if method == Method::Ci {
-        covariance_intersection_nway(&estimates, criterion)?
-    } else {
-        let pairs = patterns
-            .iter()
-            .map(|p| {
-                Ok(PairPattern {
-                    i: p.i,
-                    j: p.j,
-                    pattern: CrossPattern::from_rows(&p.pab_unknown)?,
-                })
+    let pairs = patterns
+        .iter()
+        .map(|p| {
+            Ok(PairPattern {
+                i: p.i,
+                j: p.j,
+                pattern: CrossPattern::from_rows(&p.pab_unknown)?,
             })
-            .collect::<Result<Vec<_>, InputError>>()?;
-        non_monolithic_ci_nway(&estimates, &pairs, criterion)?
+        })
+        .collect::<Result<Vec<_>, InputError>>()?;
+    // The structure is checked for both rules (a declared partition that contradicts the
+    // estimates is refused); only nmCI uses it.
+    let (absorbed, pairs, structure) = absorb_couplings_nway(&estimates, &pairs, settings)?;
+    let (result, details): (NwayResult, _) = if method == Method::Ci {
+        (covariance_intersection_nway(&estimates, criterion)?, None)
+    } else {
+        let said = !structure.couplings.is_empty()
+            || structure.near_miss.is_some()
+            || settings.blocks.is_some();
+        let details = said.then(|| details_of(&structure, settings.coupling_tol, true, None, None));
+        (
+            non_monolithic_ci_nway(&absorbed, &pairs, criterion)?,
+            details,
+        )
     };
     let gains = Gains::Nway(result.gains.iter().map(matrix_to_rows).collect());
+    let structure_details = details;
     let details = Details::Nway {
         weights: result.omega,
         blocks: result.blocks,
         iterations: result.iterations as u32,
     };
-    Ok(response_of(
-        method, criterion, &result.x, &result.P, gains, details,
-    ))
+    let mut response = response_of(method, criterion, &result.x, &result.P, gains, details);
+    response.structure = structure_details;
+    Ok(response)
 }
 
 /// The certified rule's response and the fused result it was made from: its own trace is

@@ -26,7 +26,7 @@ use crate::fusion::sample::{SamplerKind, SamplerSettings};
 use crate::fusion::sdp::SdpSettings;
 use crate::fusion::{Criterion, FusionProblem};
 use crate::linalg::matrix_from_rows;
-use crate::structure::{independent_blocks, CrossPattern};
+use crate::structure::{independent_blocks, CrossPattern, StructureSettings, DEFAULT_COUPLING_TOL};
 
 use super::{MAX_ESTIMATES, MAX_SAMPLES, MAX_TRIALS};
 
@@ -98,6 +98,16 @@ pub struct PairInput {
     /// `n × n`, `true` = `P_ab[i][j]` may be non-zero, `false` = known zero (default all `true`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pab_unknown: Option<Vec<Vec<bool>>>,
+    /// A declared partition of the states into blocks with independent errors
+    /// ([`StructureSettings::blocks`]): implies `pab_unknown` when that is absent (unknown
+    /// within a block, known zero across), must agree with it when given. Also for N-way.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blocks: Option<Vec<Vec<usize>>>,
+    /// The relative size up to which an entry of a covariance between blocks is absorbed
+    /// ([`StructureSettings::coupling_tol`]; default [`crate::DEFAULT_COUPLING_TOL`], 0 = exact
+    /// zeros only). Also for N-way.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coupling_tol: Option<f64>,
 }
 
 impl PairInput {
@@ -119,11 +129,20 @@ impl PairInput {
             Some(v) => DVector::from_row_slice(v),
             None => DVector::zeros(n),
         };
-        let pattern = match &self.pab_unknown {
-            Some(rows) => CrossPattern::from_rows(rows)?,
-            None => CrossPattern::fully_unknown(n),
+        let pattern = match (&self.pab_unknown, &self.blocks) {
+            (Some(rows), _) => CrossPattern::from_rows(rows)?,
+            (None, Some(blocks)) => CrossPattern::within_blocks(n, blocks)?,
+            (None, None) => CrossPattern::fully_unknown(n),
         };
         FusionProblem::new(vector(&self.xa), pa, vector(&self.xb), pb, pattern)
+    }
+
+    /// The structure settings of `blocks` and `coupling_tol` (checked when applied).
+    pub fn structure_settings(&self) -> StructureSettings {
+        StructureSettings {
+            blocks: self.blocks.clone(),
+            coupling_tol: self.coupling_tol.unwrap_or(DEFAULT_COUPLING_TOL),
+        }
     }
 
     /// Every field set (the names in an unknown-field error).
@@ -134,10 +153,13 @@ impl PairInput {
             xa: Some(vec![0.0]),
             xb: Some(vec![0.0]),
             pab_unknown: Some(vec![vec![true]]),
+            blocks: Some(vec![vec![0]]),
+            coupling_tol: Some(0.0),
         }
     }
 
-    /// The fields set, by name (for the N-way exclusivity check).
+    /// The fields set, by name (for the N-way exclusivity check; `blocks` and
+    /// `coupling_tol` apply to both kinds).
     fn set_fields(&self) -> [(&'static str, bool); 5] {
         [
             ("pa", !self.pa.is_empty()),
@@ -159,6 +181,9 @@ impl PairInput {
         }
         if let Some(p) = &self.pab_unknown {
             check_rows("pab_unknown", p, max, who)?;
+        }
+        if let Some(b) = &self.blocks {
+            check_rows("blocks", b, max, who)?;
         }
         Ok(())
     }

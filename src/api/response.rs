@@ -40,6 +40,37 @@ pub struct FuseResponse {
     pub gains: Gains,
     /// What this method reports beyond the estimate.
     pub details: Details,
+    /// How the problem's blocks were found, when that is worth saying (near-zero couplings
+    /// absorbed, declared blocks, or a weak coupling keeping blocks merged); rules that use
+    /// the blocks only (nmCI, the certified rule, the SDPs, N-way nmCI).
+    pub structure: Option<StructureDetails>,
+}
+
+/// What a response says of the problem's structure (`structure::absorb`'s module docs): the
+/// blocks, what was absorbed to keep them and what it cost, and a sentence for a person.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StructureDetails {
+    /// The blocks the rule exploited.
+    pub blocks: Vec<Vec<usize>>,
+    /// How many blocks exact zeros alone give.
+    pub exact_blocks: usize,
+    /// The coupling tolerance used.
+    pub coupling_tol: f64,
+    /// Whether the couplings were absorbed: `false` for the relaxations (`sdp`, `sdp_cuts`),
+    /// whose proven lower end holds for the covariances as given only, so they solve those.
+    pub absorbed: bool,
+    /// The couplings absorbed (empty when `absorbed` is false).
+    pub couplings: Vec<crate::structure::Coupling>,
+    /// `tr P̄_a + tr P̄_b − tr P_a − tr P_b`: what the absorption added to the covariances.
+    pub trace_added: f64,
+    /// What it cost nmCI: its trace on the absorbed problem minus its trace on the same
+    /// covariances with the couplings set to zero (not a bound for the given problem; absent
+    /// when those are not positive definite or nothing was absorbed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nmci_trace_cost: Option<f64>,
+    /// A sentence for a person (the CLI prints it on stderr, the page beside the numbers).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 /// The gains of a response.
@@ -301,6 +332,8 @@ struct ResponseWire {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     gap_closed: Option<bool>,
     guarantee: Guarantee,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    structure: Option<StructureDetails>,
 }
 
 impl ResponseWire {
@@ -376,6 +409,7 @@ impl From<FuseResponse> for ResponseWire {
             converged: None,
             gap_closed: None,
             guarantee,
+            structure: r.structure,
         };
         match r.gains {
             Gains::Pair { ka, kb } => (w.ka, w.kb) = (Some(ka), Some(kb)),
@@ -507,6 +541,7 @@ impl TryFrom<ResponseWire> for FuseResponse {
             det: w.det,
             gains,
             details,
+            structure: w.structure,
         })
     }
 }

@@ -604,26 +604,7 @@ pub fn covariance_intersection_blocks(
     criterion: Criterion,
 ) -> Result<CiResult, InputError> {
     let n = problem.dim();
-    let mut seen = vec![false; n];
-    for &i in blocks.iter().flatten() {
-        if i >= n || seen[i] {
-            return Err(InputError::InvalidBlocks {
-                n,
-                problem: if i >= n {
-                    format!("state {i} does not exist")
-                } else {
-                    format!("state {i} is in two blocks")
-                },
-            });
-        }
-        seen[i] = true;
-    }
-    if let Some(i) = seen.iter().position(|s| !s) {
-        return Err(InputError::InvalidBlocks {
-            n,
-            problem: format!("state {i} is in no block"),
-        });
-    }
+    crate::structure::check_partition(n, blocks)?;
     let mut block_of = vec![0; n];
     for (b, block) in blocks.iter().enumerate() {
         for &i in block {

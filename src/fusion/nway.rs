@@ -34,7 +34,8 @@ use super::ci::covariance_intersection;
 use super::{definiteness_error, scatter_block, Criterion, Estimate, FusionProblem};
 use crate::error::InputError;
 use crate::linalg::{cholesky, symmetrize};
-use crate::structure::{connected_components, CrossPattern};
+use crate::structure::absorb::absorb;
+use crate::structure::{connected_components, BlockStructure, CrossPattern, StructureSettings};
 
 /// The pattern of the cross-covariance `P_ij` of estimates `i < j` (pairs not listed are
 /// fully unknown).
@@ -106,13 +107,9 @@ pub fn covariance_intersection_nway(
     fuse_block(estimates, &(0..n).collect::<Vec<_>>(), criterion)
 }
 
-/// Non-monolithic N-way CI: the independent blocks of every `Pᵢ` and every pair pattern, and
-/// N-way CI with its own weights in each block.
-pub fn non_monolithic_ci_nway(
-    estimates: &[Estimate],
-    pairs: &[PairPattern],
-    criterion: Criterion,
-) -> Result<NwayResult, InputError> {
+/// Checks the estimates and the pairs' patterns (each pair names two different estimates,
+/// once, with a pattern of their size); returns the size and whether every pair is given.
+fn check_pairs(estimates: &[Estimate], pairs: &[PairPattern]) -> Result<(usize, bool), InputError> {
     let n = check_estimates(estimates)?;
     let k = estimates.len();
     let mut given = vec![vec![false; k]; k];
@@ -141,6 +138,88 @@ pub fn non_monolithic_ci_nway(
         }
     }
     let all_pairs_given = (0..k).all(|i| (i + 1..k).all(|j| given[i][j]));
+    Ok((n, all_pairs_given))
+}
+
+/// The structure of N-way estimates under `settings` with their near-zero couplings absorbed
+/// (`structure::absorb`'s module docs: the argument holds for `k` estimates, since raising
+/// each `Pᵢ` to `P̄ᵢ ⪰ Pᵢ` raises the joint covariance and keeps its cross blocks). Pairs not
+/// listed are fully unknown, so without declared blocks they link every state; with declared
+/// blocks they take the pattern those imply ([`CrossPattern::within_blocks`]), and are
+/// returned with it. Returns the estimates with `P̄ᵢ`, the pairs, and the structure.
+#[allow(non_snake_case)]
+pub fn absorb_couplings_nway(
+    estimates: &[Estimate],
+    pairs: &[PairPattern],
+    settings: &StructureSettings,
+) -> Result<(Vec<Estimate>, Vec<PairPattern>, BlockStructure), InputError> {
+    let (n, all_pairs_given) = check_pairs(estimates, pairs)?;
+    let given = pairs.len();
+    let mut pairs = pairs.to_vec();
+    let unknown = CrossPattern::fully_unknown(n);
+    let mut wholly_unknown = None;
+    if !all_pairs_given {
+        match &settings.blocks {
+            Some(blocks) => {
+                let implied = CrossPattern::within_blocks(n, blocks)?;
+                let k = estimates.len();
+                for i in 0..k {
+                    for j in i + 1..k {
+                        if !pairs
+                            .iter()
+                            .any(|p| (p.i, p.j) == (i, j) || (p.j, p.i) == (i, j))
+                        {
+                            pairs.push(PairPattern {
+                                i,
+                                j,
+                                pattern: implied.clone(),
+                            });
+                        }
+                    }
+                }
+            }
+            None => wholly_unknown = Some(("estimates".to_string(), &unknown)),
+        }
+    }
+    let names: Vec<String> = (0..estimates.len())
+        .map(|i| format!("estimates[{i}].p"))
+        .collect();
+    let matrices: Vec<(String, &DMatrix<f64>)> = names
+        .iter()
+        .cloned()
+        .zip(estimates.iter().map(|e| &e.P))
+        .collect();
+    let mut patterns: Vec<(String, &CrossPattern)> = pairs
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let field = if k < given {
+                format!("patterns[{k}].pab_unknown")
+            } else {
+                "blocks".to_string()
+            };
+            (field, &p.pattern)
+        })
+        .collect();
+    patterns.extend(wholly_unknown);
+    let (inflated, structure) = absorb(n, &matrices, &patterns, settings)?;
+    let estimates = estimates
+        .iter()
+        .zip(inflated)
+        .map(|(e, P)| Estimate { x: e.x.clone(), P })
+        .collect();
+    Ok((estimates, pairs, structure))
+}
+
+/// Non-monolithic N-way CI: the independent blocks of every `Pᵢ` and every pair pattern, and
+/// N-way CI with its own weights in each block.
+pub fn non_monolithic_ci_nway(
+    estimates: &[Estimate],
+    pairs: &[PairPattern],
+    criterion: Criterion,
+) -> Result<NwayResult, InputError> {
+    let (n, all_pairs_given) = check_pairs(estimates, pairs)?;
+    let k = estimates.len();
     let blocks = if all_pairs_given {
         let linked = |i: usize, j: usize| {
             estimates

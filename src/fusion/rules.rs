@@ -427,7 +427,29 @@ pub fn rules() -> &'static [RuleInfo] {
     &RULES
 }
 
+/// How a rule uses the problem's independent blocks (`structure::absorb`'s module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BlockUse {
+    /// It does not split the problem into blocks (CI, ICI, EI, naive).
+    None,
+    /// A conservative rule that solves each block: near-zero couplings are absorbed, since it
+    /// stays conservative on a dominating problem (nmCI, the certified rule).
+    Absorbs,
+    /// A relaxation with a proven lower end, which would not hold for the given problem after
+    /// an inflation: it solves the blocks of the covariances as given (the SDPs).
+    AsGiven,
+}
+
 impl Method {
+    /// How it uses the problem's blocks.
+    pub fn block_use(self) -> BlockUse {
+        match self {
+            Method::Nmci | Method::Certified => BlockUse::Absorbs,
+            Method::Sdp | Method::SdpCuts => BlockUse::AsGiven,
+            Method::Ci | Method::Ici | Method::Ei | Method::Naive => BlockUse::None,
+        }
+    }
+
     /// Its row of [`RULES`].
     pub fn info(self) -> &'static RuleInfo {
         &RULES[self as usize]

@@ -29,5 +29,6 @@ mod sample;
 mod scale;
 mod sdp;
 mod sim;
+mod structure;
 mod study_coin;
 mod validation;
