@@ -10,12 +10,12 @@ use serde::{Deserialize, Serialize};
 
 use crate::api::{
     certificate_response, check_blocks, check_count, ci_response, ei_response, ici_response,
-    naive_response, nmci_response, sdp_response, unknown_field, CovarianceSummary, FuseResponse,
-    Options, PairInput, MAX_SAMPLES,
+    naive_response, nmci_response, sdp_response, structured, unknown_field, CovarianceSummary,
+    FuseResponse, Options, PairInput, StructureDetails, Structured, MAX_SAMPLES,
 };
 use crate::error::RequestError;
 use crate::fusion::bracket::{
-    bracket_certificate, upper_bounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
+    bracket_certificate, trace_upper_bound, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
 use crate::fusion::certify::{CertificateMemo, Certificates};
 use crate::fusion::check::{fused_coins, lowest_margin};
@@ -151,6 +151,10 @@ pub struct Exploration {
     pub region_sampler_choice: Option<AutoChoice>,
     /// Why the region could not be drawn.
     pub region_error: Option<String>,
+    /// How the problem's blocks were found, when that is worth saying (nmCI's and the
+    /// certified rule's `structure`: near-zero couplings absorbed, declared blocks, or a weak
+    /// coupling keeping blocks merged); the page shows its note beside the numbers.
+    pub structure: Option<StructureDetails>,
     /// The region: `region_count` optimal known-correlation covariances `P*`, each `n × n`
     /// row-major, concatenated (the wasm layer hands it over as a `Float64Array`).
     #[serde(skip)]
@@ -221,6 +225,17 @@ fn analyse(
         .pair
         .check_sizes(Method::Sdp.info().limits.max_dim, "the explorer")?;
     let problem = request.pair.problem()?;
+    // nmCI and the certified rule solve the problem with its near-zero couplings absorbed
+    // (`structure::absorb`), the SDP the problem as given; the bracket's upper ends are proven
+    // for both.
+    let Structured {
+        problem: absorbed,
+        details: structure,
+    } = structured(
+        problem.clone(),
+        &request.pair.structure_settings(),
+        Method::Nmci,
+    )?;
     check_blocks(Method::Sdp, &problem)?;
     let plan = request.options.plan()?;
     check_count(
@@ -230,24 +245,32 @@ fn analyse(
     )?;
     let n = problem.dim();
     let criterion = plan.criterion;
-    let certificate = bracket_certificate(&problem, &plan.certify, memo);
+    let certificate = bracket_certificate(&absorbed, &plan.certify, memo);
     let certified_P = match &certificate {
         Ok(Some(cert)) => Some(&cert.fused.P),
         _ => None,
     };
     // The proven upper ends: CI and nmCI (trace criterion) and the certified rule.
-    let uppers = upper_bounds(&problem, certified_P)?;
+    let uppers = UpperBounds::of_absorbed(&problem, &absorbed, certified_P.map(trace_upper_bound))?;
 
     let mut computed: Vec<(Method, Outcome)> = Vec::new();
     for rule in RULES.iter().filter(|r| r.explorer) {
         let outcome = match rule.method {
             Method::Ci => Ok(ci_response(&problem, criterion)?),
-            Method::Nmci => Ok(nmci_response(&problem, criterion)?),
+            Method::Nmci => {
+                let (mut r, fused) = nmci_response(&absorbed, criterion)?;
+                r.structure = structure.clone();
+                Ok((r, fused))
+            }
             Method::Ici => Ok(ici_response(&problem, criterion)?),
             Method::Ei => Ok(ei_response(&problem)?),
             Method::Naive => Ok(naive_response(&problem)),
             Method::Certified => match &certificate {
-                Ok(Some(cert)) => Ok((certificate_response(cert), cert.fused.clone())),
+                Ok(Some(cert)) => {
+                    let mut r = certificate_response(cert);
+                    r.structure = structure.clone();
+                    Ok((r, cert.fused.clone()))
+                }
                 Ok(None) => Err(format!(
                     "the explorer certifies independent blocks of at most {BRACKET_CERTIFY_MAX_BLOCK} states (the level-1 program grows as (2n² + 1)²); method \"certified\" of the CLI takes up to 6"
                 )),
@@ -335,6 +358,7 @@ fn analyse(
         region_acceptance_rate,
         region_sampler_choice,
         region_error,
+        structure,
         region,
     })
 }

@@ -63,7 +63,7 @@ function showLinkError(msg) {
 const ERROR_SLOT = {
   pa: "err-pa", xa: "err-pa", pb: "err-pb", xb: "err-pb", pab_unknown: "err-pattern",
   criterion: "err-settings", samples: "err-settings", seed: "err-settings", max_trials: "err-settings",
-  region_samples: "err-settings", sampler: "err-settings",
+  region_samples: "err-settings", sampler: "err-settings", coupling_tol: "err-settings", blocks: "err-pattern",
 };
 function showInputError(msg, field) {
   clearErrors();
@@ -203,6 +203,7 @@ function syncControls() {
   $("samples").value = state.samples;
   $("seed").value = state.seed;
   $("region").value = state.region;
+  $("coupling-tol").value = state.couplingTol ?? "";
   for (const id of ["view-i", "view-j"]) {
     const s = $(id);
     s.replaceChildren(...Array.from({ length: state.n }, (_, k) => new Option(`x${k + 1}`, k)));
@@ -215,7 +216,7 @@ function syncControls() {
   }
 }
 
-const PRESETS = ["paper", "correlated", "twoblock", "six"];
+const PRESETS = ["paper", "correlated", "twoblock", "six", "roundoff"];
 
 // The URL's hash holds the state (a link reproduces the view). After an edit that starts an
 // analysis it is written once the worker is idle, not at the edit: each `replaceState` costs the
@@ -393,6 +394,21 @@ function init() {
   settingInput("samples", "samples", 1, 5000);
   settingInput("seed", "seed", 0, Number.MAX_SAFE_INTEGER);
   settingInput("region", "region", 0, 5000);
+  // The coupling tolerance: empty = the library's default; the range is checked by the library
+  // (its error comes back naming `coupling_tol` and is shown under the settings).
+  $("coupling-tol").addEventListener("input", (e) => {
+    const t = e.target.value.trim();
+    const v = Number(t);
+    if (t !== "" && !Number.isFinite(v)) {
+      e.target.classList.add("bad");
+      $("err-settings").textContent = `coupling tol: "${e.target.value}" is not a number`;
+      return;
+    }
+    e.target.classList.remove("bad");
+    $("err-settings").textContent = "";
+    state.couplingTol = t === "" ? undefined : v;
+    changed();
+  });
   for (const [id, k] of [["view-i", 0], ["view-j", 1]]) {
     $(id).addEventListener("change", (e) => {
       const v = Number(e.target.value);

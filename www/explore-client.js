@@ -22,6 +22,7 @@ function request(s) {
     pa: s.pa, pb: s.pb, pab_unknown: s.pattern, criterion: s.criterion,
     samples: s.samples, seed: s.seed, region_samples: s.region, sampler: s.sampler,
     max_trials: INTERACTIVE_MAX_TRIALS,
+    ...(s.couplingTol === undefined ? {} : { coupling_tol: s.couplingTol }),
   };
 }
 

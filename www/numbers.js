@@ -109,6 +109,13 @@ export function renderNumbersPanel(a, s) {
   const key = (...children) => el("span", { class: "k" }, ...children);
   const parts = [];
   parts.push(el("div", { id: "blocks" }, key(`nmCI blocks (${nmci.blocks.length}):`), ` ${blocks}`));
+  // How the blocks were found, when that is worth saying (couplings absorbed, or a weak one
+  // keeping blocks merged): the library's sentence, and what the absorption cost nmCI.
+  if (a.structure?.note) {
+    const cost = a.structure.nmci_trace_cost;
+    parts.push(el("div", { id: "structure-note" }, key("structure:"), ` ${a.structure.note}`,
+      cost === undefined ? "" : `; nmCI's trace is ${cost.toExponential(2)} above the same covariances with the couplings set to zero`));
+  }
   if (sdp) {
     parts.push(el("div", { id: "sdp-status" }, key("SDP:"), " status ", el("b", {}, sdp.status),
       `, ${sdp.iterations} iterations, ${sdp.lmis} LMIs in the final working set of ${sdp.samples} samples, ${samplerText(s.sampler, sdp.sampler_choice, sdp.acceptance_rate, sdp.samples)}`));

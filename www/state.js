@@ -73,6 +73,18 @@ export function preset(name) {
       const pb = blockDiag([[[1, 0.2], [0.2, 3]], [[2.5, 0.6], [0.6, 1]], [[1, 0.3], [0.3, 2.5]]]);
       return { ...base, n: 6, pa, pb, pattern: patternPreset("diagonal", 6), view: [0, 1] };
     }
+    case "roundoff": {
+      // Two axes with independent errors whose covariances carry a filter's round-off
+      // (1e-13) across them: exact-zero detection finds one block, the coupling tolerance
+      // keeps two at a proven inflation.
+      const pa = blockDiag([[[3, 0.5], [0.5, 1]], [[1, 0.2], [0.2, 2]]]);
+      const pb = blockDiag([[[1, -0.3], [-0.3, 2]], [[4, 1], [1, 2]]]);
+      for (const [i, j, v] of [[0, 2, 1e-13], [1, 3, -2e-13]]) {
+        pa[i][j] = pa[j][i] = v;
+        pb[i][j] = pb[j][i] = -v;
+      }
+      return { ...base, n: 4, pa, pb, pattern: patternPreset("block", 4, pa, pb), view: [0, 2] };
+    }
     default:
       throw new Error(`unknown preset ${name}`);
   }
@@ -93,6 +105,7 @@ export function encodeHash(state) {
     pattern: state.pattern.map((r) => r.map((b) => (b ? 1 : 0)).join("")),
     samples: state.samples, seed: state.seed, region: state.region, criterion: state.criterion,
     sampler: state.sampler, view: state.view, layers: LAYERS.filter((l) => state.layers[l]), preset: state.preset,
+    ...(state.couplingTol === undefined ? {} : { coupling_tol: state.couplingTol }),
   };
   return "#" + encodeURIComponent(JSON.stringify(compact));
 }
@@ -132,6 +145,7 @@ export function decodeHash(hash) {
     sampler: pick("sampler", Object.hasOwn(SAMPLERS, c.sampler), c.sampler, base.sampler),
     layers: pick("layers", Array.isArray(c.layers), Array.isArray(c.layers) && Object.fromEntries(LAYERS.map((l) => [l, c.layers.includes(l)])), base.layers),
     preset: pick("preset", typeof c.preset === "string", c.preset, "custom"),
+    couplingTol: pick("coupling_tol", typeof c.coupling_tol === "number" && Number.isFinite(c.coupling_tol), c.coupling_tol, undefined),
   };
   return ignored.length
     ? { state, error: `the link's ${ignored.join(", ")} ${ignored.length === 1 ? "was" : "were"} out of range; the default${ignored.length === 1 ? " is" : "s are"} used` }

@@ -378,9 +378,18 @@ mod cli {
             let _ = rx.recv();
             bar.finish_and_clear();
         }
-        worker
+        let out = worker
             .join()
-            .unwrap_or_else(|_| Err("the solve panicked (a bug: please report it)".into()))
+            .unwrap_or_else(|_| Err("the solve panicked (a bug: please report it)".into()))?;
+        // How the blocks were found, when the response says (`structure.note`): on stderr, so
+        // the JSON on stdout stays the response alone.
+        if let Some(note) = serde_json::from_str::<serde_json::Value>(&out)
+            .ok()
+            .and_then(|v| Some(v.get("structure")?.get("note")?.as_str()?.to_string()))
+        {
+            eprintln!("nmci: structure: {note}");
+        }
+        Ok(out)
     }
 
     pub fn main() -> ExitCode {

@@ -283,11 +283,23 @@ impl UpperBounds {
     /// The bounds of trace-optimal CI and nmCI (computed here; both always present for finite
     /// data) and a certified rule's rounded-up trace ([`trace_upper_bound`]).
     pub fn of(problem: &FusionProblem, certified: Option<f64>) -> Result<Self, InputError> {
+        Self::of_absorbed(problem, problem, certified)
+    }
+
+    /// [`UpperBounds::of`] with nmCI's bound taken on `absorbed`, a problem whose covariances
+    /// dominate `problem`'s with the same pattern (`crate::absorb_couplings`): an upper bound
+    /// on its robust optimum is one on `problem`'s, which is never larger (module docs of
+    /// `structure::absorb`). CI does not use the blocks and takes `problem` as given.
+    pub fn of_absorbed(
+        problem: &FusionProblem,
+        absorbed: &FusionProblem,
+        certified: Option<f64>,
+    ) -> Result<Self, InputError> {
         let ci = covariance_intersection(problem, Criterion::Trace)?;
-        let nm = non_monolithic_ci(problem, Criterion::Trace)?;
+        let nm = non_monolithic_ci(absorbed, Criterion::Trace)?;
         Ok(Self {
             ci: ci_upper_bound(problem, &ci),
-            nmci: nmci_upper_bound(problem, &nm),
+            nmci: nmci_upper_bound(absorbed, &nm),
             certified,
         })
     }

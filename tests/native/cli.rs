@@ -641,3 +641,33 @@ fn track_shards_merged_write_the_files_of_one_track() {
     assert!(err.contains("holds no shard-*.json file"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Near-zero couplings absorbed: the response on stdout, the note on stderr; a declared
+/// partition that contradicts the covariances exits non-zero naming the entry.
+#[test]
+fn the_structure_note_goes_to_stderr_and_refusals_exit_nonzero() {
+    let coupled = r#"{"pa": [[3, 1e-13], [1e-13, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, false], [false, true]], "method": "nmci"}"#;
+    let (code, out, err) = nmci(&["fuse"], coupled);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!((v["trace"].as_f64().unwrap() - 2.0).abs() < 1e-9, "{out}");
+    assert_eq!(v["structure"]["blocks"], serde_json::json!([[0], [1]]));
+    assert!(
+        err.starts_with("nmci: structure: 1 near-zero coupling") && err.contains("absorbed"),
+        "{err}"
+    );
+    // Exact zeros: nothing on stderr.
+    let (code, _, err) = nmci(&["fuse"], PAPER);
+    assert_eq!((code, err.as_str()), (0, ""));
+    for (extra, needle) in [
+        (r#""blocks": [[0], [1]], "pa": [[3, 0.5], [0.5, 1]]"#, "pa[0][1] = 0.5 couples blocks 0 and 1"),
+        (r#""blocks": [[0]], "pa": [[3, 0], [0, 1]]"#, "state 1 is in no block"),
+        (r#""coupling_tol": 2, "pa": [[3, 0], [0, 1]]"#, "coupling_tol must be in [0, 1]"),
+    ] {
+        let req = format!(r#"{{{extra}, "pb": [[1, 0], [0, 4]], "method": "nmci"}}"#);
+        let (code, out, err) = nmci(&["fuse"], &req);
+        assert_ne!(code, 0, "{out}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains(needle), "{err}");
+    }
+}
