@@ -34,6 +34,7 @@ import json
 import math
 import os
 import re
+import warnings
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -49,6 +50,7 @@ from ._errors import (
     SampleError,
     SimulationError,
     SolveError,
+    StructureWarning,
     StudyError,
     TimeLimitError,
 )
@@ -135,6 +137,7 @@ class Fused:
     converged: Optional[bool]
     gap_closed: Optional[bool]
     guarantee: str
+    structure: Optional[Dict[str, Any]]
 
     _ALIASES = {"P": "p", "Ka": "ka", "Kb": "kb"}
 
@@ -148,6 +151,13 @@ class Fused:
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError("Fused is read-only")
+
+    @property
+    def structure_note(self) -> Optional[str]:
+        """How the blocks were found, when that is worth saying (near-zero couplings absorbed,
+        declared blocks, a weak coupling keeping blocks merged): ``structure["note"]``. Also
+        issued as a :class:`StructureWarning` when the response is made."""
+        return (self._r.get("structure") or {}).get("note")
 
     def __getitem__(self, key: str) -> Any:
         return self._r[key]
@@ -291,6 +301,28 @@ def _non_finite(value: Any, path: str) -> Optional[str]:
     return None
 
 
+def _blocks(blocks: Optional[Sequence[Sequence[int]]]) -> Optional[List[List[int]]]:
+    """A declared partition as lists of state indices, or a ``RequestError`` naming ``blocks``
+    (whether it is a partition of the states is the library's check)."""
+    if blocks is None:
+        return None
+    try:
+        return [[_unsigned("blocks", i) for i in block] for block in blocks]
+    except TypeError:
+        raise RequestError(
+            f"invalid request: `blocks` must be a list of lists of state indices (got {blocks!r})", "blocks"
+        ) from None
+
+
+def _fused(response: Dict[str, Any]) -> Fused:
+    """The response as :class:`Fused`; its structure note, if any, as a :class:`StructureWarning`."""
+    fused = Fused(response)
+    note = fused.structure_note
+    if note is not None:
+        warnings.warn(note, StructureWarning, stacklevel=4)
+    return fused
+
+
 def _two(
     method: str,
     Pa: ArrayLike,
@@ -300,7 +332,9 @@ def _two(
     pab_unknown: Optional[ArrayLike],
     **options: Any,
 ) -> Fused:
-    return Fused(
+    if "blocks" in options:
+        options["blocks"] = _blocks(options["blocks"])
+    return _fused(
         _nmci.fuse_arrays(
             _options(method, **options),
             _matrix("P_a", Pa),
@@ -333,11 +367,19 @@ def nmci(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
+    blocks: Optional[Sequence[Sequence[int]]] = None,
+    coupling_tol: Optional[float] = None,
     criterion: Optional[str] = None,
 ) -> Fused:
     """Non-monolithic CI: one ``ω`` per independent block of the known-zero pattern
-    (``blocks``, ``omega``); conservative for every admissible cross-covariance."""
-    return _two("nmci", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
+    (``blocks``, ``omega``); conservative for every admissible cross-covariance.
+
+    ``blocks`` declares a partition of the states into blocks with independent errors (it
+    implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up
+    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are absorbed into a
+    proven block-diagonal bound, reported in ``structure``.
+    """
+    return _two("nmci", Pa, Pb, xa, xb, pab_unknown, criterion=criterion, blocks=blocks, coupling_tol=coupling_tol)
 
 
 def optimal(
@@ -347,6 +389,8 @@ def optimal(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
+    blocks: Optional[Sequence[Sequence[int]]] = None,
+    coupling_tol: Optional[float] = None,
     samples: Optional[int] = None,
     seed: Optional[int] = None,
     sampler: Optional[str] = None,
@@ -359,7 +403,13 @@ def optimal(
     """The paper's sampled SDP (method "sdp"): the tightest bound over ``samples`` sampled
     cross-covariances — a lower bound on the robust optimum, not guaranteed conservative.
     The response carries the proven bracket ``[lower_bound, upper_bound]`` on the robust
-    optimum."""
+    optimum.
+
+    ``blocks`` declares a partition of the states into blocks with independent errors (it
+    implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up
+    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are absorbed into a
+    proven block-diagonal bound, reported in ``structure``.
+    """
     return _two(
         "sdp",
         Pa,
@@ -367,6 +417,8 @@ def optimal(
         xa,
         xb,
         pab_unknown,
+        blocks=blocks,
+        coupling_tol=coupling_tol,
         samples=samples,
         seed=seed,
         sampler=sampler,
@@ -385,6 +437,8 @@ def sdp_cuts(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
+    blocks: Optional[Sequence[Sequence[int]]] = None,
+    coupling_tol: Optional[float] = None,
     seed: Optional[int] = None,
     time_limit: Optional[float] = None,
     level: Optional[int] = None,
@@ -393,7 +447,13 @@ def sdp_cuts(
 ) -> Fused:
     """The robust SDP by cutting planes: worst-case cross-covariances as constraints, with a
     proven bracket on the robust optimum (``lower_bound``, ``upper_bound``, ``gap_closed``,
-    ``stop``)."""
+    ``stop``).
+
+    ``blocks`` declares a partition of the states into blocks with independent errors (it
+    implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up
+    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are absorbed into a
+    proven block-diagonal bound, reported in ``structure``.
+    """
     return _two(
         "sdp_cuts",
         Pa,
@@ -401,6 +461,8 @@ def sdp_cuts(
         xa,
         xb,
         pab_unknown,
+        blocks=blocks,
+        coupling_tol=coupling_tol,
         seed=seed,
         time_limit=time_limit,
         level=level,
@@ -416,6 +478,8 @@ def certified(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
+    blocks: Optional[Sequence[Sequence[int]]] = None,
+    coupling_tol: Optional[float] = None,
     level: Optional[int] = None,
     sectors: Optional[int] = None,
     cones: Optional[int] = None,
@@ -426,7 +490,13 @@ def certified(
     level-1 certificate on each of ``sectors`` sectors of directions (by default the library's
     count, chosen by measurement, unless ``level`` is set; ``sectors`` per block, 0 where none), and on blocks of three states,
     when ``cones`` (4, 16 or 64) is given, on each of that many cones of directions; its
-    trace never above nmCI's or CI's beyond rounding."""
+    trace never above nmCI's or CI's beyond rounding.
+
+    ``blocks`` declares a partition of the states into blocks with independent errors (it
+    implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up
+    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are absorbed into a
+    proven block-diagonal bound, reported in ``structure``.
+    """
     return _two(
         "certified",
         Pa,
@@ -434,6 +504,8 @@ def certified(
         xa,
         xb,
         pab_unknown,
+        blocks=blocks,
+        coupling_tol=coupling_tol,
         level=level,
         sectors=sectors,
         cones=cones,
@@ -484,7 +556,14 @@ Estimates = Sequence[Union[ArrayLike, Tuple[Optional[ArrayLike], ArrayLike]]]
 Patterns = Union[Mapping[Tuple[int, int], ArrayLike], Sequence[Tuple[int, int, ArrayLike]]]
 
 
-def _nway(method: str, estimates: Estimates, patterns: Optional[Patterns], criterion: Optional[str]) -> Fused:
+def _nway(
+    method: str,
+    estimates: Estimates,
+    patterns: Optional[Patterns],
+    criterion: Optional[str],
+    blocks: Optional[Sequence[Sequence[int]]] = None,
+    coupling_tol: Optional[float] = None,
+) -> Fused:
     items = []
     for k, e in enumerate(estimates):
         if isinstance(e, tuple):
@@ -501,9 +580,8 @@ def _nway(method: str, estimates: Estimates, patterns: Optional[Patterns], crite
         for entry in entries:
             (i, j), mask = entry if isinstance(patterns, Mapping) else ((entry[0], entry[1]), entry[2])
             pairs.append((int(i), int(j), _pattern(f"pattern ({i}, {j})", mask)))
-    return Fused(
-        _nmci.fuse_arrays(_options(method, criterion=criterion), estimates=items, patterns=pairs)
-    )
+    options = _options(method, criterion=criterion, blocks=_blocks(blocks), coupling_tol=coupling_tol)
+    return _fused(_nmci.fuse_arrays(options, estimates=items, patterns=pairs))
 
 
 def ci_nway(
@@ -516,10 +594,20 @@ def ci_nway(
 
 
 def nmci_nway(
-    estimates: Estimates, *, patterns: Optional[Patterns] = None, criterion: Optional[str] = None
+    estimates: Estimates,
+    *,
+    patterns: Optional[Patterns] = None,
+    criterion: Optional[str] = None,
+    blocks: Optional[Sequence[Sequence[int]]] = None,
+    coupling_tol: Optional[float] = None,
 ) -> Fused:
-    """N-way nmCI: one weight vector per independent block of the pairs' known-zero patterns."""
-    return _nway("nmci", estimates, patterns, criterion)
+    """N-way nmCI: one weight vector per independent block of the pairs' known-zero patterns.
+
+    ``blocks`` declares a partition of the states into blocks with independent errors (pairs
+    not in ``patterns`` then take the pattern it implies); entries of each estimate's ``P``
+    between blocks up to ``coupling_tol`` relative (default ``1e-9``) are absorbed into a
+    proven block-diagonal bound, reported in ``structure``."""
+    return _nway("nmci", estimates, patterns, criterion, blocks, coupling_tol)
 
 
 def conservativeness_index(P: ArrayLike, E: ArrayLike) -> float:

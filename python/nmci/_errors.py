@@ -62,6 +62,12 @@ class InternalError(NmciError, RuntimeError):
     """A bug in nmci (a Rust panic, caught before it could crash the interpreter)."""
 
 
+class StructureWarning(UserWarning):
+    """How a response's blocks were found, when that is worth saying: near-zero couplings
+    absorbed into a proven block-diagonal bound, or a weak coupling keeping blocks merged (the
+    response's ``structure["note"]``; the CLI prints it on stderr)."""
+
+
 __all__ = [
     "NmciError",
     "RequestError",
@@ -74,4 +80,5 @@ __all__ = [
     "MergeError",
     "OutputError",
     "InternalError",
+    "StructureWarning",
 ]

@@ -164,6 +164,7 @@ def test_every_response_field_is_a_typed_attribute_of_fused():
         keys |= set(nmci.fuse(request))
     a, b = spd(rng, 2), spd(rng, 2)
     keys |= set(nmci.fuse({"pa": a, "pb": b, "method": "ci"}))
+    keys |= set(nmci.fuse({"pa": [[3, 1e-13], [1e-13, 1]], "pb": [[1, 0], [0, 4]], "blocks": [[0], [1]], "method": "nmci"}))
     declared = {nmci.Fused._ALIASES.get(k, k) for k in nmci.Fused.__annotations__}
     # The attributes are exactly the fields these requests make the contract emit.
     assert keys == declared, (keys - declared, declared - keys)
@@ -530,6 +531,12 @@ FIELD_CALLS = [
     (lambda: nmci.certified(np.eye(2), np.eye(2), level="2"), "level"),
     (lambda: nmci.fuse({"pa": [[1.0]], "pb": np.array([[np.inf]]), "method": "ci"}), "pb"),
     (lambda: nmci.ci(np.eye(2), np.eye(2) * 1e308), "pb"),
+    (lambda: nmci.nmci(np.eye(2), np.eye(2), blocks=[[0]]), "blocks"),
+    (lambda: nmci.nmci(np.eye(2), np.eye(2), blocks=[[0], "x"]), "blocks"),
+    (lambda: nmci.nmci([[2, 0.5], [0.5, 1]], np.eye(2), blocks=[[0], [1]]), "pa"),
+    (lambda: nmci.nmci(np.eye(2), np.eye(2), blocks=[[0], [1]], pab_unknown=np.ones((2, 2), bool)), "pab_unknown"),
+    (lambda: nmci.certified(np.eye(2), np.eye(2), coupling_tol=2.0), "coupling_tol"),
+    (lambda: nmci.nmci_nway([np.eye(2), np.eye(2)], blocks=[[0, 1, 2]]), "blocks"),
 ]
 
 

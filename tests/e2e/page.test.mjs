@@ -119,6 +119,33 @@ test("choosing a preset and back restores the paper's numbers", async () => {
   assert.equal((await text("#row-nmci .trace")).trim(), "2.000");
 });
 
+test("the round-off preset keeps nmCI's blocks and says what was absorbed; coupling tol 0 shows the fall back to CI; a bad tolerance is refused inline", async () => {
+  await page.selectOption("#preset", "roundoff");
+  await settle();
+  const { nmci } = await assertRulesMatchCli(page, "roundoff");
+  assert.equal(nmci.structure.blocks.length, 2);
+  assert.match(await text("#blocks"), /nmCI blocks \(2\)/);
+  assert.match(await text("#structure-note"), /^structure: 2 near-zero couplings .* absorbed into a proven block-diagonal bound: 2 blocks instead of 1 from exact zeros/);
+  assert.match(await text("#structure-note"), /nmCI's trace is \d\.\d\de-1\d above/);
+  assert.ok((await num("#row-nmci .trace")) < (await num("#row-ci .trace")) - 0.01);
+  assert.equal(await page.locator("#row-nmci .coin.neg").count(), 0);
+  await page.screenshot({ path: join(out, "explorer-roundoff.png"), fullPage: true });
+  await page.fill("#coupling-tol", "0");
+  await settle();
+  await assertRulesMatchCli(page, "roundoff, coupling tol 0");
+  assert.match(await text("#blocks"), /nmCI blocks \(1\)/);
+  assert.equal(await text("#row-nmci .trace"), await text("#row-ci .trace"));
+  assert.match(await text("#structure-note"), /keeps blocks merged: coupling_tol = \d\.\de-13 would give 2 blocks/);
+  await page.fill("#coupling-tol", "2");
+  await settle();
+  assert.match(await text("#err-settings"), /coupling_tol must be in \[0, 1\]/);
+  await page.fill("#coupling-tol", "");
+  await settle();
+  assert.equal(await text("#err-settings"), "");
+  await page.selectOption("#preset", "paper");
+  await settle();
+});
+
 /** The CLI's response to a fusion request (the same crate, natively). */
 function cli(request) {
   const out = execFileSync("cargo", ["run", "--quiet", "--bin", "nmci", "--", "fuse"], { cwd: root, input: JSON.stringify(request) });
@@ -341,7 +368,8 @@ test("the wasm package imports nothing from \"env\"", async () => {
 /** The explorer state the page holds (read from its URL hash), as a fusion request. */
 async function pageRequest(p, method) {
   const state = JSON.parse(decodeURIComponent(await p.evaluate(() => location.hash.slice(1))));
-  return { pa: state.pa, pb: state.pb, pab_unknown: state.pattern.map((row) => [...row].map((c) => c === "1")), criterion: state.criterion, method };
+  const tol = state.coupling_tol === undefined ? {} : { coupling_tol: state.coupling_tol };
+  return { pa: state.pa, pb: state.pb, pab_unknown: state.pattern.map((row) => [...row].map((c) => c === "1")), criterion: state.criterion, method, ...tol };
 }
 /** The page's CI and nmCI rows and nmCI's blocks equal the CLI's for the page's own state. */
 async function assertRulesMatchCli(p, what) {

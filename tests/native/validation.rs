@@ -412,6 +412,8 @@ fn unknown_fields_are_named_and_the_known_ones_listed() {
         "xa",
         "xb",
         "pab_unknown",
+        "blocks",
+        "coupling_tol",
         "method",
         "criterion",
         "samples",

@@ -1,0 +1,83 @@
+"""Structure that survives round-off, from Python: declared ``blocks``, near-zero couplings
+absorbed (``coupling_tol``), the response's ``structure`` and its note as a
+``StructureWarning``; the same numbers as the contract."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import nmci
+
+PA = np.array([[3.0, 1e-13], [1e-13, 1.0]])
+PB = np.diag([1.0, 4.0])
+DIAGONAL = np.eye(2, dtype=bool)
+
+
+@pytest.mark.parametrize("rule", [nmci.nmci, nmci.certified])
+def test_a_round_off_coupling_keeps_the_blocks_and_says_so(rule):
+    with pytest.warns(nmci.StructureWarning, match="absorbed"):
+        r = rule(PA, PB, pab_unknown=DIAGONAL)
+    assert r.structure["blocks"] == [[0], [1]]
+    assert r.structure["exact_blocks"] == 1
+    assert r.structure_note == r.structure["note"]
+    assert abs(r.trace - 2.0) < 1e-9
+    # CI on the same covariances gives more.
+    assert nmci.ci(PA, PB).trace > 3.0
+
+
+def test_exact_zeros_say_nothing_and_are_unchanged():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = nmci.nmci(PB, np.diag([3.0, 1.0]), pab_unknown=DIAGONAL)
+    assert r.structure is None and r.structure_note is None
+    assert np.array_equal(r.P, np.eye(2))
+
+
+def test_declared_blocks_imply_the_pattern():
+    with pytest.warns(nmci.StructureWarning):
+        declared = nmci.nmci(PA, PB, blocks=[[0], [1]])
+    with pytest.warns(nmci.StructureWarning):
+        patterned = nmci.nmci(PA, PB, pab_unknown=DIAGONAL)
+    assert np.array_equal(declared.P, patterned.P)
+    assert declared.to_dict()["structure"] == nmci.fuse(
+        {"pa": PA, "pb": PB, "blocks": [[0], [1]], "method": "nmci"}
+    )["structure"]
+
+
+def test_without_absorption_nmci_is_ci_and_the_note_says_how_to_keep_the_blocks():
+    with pytest.warns(nmci.StructureWarning, match="keeps blocks merged"):
+        strict = nmci.nmci(PA, PB, pab_unknown=DIAGONAL, coupling_tol=0.0)
+    assert abs(strict.trace - nmci.ci(PA, PB).trace) < 1e-12
+
+
+def test_the_sdp_solves_the_covariances_as_given_and_says_why():
+    with pytest.warns(nmci.StructureWarning, match="not absorbed"):
+        r = nmci.optimal(PA, PB, pab_unknown=DIAGONAL, samples=50)
+    assert r.structure["absorbed"] is False
+
+
+def test_n_way_nmci_takes_declared_blocks():
+    with pytest.warns(nmci.StructureWarning):
+        r = nmci.nmci_nway([PA, PB, np.diag([2.0, 2.0])], blocks=[[0], [1]])
+    assert r.blocks == [[0], [1]]
+    assert r.structure["couplings"][0]["matrix"] == "estimates[0].p"
+
+
+@pytest.mark.parametrize(
+    "kwargs,field,needle",
+    [
+        ({"Pa": [[2, 0.5], [0.5, 1]], "blocks": [[0], [1]]}, "pa", "pa[0][1] = 0.5 couples blocks 0 and 1"),
+        ({"blocks": [[0, 1], [1]]}, "blocks", "state 1 is in two blocks"),
+        ({"blocks": [[0]]}, "blocks", "state 1 is in no block"),
+        ({"blocks": [[0], [1]], "pab_unknown": np.ones((2, 2), bool)}, "pab_unknown", "pab_unknown[0][1]"),
+        ({"coupling_tol": -1.0}, "coupling_tol", "coupling_tol must be in [0, 1]"),
+        ({"coupling_tol": float("nan")}, "coupling_tol", "finite"),
+    ],
+)
+def test_refusals_name_their_field(kwargs, field, needle):
+    args = {"Pa": np.eye(2), "Pb": np.eye(2), **kwargs}
+    with pytest.raises(nmci.NmciError) as raised:
+        nmci.nmci(args.pop("Pa"), args.pop("Pb"), **args)
+    assert raised.value.field == field
+    assert needle in str(raised.value)
