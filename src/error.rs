@@ -93,10 +93,10 @@ pub enum InputError {
         /// The largest ratio as computed.
         max_ratio: f64,
     },
-    /// A weight outside its interval: CI's `ω` must lie in `[0, 1]`.
+    /// A weight or tolerance outside `[0, 1]`: CI's `ω`, the coupling tolerance.
     #[error("{name} must be in [0, 1] (got {value})")]
     WeightOutOfRange {
-        /// Which weight (`omega`).
+        /// Which value (`omega`, `coupling_tol`).
         name: String,
         /// The value given.
         value: f64,

@@ -60,10 +60,12 @@
 //! round-off in a covariance (an asymmetry up to `10⁻⁹` of the largest entry is accepted and
 //! symmetrised, `crate::linalg::SYMMETRY_RTOL`). Round-off of a filter's recursion is of order
 //! `ε κ ≈ 10⁻¹⁶ κ`, below `10⁻⁹` up to a condition number of `10⁷`; a correlation of `10⁻⁹`
-//! is not a modelled one. The price is small by construction: a coupling of relative size
-//! `τ` inflates each variance of its blocks by at most `τ` times the block's largest variance
-//! (times the number of states it couples), a relative trace cost of order `10⁻⁹ n`. Exact
-//! zeros are never couplings, so problems with exact structure are unchanged, bit for bit.
+//! is not a modelled one. The price is small by construction: every entry of a coupling is at
+//! most `τ √(P[i,i] P[j,j]) ≤ τ v` (`v` the largest variance), so with blocks of `n_i` states
+//! `r_ij ≤ τ v max(n_i, n_j) ≤ τ v n`, `d_i ≤ τ v n²` and the trace grows by at most `τ v n³`
+//! (rounding aside): relative to `tr P ≥ v`, at most `10⁻⁹ n³` (a bound; a filter's round-off
+//! is far below `τ`, and so is its cost). Exact zeros are never couplings, so problems with
+//! exact structure are unchanged, bit for bit.
 
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -175,7 +177,8 @@ pub struct Coupling {
     /// `r ≥ ‖E‖₂`, a proven bound on the coupling's spectral norm (module docs).
     pub norm_bound: f64,
     /// What absorbing it added to the trace of `matrix`: `r` times the states of both
-    /// blocks (each of their variances is raised by `r`, before rounding up).
+    /// blocks (each of their variances is raised by `r`; the sums and the raised entries are
+    /// then rounded up, by a few units in the last place).
     pub trace_added: f64,
 }
 
@@ -341,7 +344,6 @@ pub(crate) fn absorb(
 /// A declared partition against the covariances and patterns: no pattern has an unknown
 /// entry across it, and no covariance an entry across it above `tol` relative (the largest is
 /// named).
-#[allow(non_snake_case)]
 fn check_declared(
     n: usize,
     matrices: &[(String, &DMatrix<f64>)],
@@ -364,23 +366,12 @@ fn check_declared(
             }
         }
     }
-    let mut worst: Option<(f64, &str, usize, usize, f64)> = None;
-    for (name, P) in matrices {
-        for i in 0..n {
-            for j in i + 1..n {
-                let rel = relative(P, i, j);
-                if of[i] != of[j] && rel > tol && worst.is_none_or(|w| rel > w.0) {
-                    worst = Some((rel, name, i, j, P[(i, j)]));
-                }
-            }
-        }
-    }
-    match worst {
-        Some((relative, name, row, col, value)) => Err(InputError::CouplingTooLarge {
-            name: name.into(),
+    match strongest_across(matrices, &of, tol) {
+        Some((relative, k, row, col)) => Err(InputError::CouplingTooLarge {
+            name: matrices[k].0.clone(),
             row,
             col,
-            value,
+            value: matrices[k].1[(row, col)],
             relative,
             blocks: [of[row].min(of[col]), of[row].max(of[col])],
             tol,
@@ -389,10 +380,31 @@ fn check_declared(
     }
 }
 
+/// The entry above `tol` relative, between different blocks of `of`, that is largest relative
+/// to its diagonal: `(relative size, index into matrices, row, col)` with `row < col`.
+fn strongest_across(
+    matrices: &[(String, &DMatrix<f64>)],
+    of: &[usize],
+    tol: f64,
+) -> Option<(f64, usize, usize, usize)> {
+    let n = of.len();
+    let mut strongest: Option<(f64, usize, usize, usize)> = None;
+    for (k, (_, p)) in matrices.iter().enumerate() {
+        for i in 0..n {
+            for j in i + 1..n {
+                let rel = relative(p, i, j);
+                if of[i] != of[j] && rel > tol && strongest.is_none_or(|s| rel > s.0) {
+                    strongest = Some((rel, k, i, j));
+                }
+            }
+        }
+    }
+    strongest
+}
+
 /// The strongest coupling between `blocks` that stays at most [`COUPLING_HINT`] relative and
 /// above `tol`, with the number of blocks a tolerance of its size would give, when that is
 /// more than `blocks`.
-#[allow(non_snake_case)]
 fn near_miss(
     n: usize,
     matrices: &[(String, &DMatrix<f64>)],
@@ -404,18 +416,7 @@ fn near_miss(
     if finer.len() <= blocks.len() {
         return None;
     }
-    let of = block_of(n, &finer);
-    let mut size = 0.0f64;
-    for (_, P) in matrices {
-        for i in 0..n {
-            for j in i + 1..n {
-                let rel = relative(P, i, j);
-                if of[i] != of[j] && rel > tol {
-                    size = size.max(rel);
-                }
-            }
-        }
-    }
+    let (size, ..) = strongest_across(matrices, &block_of(n, &finer), tol)?;
     Some((size, blocks_at(n, matrices, patterns, size).len()))
 }
 

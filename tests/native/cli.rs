@@ -660,9 +660,18 @@ fn the_structure_note_goes_to_stderr_and_refusals_exit_nonzero() {
     let (code, _, err) = nmci(&["fuse"], PAPER);
     assert_eq!((code, err.as_str()), (0, ""));
     for (extra, needle) in [
-        (r#""blocks": [[0], [1]], "pa": [[3, 0.5], [0.5, 1]]"#, "pa[0][1] = 0.5 couples blocks 0 and 1"),
-        (r#""blocks": [[0]], "pa": [[3, 0], [0, 1]]"#, "state 1 is in no block"),
-        (r#""coupling_tol": 2, "pa": [[3, 0], [0, 1]]"#, "coupling_tol must be in [0, 1]"),
+        (
+            r#""blocks": [[0], [1]], "pa": [[3, 0.5], [0.5, 1]]"#,
+            "pa[0][1] = 0.5 couples blocks 0 and 1",
+        ),
+        (
+            r#""blocks": [[0]], "pa": [[3, 0], [0, 1]]"#,
+            "state 1 is in no block",
+        ),
+        (
+            r#""coupling_tol": 2, "pa": [[3, 0], [0, 1]]"#,
+            "coupling_tol must be in [0, 1]",
+        ),
     ] {
         let req = format!(r#"{{{extra}, "pb": [[1, 0], [0, 4]], "method": "nmci"}}"#);
         let (code, out, err) = nmci(&["fuse"], &req);
