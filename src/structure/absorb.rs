@@ -264,11 +264,11 @@ fn blocks_at(
 /// blocks, an entry across declared blocks above `coupling_tol`.
 ///
 /// ```
-/// use nalgebra::dmatrix;
+/// use nalgebra::DMatrix;
 /// use nmci::*;
 /// // Two axes whose covariances carry a round-off coupling of 1e-13.
-/// let P_a = dmatrix![4.0, 1e-13; 1e-13, 1.0];
-/// let P_b = dmatrix![1.0, 0.0; 0.0, 4.0];
+/// let P_a = DMatrix::from_row_slice(2, 2, &[4.0, 1e-13, 1e-13, 1.0]);
+/// let P_b = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 4.0]);
 /// let p = FusionProblem::from_covariances(P_a, P_b, CrossPattern::diagonal(2)).unwrap();
 /// let absorbed = absorb_couplings(&p, &StructureSettings::default()).unwrap();
 /// assert_eq!(absorbed.structure.blocks, vec![vec![0], vec![1]]);
