@@ -490,7 +490,8 @@ def certified(
     level-1 certificate on each of ``sectors`` sectors of directions (by default the library's
     count, chosen by measurement, unless ``level`` is set; ``sectors`` per block, 0 where none), and on blocks of three states,
     when ``cones`` (4, 16 or 64) is given, on each of that many cones of directions; its
-    trace never above nmCI's or CI's beyond rounding.
+    trace never above that of CI's (nmCI's) bound made a proven matrix: within ``1e-14`` of
+    their traces on well-conditioned blocks, up to 1.44 % above on near-singular ones.
 
     ``blocks`` declares a partition of the states into blocks with independent errors (it
     implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up

@@ -24,7 +24,8 @@
 //! which keeps it admissible, if needed; dropped if that fails — dropping a term keeps the
 //! bound valid); each `Λ_i` is shifted until proven PSD; `σ = 1 + ‖Σ Λ_i − I‖_F` rounded
 //! up; `μ` is proven by the same test on `H − μ I`; `f(v̂)` and `‖r‖²` are enclosed in
-//! balls. So **`lower_bound ≤ V*` holds in exact arithmetic for the problem's floats**, on
+//! balls. So **`lower_bound ≤ V*` holds in exact arithmetic for the problem's floats** (the
+//! inputs as symmetrised, `(A + Aᵀ)/2`: `FusionProblem` stores them so), on
 //! the floating-point model of `fusion::verify`, whatever the solver's accuracy (a loose
 //! solve only makes the bound weaker). This is the approach of Jansson, Chaykin and Keil,
 //! "Rigorous error bounds for the optimal value in semidefinite programming", SIAM J.
@@ -94,7 +95,7 @@ use super::certify::{
 use super::ci::{covariance_intersection, CiResult};
 use super::nmci::{non_monolithic_ci, NmciResult};
 use super::rules::Method;
-use super::verify::{down, is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
+use super::verify::{down, is_psd, norm2_up, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::Criterion;
 use super::{Fused, FusionProblem};
 use crate::error::{InputError, SolveError};
@@ -487,14 +488,12 @@ pub fn lower_bound(
         }
         d.ball()
     });
-    let fro = up(
+    let fro = norm2_up(
         sum_minus_i
             .mid
             .iter()
             .zip(sum_minus_i.rad.iter())
-            .map(|(m, r)| (m.abs() + r) * (m.abs() + r))
-            .sum::<f64>()
-            .sqrt(),
+            .map(|(m, r)| m.abs() + r),
         3 * n * n + 6,
     );
     let sigma = up(1.0 + fro, 2);

@@ -20,7 +20,9 @@
 //!   block-diagonal too and each block's CI bound dominates its block for every admissible
 //!   `P'`); and the certified rule (a sum-of-squares certificate, proof in `fusion::certify`).
 //!   For CI and nmCI this is a theorem about the exact `P`; the reported `P` is its
-//!   floating-point evaluation (within rounding of it), and the bracket's proven upper traces
+//!   floating-point evaluation (within `4 ε κ` relative of it, `κ` the condition number of the
+//!   pencil, measured against 50-digit references: docs/methods.md; not within rounding at
+//!   large `κ`), and the bracket's proven upper traces
 //!   (`fusion::bracket`) round it up. The certified rule's `P` is proven as computed, every
 //!   rounding included.
 //! - [`Guarantee::Relaxation`]: the sampled SDP (the paper's eq. `sampled_sdp`) and the
@@ -47,7 +49,9 @@ pub enum Method {
     /// Non-monolithic CI, one weight per independent block.
     Nmci,
     /// The tightest bound proven conservative by a sum-of-squares certificate of a chosen level
-    /// (`certified_fusion`): its trace never above nmCI's or CI's beyond rounding, tighter on
+    /// (`certified_fusion`): its trace never above that of CI's (nmCI's) bound made a proven
+    /// dominating matrix — within `10⁻¹⁴` of their traces on well-conditioned blocks, not on
+    /// near-singular ones (`fusion::certify`, "Never looser than CI in trace") — and tighter on
     /// many non-separable patterns.
     Certified,
     /// Sampled-SDP approximation of the optimal bound.

@@ -62,6 +62,25 @@ pub(crate) fn up(x_hat: f64, k: usize) -> f64 {
     x_hat.max(0.0) * (1.0 + 2.0 * gamma(k + 2)) + (k as f64 + 2.0) * TINY
 }
 
+/// A float no smaller than `√(Σ vᵢ²)` for the non-negative floats `values`, each computed by
+/// at most a few rounded operations, `k` counting them all (as for [`up`]).
+///
+/// [`up`]'s absolute term covers underflow in a sum, but not through a square root: a sum of
+/// squares that underflows to `s ≈ 0` has `√s` far below the true `√(Σ vᵢ²)`. So when the
+/// largest value `m` is at least `2⁻⁴⁰⁰`, the sum of squares is at least `m² ≥ 2⁻⁸⁰⁰`, the
+/// squares that underflow lose at most `k·2⁻¹⁰⁷⁵ ≤ k·2⁻²⁷⁵ · Σ vᵢ²` (a relative error far below
+/// one `γ_k`, which `up`'s relative factor covers, the root halving it), and the rounded-up
+/// root of the sum of squares is returned; below `2⁻⁴⁰⁰`, the rounded-up plain sum
+/// `Σ vᵢ ≥ √(Σ vᵢ²)`, with no square to underflow. Overflow gives `+∞`, which bounds anything.
+pub(crate) fn norm2_up(values: impl Iterator<Item = f64> + Clone, k: usize) -> f64 {
+    let largest = values.clone().fold(0.0f64, |m, v| m.max(v.abs()));
+    if largest >= 2f64.powi(-400) {
+        up(values.map(|v| v * v).sum::<f64>().sqrt(), k)
+    } else {
+        up(values.map(f64::abs).sum::<f64>(), k)
+    }
+}
+
 /// A float no larger than the exact value `x ≥ 0` of such an expression (never negative).
 pub(crate) fn down(x_hat: f64, k: usize) -> f64 {
     (x_hat * (1.0 - 2.0 * gamma(k + 2)) - (k as f64 + 2.0) * TINY).max(0.0)
@@ -239,7 +258,7 @@ impl BallMatrix {
     pub(crate) fn dominating(&self) -> DMatrix<f64> {
         let s = self.symmetrized();
         let n = s.mid.nrows();
-        let rho = up(s.rad.iter().map(|r| r * r).sum::<f64>().sqrt(), n * n + 4);
+        let rho = norm2_up(s.rad.iter().copied(), n * n + 4);
         let mut p = s.mid.clone();
         for i in 0..n {
             let add = up(rho + 2.0 * U * (p[(i, i)].abs() + rho), 4);
@@ -286,7 +305,7 @@ pub(crate) fn is_psd(mid: &DMatrix<f64>, rad: &DMatrix<f64>) -> bool {
     if rad.shape() != mid.shape() || rad.iter().any(|x| !x.is_finite()) {
         return false;
     }
-    let e = up(rad.iter().map(|r| r * r).sum::<f64>().sqrt(), n * n + 4);
+    let e = norm2_up(rad.iter().copied(), n * n + 4);
     psd_within(mid, e)
 }
 
@@ -437,6 +456,33 @@ pub(crate) fn psd_shift(m: &BallMatrix) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bound on a 2-norm holds where the squares underflow (radii of `10⁻²⁰⁰`, whose
+    /// squares are 0 in floating point: `up(√0)` gave about `10⁻²⁹⁹`), and stays the rounded-up
+    /// root of the sum of squares at ordinary sizes.
+    #[test]
+    fn the_norm_bound_survives_underflowing_squares() {
+        for v in [1e-200, 1e-170, 1e-121, 3e-308] {
+            let values = [v; 4];
+            let bound = norm2_up(values.iter().copied(), 8);
+            assert!(bound >= 2.0 * v, "{v:e}: {bound:e}");
+            assert!(
+                bound <= 4.0 * v * (1.0 + 1e-12) + 1e-298,
+                "{v:e}: {bound:e}"
+            );
+        }
+        let bound = norm2_up([3.0, 4.0].into_iter(), 4);
+        assert!((5.0..=5.0 * (1.0 + 1e-14)).contains(&bound), "{bound}");
+        assert_eq!(norm2_up([f64::MAX, f64::MAX].into_iter(), 4), f64::INFINITY);
+        // `dominating` of the zero matrix with radii of 1e-200 must dominate every matrix of
+        // the ball, e.g. the one of all 1e-200, whose largest eigenvalue is 2e-200.
+        let ball = BallMatrix {
+            mid: DMatrix::zeros(2, 2),
+            rad: DMatrix::from_element(2, 2, 1e-200),
+        };
+        let p = ball.dominating();
+        assert!(p[(0, 0)] >= 2e-200 && p[(1, 1)] >= 2e-200, "{p}");
+    }
 
     /// The witness of indefiniteness never fires on a matrix proven positive definite (random
     /// ones, and ones shifted to a smallest eigenvalue of 1e-12 relative), and fires on clearly
