@@ -142,9 +142,7 @@
 //! `10⁻¹⁴` relative on the well-conditioned random problems of the tests, but 1.44 % above it on
 //! a pair of condition number `2·10¹³` (`P_a = [[1, 1 − 10⁻¹³], …]`, `P_b` its mirror;
 //! `tests/native/certify.rs`), where the enclosure's radius, added to the diagonal to make the
-//! matrix dominate, is that large; and covariances near the bottom of the float range (order
-//! `10⁻³⁰⁰`) pay the proof's absolute underflow slack (`fusion::verify::up`), of their own
-//! size. It is not "never above CI's trace beyond rounding".
+//! matrix dominate, is that large. It is not "never above CI's trace beyond rounding".
 //!
 //! **Wholly unknown blocks.** Where a block's cross block is wholly unknown (and the gain is
 //! free), CI is the robust optimum (Reinhardt et al., above), so the program's optimum at any
@@ -735,9 +733,11 @@ struct BlockOutcome {
 /// `[2⁻⁴, 2⁴]` has its covariances multiplied by the power of two that brings that entry into
 /// `[1, 2)` — exactly, or not at all —
 /// so the solver's absolute tolerances meet data of order one whatever the units. The bound
-/// proven for the scaled block is mapped back by the inverse power of two; where an entry
-/// would not map back exactly (near the bottom of the float range) the block is certified as
-/// given instead, so the bound is always proven for the block as given.
+/// proven for the scaled block is mapped back by the inverse power of two, exactly, or where an
+/// entry would not map back exactly (near the bottom of the float range) to a matrix that
+/// dominates it by a few subnormal units (`Pow2::unscale_dominating`), so the bound is always
+/// proven for the block as given; the block is certified as given only when mapping back
+/// overflows.
 fn certify_one_block(
     sub: &FusionProblem,
     sub_gain: Option<&DMatrix<f64>>,
@@ -746,7 +746,7 @@ fn certify_one_block(
     let (scaled, scale) = Pow2::normalising(sub).scaled_problem(sub);
     if scale != Pow2::ONE {
         let outcome = certify_at_scale(&scaled, sub_gain, settings)?;
-        if let Some(p) = scale.unscale_exact(&outcome.P) {
+        if let Some(p) = scale.unscale_dominating(&outcome.P) {
             return Ok(BlockOutcome {
                 P: p,
                 repair: scale.unscale_value(outcome.repair),

@@ -21,8 +21,9 @@
 //! keeps `s = 1`. So the scaled problem is exactly `s` times the original, and a proof made
 //! for it (a certificate repaired in floating point, a Lagrangian lower bound) is a proof for
 //! the original once mapped back by `1/s` — exactly for a matrix whose every entry maps back
-//! exactly ([`Pow2::unscale_exact`]; the certified rule falls back to solving the block as
-//! given when one does not), and rounded outward for a scalar bound.
+//! exactly ([`Pow2::unscale_exact`]), or, where an entry leaves the normal range, with its
+//! diagonal raised by a few subnormal units so that it dominates ([`Pow2::unscale_dominating`]),
+//! and rounded outward for a scalar bound.
 //!
 //! ## Which scale
 //! A problem whose largest diagonal entry (of `P_a` and `P_b`) lies in `[2⁻⁴, 2⁴]` — the order
@@ -63,7 +64,7 @@ pub(crate) fn two_to(k: i32) -> f64 {
 }
 
 /// The least float above finite `x` (`f64::next_up`, which needs Rust 1.86).
-fn next_up(x: f64) -> f64 {
+pub(crate) fn next_up(x: f64) -> f64 {
     if x == 0.0 {
         f64::from_bits(1)
     } else if x > 0.0 {
@@ -166,6 +167,30 @@ impl Pow2 {
             *v = exact_times(*v, -self.k)?;
         }
         Some(out)
+    }
+
+    /// A symmetric float matrix `P̃ ⪰ 2⁻ᵏ m` for a symmetric `m` (a proven bound stays
+    /// proven): `2⁻ᵏ m` itself when every entry maps back exactly ([`Pow2::unscale_exact`]);
+    /// otherwise the rounded products with each diagonal entry raised by `δ = 2n·2⁻¹⁰⁷⁵` and
+    /// rounded up. A product by a power of two is exact unless it leaves the normal range, and
+    /// then its rounding error is at most `2⁻¹⁰⁷⁵` (half the spacing of the subnormals), so
+    /// `P̃ − 2⁻ᵏ m` has diagonal entries at least `δ − 2⁻¹⁰⁷⁵ = (2n − 1)·2⁻¹⁰⁷⁵` and
+    /// off-diagonal ones at most `2⁻¹⁰⁷⁵` in magnitude: it is diagonally dominant, hence positive
+    /// definite (Gershgorin). The cost is a few subnormal units per diagonal entry. `None` when
+    /// an entry overflows.
+    pub(crate) fn unscale_dominating(self, m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+        if let Some(exact) = self.unscale_exact(m) {
+            return Some(exact);
+        }
+        let n = m.nrows();
+        let delta = n as f64 * f64::from_bits(1); // 2n·2⁻¹⁰⁷⁵ = n·2⁻¹⁰⁷⁴
+        let mut out = self.unscale(m);
+        for i in 0..n {
+            // The float sum is within half a unit of the exact one; the next float above it
+            // is not below it.
+            out[(i, i)] = next_up(out[(i, i)] + delta);
+        }
+        out.iter().all(|v| v.is_finite()).then_some(out)
     }
 
     /// `2⁻ᵏ x`, rounded (a solver's objective, a violation).
@@ -280,6 +305,33 @@ mod tests {
             let (_, used) = Pow2::normalising(&p).scaled_problem(&p);
             assert_eq!(used != Pow2::ONE, scaled, "{entry}");
         }
+    }
+
+    /// Mapped back below the normal range, a bound still dominates its exact image: `P̃ 2ᵏ − m`
+    /// (exact: scaling up a float by a power of two is, and the difference of floats this close
+    /// is) is diagonally dominant with a positive diagonal; and where everything maps back
+    /// exactly, nothing changes.
+    #[test]
+    fn a_bound_mapped_below_the_normal_range_still_dominates() {
+        let m = DMatrix::from_row_slice(
+            3,
+            3,
+            &[1.5, 3e-20, -7e-21, 3e-20, 1.25, 1e-25, -7e-21, 1e-25, 1.0],
+        );
+        for k in [1000, 1010, 1020] {
+            let s = Pow2 { k };
+            assert!(s.unscale_exact(&m).is_none(), "k {k}");
+            let p = s.unscale_dominating(&m).unwrap();
+            let back = p.map(|v| v * two_to(k / 2) * two_to(k - k / 2));
+            let d = &back - &m;
+            for i in 0..3 {
+                let off: f64 = (0..3).filter(|&j| j != i).map(|j| d[(i, j)].abs()).sum();
+                assert!(d[(i, i)] > off, "k {k} row {i}: {d}");
+            }
+            assert_eq!(p, p.transpose());
+        }
+        let s = Pow2 { k: 10 };
+        assert_eq!(s.unscale_dominating(&m), s.unscale_exact(&m));
     }
 
     #[test]

@@ -72,6 +72,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{connected_components, CrossPattern};
 use crate::error::InputError;
+use crate::fusion::scale::next_up;
 use crate::fusion::verify::up;
 use crate::fusion::FusionProblem;
 
@@ -506,17 +507,6 @@ fn inflate(
     Ok((P_bar, found))
 }
 
-/// The next float above a finite non-negative `x` (`f64::next_up` without raising the crate's
-/// minimum Rust version).
-fn next_up(x: f64) -> f64 {
-    debug_assert!(x >= 0.0);
-    if x == 0.0 {
-        f64::from_bits(1)
-    } else {
-        f64::from_bits(x.to_bits() + 1)
-    }
-}
-
 impl CrossPattern {
     /// The pattern a declared partition implies: `P_ab[i][j]` unknown when `i`, `j` are in
     /// the same block, a known zero otherwise (independent errors across blocks).
@@ -530,13 +520,6 @@ impl CrossPattern {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn next_up_is_the_next_float() {
-        assert_eq!(next_up(1.0), 1.0 + f64::EPSILON);
-        assert_eq!(next_up(0.0), f64::from_bits(1));
-        assert!(next_up(f64::MAX).is_infinite());
-    }
 
     #[test]
     fn partitions_are_checked_by_state() {

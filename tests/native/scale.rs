@@ -110,6 +110,34 @@ fn a_power_of_two_change_of_units_changes_no_bit_but_the_exponent() {
     );
 }
 
+/// Near the bottom of the float range the certified rule is solved at unit scale and mapped
+/// back to a matrix that dominates (`Pow2::unscale_dominating`): its trace against CI's is what
+/// it is at ordinary scales. Certified as given instead, it was 33 times CI's at 10⁻³⁰⁰ and
+/// 3·10⁶ times at 10⁻³⁰⁵ (the proof's absolute underflow slack).
+#[test]
+fn the_certified_rule_costs_the_same_near_the_bottom_of_the_float_range() {
+    let ratio = |s: f64| {
+        let p = FusionProblem::from_covariances(
+            nalgebra::DMatrix::from_row_slice(2, 2, &[3.0 * s, 0.5 * s, 0.5 * s, s]),
+            nalgebra::DMatrix::from_row_slice(2, 2, &[s, -0.2 * s, -0.2 * s, 4.0 * s]),
+            CrossPattern::from_rows(&[vec![true, true], vec![false, true]]).unwrap(),
+        )
+        .unwrap();
+        let ci = covariance_intersection(&p, Criterion::Trace).unwrap();
+        let cert = certified_fusion(&p, &CertifySettings::default()).unwrap();
+        cert.fused.trace() / ci.fused.trace()
+    };
+    let at_1e200 = ratio(1e-200);
+    assert!(at_1e200 < 0.7, "{at_1e200}");
+    for s in [1e-300, 1e-305, 1e-307] {
+        let r = ratio(s);
+        assert!(
+            (r - at_1e200).abs() <= 1e-6 * at_1e200,
+            "{s:e}: {r} against {at_1e200}"
+        );
+    }
+}
+
 #[test]
 fn a_certified_bound_that_overflows_is_an_error_not_a_response() {
     // Covariances near 10³⁰⁰ with an entry 10⁻³⁰⁰ that would not survive the scaling (it
