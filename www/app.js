@@ -1,6 +1,6 @@
 // The explorer's UI: inputs, drawing and wiring; the worker round trip is www/explore-client.js,
 // the numbers panel www/numbers.js, the state and its URL www/state.js.
-import { LAYERS, SAMPLERS, preset, patternPreset, resize, encodeHash, decodeHash } from "./state.js";
+import { LAYERS, SAMPLERS, preset, patternPreset, resize, encodeHash, decodeHash, parseBlocks, formatBlocks } from "./state.js";
 import { el, marginal, axes, fromAxes, ellipsePath, frame } from "./plot.js";
 import { EXPLORER_RULES } from "./rules.js";
 import { createExploreClient } from "./explore-client.js";
@@ -204,6 +204,7 @@ function syncControls() {
   $("seed").value = state.seed;
   $("region").value = state.region;
   $("coupling-tol").value = state.couplingTol ?? "";
+  $("declared-blocks").value = formatBlocks(state.blocks);
   for (const id of ["view-i", "view-j"]) {
     const s = $(id);
     s.replaceChildren(...Array.from({ length: state.n }, (_, k) => new Option(`x${k + 1}`, k)));
@@ -407,6 +408,21 @@ function init() {
     e.target.classList.remove("bad");
     $("err-settings").textContent = "";
     state.couplingTol = t === "" ? undefined : v;
+    changed();
+  });
+  // Declared blocks: parsed here, checked by the library (a partition of the states that
+  // agrees with P_a, P_b and the pattern; its errors name `blocks`, `pa`, `pb` or
+  // `pab_unknown` and are shown beside that input).
+  $("declared-blocks").addEventListener("input", (e) => {
+    const { blocks, error } = parseBlocks(e.target.value);
+    if (error) {
+      e.target.classList.add("bad");
+      $("err-pattern").textContent = error;
+      return;
+    }
+    e.target.classList.remove("bad");
+    $("err-pattern").textContent = "";
+    state.blocks = blocks;
     changed();
   });
   for (const [id, k] of [["view-i", 0], ["view-j", 1]]) {

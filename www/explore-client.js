@@ -23,6 +23,7 @@ function request(s) {
     samples: s.samples, seed: s.seed, region_samples: s.region, sampler: s.sampler,
     max_trials: INTERACTIVE_MAX_TRIALS,
     ...(s.couplingTol === undefined ? {} : { coupling_tol: s.couplingTol }),
+    ...(s.blocks === undefined ? {} : { blocks: s.blocks }),
   };
 }
 

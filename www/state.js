@@ -99,6 +99,22 @@ export function resize(state, n) {
   return { ...state, n, pa: grow(state.pa, eye), pb: grow(state.pb, eye), pattern: grow(state.pattern, (i, j) => i === j), view, preset: "custom" };
 }
 
+/** Declared blocks as typed ("0 1 | 2 3") → `[[0, 1], [2, 3]]`, `undefined` for none, or an
+ * error naming the first token that is not a state index (whether the blocks are a partition of
+ * the states is the library's check, whose message the page shows). */
+export function parseBlocks(text) {
+  const t = text.trim();
+  if (t === "") return { blocks: undefined };
+  const blocks = t.split("|").map((group) => group.trim().split(/[\s,]+/).filter((x) => x !== ""));
+  for (const group of blocks) {
+    const bad = group.find((x) => !/^\d+$/.test(x));
+    if (bad !== undefined) return { error: `declared blocks: "${bad}" is not a state index (0-based)` };
+  }
+  return { blocks: blocks.map((g) => g.map(Number)) };
+}
+
+export const formatBlocks = (blocks) => (blocks ? blocks.map((b) => b.join(" ")).join(" | ") : "");
+
 export function encodeHash(state) {
   const compact = {
     n: state.n, pa: state.pa, pb: state.pb,
@@ -106,6 +122,7 @@ export function encodeHash(state) {
     samples: state.samples, seed: state.seed, region: state.region, criterion: state.criterion,
     sampler: state.sampler, view: state.view, layers: LAYERS.filter((l) => state.layers[l]), preset: state.preset,
     ...(state.couplingTol === undefined ? {} : { coupling_tol: state.couplingTol }),
+    ...(state.blocks === undefined ? {} : { blocks: state.blocks }),
   };
   return "#" + encodeURIComponent(JSON.stringify(compact));
 }
@@ -146,6 +163,7 @@ export function decodeHash(hash) {
     layers: pick("layers", Array.isArray(c.layers), Array.isArray(c.layers) && Object.fromEntries(LAYERS.map((l) => [l, c.layers.includes(l)])), base.layers),
     preset: pick("preset", typeof c.preset === "string", c.preset, "custom"),
     couplingTol: pick("coupling_tol", typeof c.coupling_tol === "number" && Number.isFinite(c.coupling_tol), c.coupling_tol, undefined),
+    blocks: pick("blocks", Array.isArray(c.blocks) && c.blocks.every((b) => Array.isArray(b) && b.every(Number.isInteger)), c.blocks, undefined),
   };
   return ignored.length
     ? { state, error: `the link's ${ignored.join(", ")} ${ignored.length === 1 ? "was" : "were"} out of range; the default${ignored.length === 1 ? " is" : "s are"} used` }

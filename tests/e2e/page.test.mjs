@@ -142,6 +142,31 @@ test("the round-off preset keeps nmCI's blocks and says what was absorbed; coupl
   await page.fill("#coupling-tol", "");
   await settle();
   assert.equal(await text("#err-settings"), "");
+  // Declared blocks: agreeing ones give the same numbers (and the CLI's); each refusal is
+  // shown beside the input it names, and the last valid result stays.
+  await page.fill("#declared-blocks", "0 1 | 2 3");
+  await settle();
+  await assertRulesMatchCli(page, "roundoff, declared blocks");
+  assert.match(await text("#blocks"), /nmCI blocks \(2\)/);
+  for (const [typed, message] of [
+    ["0 1 | 2", /state 3 is in no block/],
+    ["0 1 | 1 2 3", /state 1 is in two blocks/],
+    ["0 1 | x", /"x" is not a state index/],
+    ["0 2 | 1 3", /pab_unknown\[0\]\[1\] is true, but states 0 and 1 are in declared blocks 0 and 1/],
+  ]) {
+    await page.fill("#declared-blocks", typed);
+    await settle();
+    assert.match(await text("#err-pattern"), message, typed);
+  }
+  // With a pattern that agrees, the covariances still link the declared blocks: refused,
+  // naming the strongest entry, beside P_b.
+  await page.click('button[data-pattern="diagonal"]');
+  await settle();
+  assert.match(await text("#err-pb"), /pb\[2\]\[3\] = 1 couples blocks 0 and 1/);
+  await page.fill("#declared-blocks", "");
+  await settle();
+  assert.equal(await text("#err-pattern"), "");
+  assert.equal(await text("#err-pb"), "");
   await page.selectOption("#preset", "paper");
   await settle();
 });
@@ -369,7 +394,8 @@ test("the wasm package imports nothing from \"env\"", async () => {
 async function pageRequest(p, method) {
   const state = JSON.parse(decodeURIComponent(await p.evaluate(() => location.hash.slice(1))));
   const tol = state.coupling_tol === undefined ? {} : { coupling_tol: state.coupling_tol };
-  return { pa: state.pa, pb: state.pb, pab_unknown: state.pattern.map((row) => [...row].map((c) => c === "1")), criterion: state.criterion, method, ...tol };
+  const blocks = state.blocks === undefined ? {} : { blocks: state.blocks };
+  return { pa: state.pa, pb: state.pb, pab_unknown: state.pattern.map((row) => [...row].map((c) => c === "1")), criterion: state.criterion, method, ...tol, ...blocks };
 }
 /** The page's CI and nmCI rows and nmCI's blocks equal the CLI's for the page's own state. */
 async function assertRulesMatchCli(p, what) {
