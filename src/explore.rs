@@ -226,17 +226,18 @@ fn analyse(
         .check_sizes(Method::Sdp.info().limits.max_dim, "the explorer")?;
     let problem = request.pair.problem()?;
     // nmCI and the certified rule solve the problem with its near-zero couplings absorbed
-    // (`structure::absorb`), the SDP the problem as given; the bracket's upper ends are proven
-    // for both.
+    // (`structure::absorb`), the SDP the deflated one; the bracket's upper ends (from the
+    // absorbed problem) and its lower end (from the deflated one) are proven for the given one.
+    let settings = request.pair.structure_settings();
     let Structured {
         problem: absorbed,
         details: structure,
-    } = structured(
-        problem.clone(),
-        &request.pair.structure_settings(),
-        Method::Nmci,
-    )?;
-    check_blocks(Method::Sdp, &problem)?;
+        ..
+    } = structured(problem.clone(), &settings, Method::Nmci)?;
+    // The sampled SDP's problem: the deflated one when couplings were absorbed (its proven
+    // lower end holds for the given problem), the given one otherwise.
+    let relaxed = structured(problem.clone(), &settings, Method::Sdp)?.problem;
+    check_blocks(Method::Sdp, &relaxed)?;
     let plan = request.options.plan()?;
     check_count(
         "region_samples",
@@ -278,7 +279,8 @@ fn analyse(
             },
             // The page never shows the SDP's own-gain certificate: not computed here.
             Method::Sdp => {
-                sdp_response(&problem, &plan, Some(uppers), false).map_err(|e| e.to_string())
+                sdp_response(&relaxed, &absorbed, &plan, Some(uppers), false)
+                    .map_err(|e| e.to_string())
             }
             Method::SdpCuts => Err("the explorer does not run the cutting-plane SDP".into()),
         };

@@ -51,10 +51,14 @@ def test_without_absorption_nmci_is_ci_and_the_note_says_how_to_keep_the_blocks(
     assert abs(strict.trace - nmci.ci(PA, PB).trace) < 1e-12
 
 
-def test_the_sdp_solves_the_covariances_as_given_and_says_why():
-    with pytest.warns(nmci.StructureWarning, match="not absorbed"):
+def test_the_sdp_keeps_the_blocks_and_the_cutting_planes_say_why_they_do_not():
+    with pytest.warns(nmci.StructureWarning, match="diagonal lowered"):
         r = nmci.optimal(PA, PB, pab_unknown=DIAGONAL, samples=50)
-    assert r.structure["absorbed"] is False
+    assert r.structure["absorbed"] is True and r.blocks == [[0], [1]]
+    assert r.lower_bound <= r.upper_bound
+    with pytest.warns(nmci.StructureWarning, match="not absorbed"):
+        cuts = nmci.sdp_cuts(PA, PB, pab_unknown=DIAGONAL)
+    assert cuts.structure["absorbed"] is False
 
 
 def test_n_way_nmci_takes_declared_blocks():

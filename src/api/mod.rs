@@ -141,7 +141,11 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
             plan.criterion,
         );
     }
-    let Structured { problem, details } = structured(
+    let Structured {
+        problem,
+        upper,
+        details,
+    } = structured(
         request.problem()?,
         &request.pair.structure_settings(),
         request.method,
@@ -154,7 +158,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
         Method::Ei => Ok(ei_response(&problem)?.0),
         Method::Naive => Ok(naive_response(&problem).0),
         Method::Certified => Ok(certified_response(&problem, &plan.certify)?.0),
-        Method::Sdp => Ok(sdp_response(&problem, &plan, None, true)?.0),
+        Method::Sdp => Ok(sdp_response(&problem, &upper, &plan, None, true)?.0),
         Method::SdpCuts => {
             let cuts = optimal_fusion_cuts(&problem, &plan.cuts)?;
             // Past the time limit the own-gain certificate is left out, not an error (the loop
@@ -334,11 +338,15 @@ pub(crate) fn naive_response(problem: &FusionProblem) -> (FuseResponse, Fused) {
     (r, fused)
 }
 
-/// The sampled-SDP response; `uppers` are the certified upper bounds when the caller has
-/// already computed them (the bracket's certificates are then not repeated here);
-/// `own_gain`: whether to give the proven bound for the SDP's own gain (`gain_certified_trace`).
+/// The sampled-SDP response: the relaxation of `problem` (the deflated problem when couplings
+/// were absorbed, whose proven lower end holds for the given one), the upper ends proven on
+/// `upper` (the absorbed problem, or the given one; `structure::absorb`, "A lower end");
+/// `uppers` are the certified upper bounds when the caller has already computed them (the
+/// bracket's certificates are then not repeated here); `own_gain`: whether to give the proven
+/// bound for the SDP's own gain (`gain_certified_trace`).
 pub(crate) fn sdp_response(
     problem: &FusionProblem,
+    upper: &FusionProblem,
     plan: &Plan,
     uppers: Option<UpperBounds>,
     own_gain: bool,
@@ -347,8 +355,8 @@ pub(crate) fn sdp_response(
     let (uppers, cert) = match uppers {
         Some(u) => (u, None),
         None => {
-            let cert = bracket_certificate(problem, &plan.certify, None)?;
-            let uppers = upper_bounds(problem, cert.as_ref().map(|c| &c.fused.P))?;
+            let cert = bracket_certificate(upper, &plan.certify, None)?;
+            let uppers = upper_bounds(upper, cert.as_ref().map(|c| &c.fused.P))?;
             (uppers, cert)
         }
     };
@@ -356,7 +364,7 @@ pub(crate) fn sdp_response(
     // certificate (`fusion::bracket`, "A given gain's bound").
     let gain_certified_trace = if own_gain {
         gain_certified_trace(
-            problem,
+            upper,
             &opt.fused.K_a,
             &plan.certify,
             cert.as_ref().map(|c| &c.fused),

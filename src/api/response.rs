@@ -56,8 +56,10 @@ pub struct StructureDetails {
     pub exact_blocks: usize,
     /// The coupling tolerance used.
     pub coupling_tol: f64,
-    /// Whether the couplings were absorbed: `false` for the relaxations (`sdp`, `sdp_cuts`),
-    /// whose proven lower end holds for the covariances as given only, so they solve those.
+    /// Whether the couplings were absorbed: `false` for the cutting planes (`sdp_cuts`), which
+    /// stop on a bracket computed on the problem they solve and so solve the covariances as
+    /// given. The sampled SDP solves the deflated problem (`structure::absorb`, "A lower
+    /// end"), its upper ends the absorbed one.
     pub absorbed: bool,
     /// The couplings absorbed (empty when `absorbed` is false).
     pub couplings: Vec<crate::structure::Coupling>,

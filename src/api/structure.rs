@@ -10,12 +10,18 @@ use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::rules::{BlockUse, Method};
 use crate::fusion::{Criterion, FusionProblem};
 use crate::structure::absorb::block_of;
-use crate::structure::{absorb_couplings, independent_blocks, BlockStructure, StructureSettings};
+use crate::structure::{
+    absorb_couplings, independent_blocks, Absorbed, BlockStructure, StructureSettings,
+};
 
 /// A problem ready for a rule: the one it solves and what the response says of it.
 pub(crate) struct Structured {
-    /// The absorbed problem for rules that absorb, the given one otherwise.
+    /// The absorbed problem for rules that absorb, the deflated one for the sampled SDP (when
+    /// there is one), the given one otherwise.
     pub problem: FusionProblem,
+    /// The problem whose proven upper ends hold for the given one: the absorbed problem (the
+    /// given one itself when nothing was absorbed).
+    pub upper: FusionProblem,
     /// The response's `structure`.
     pub details: Option<StructureDetails>,
 }
@@ -34,6 +40,7 @@ pub(crate) fn structured(
     let tol = settings.coupling_tol;
     match method.block_use() {
         BlockUse::None => Ok(Structured {
+            upper: absorbed.problem,
             problem,
             details: None,
         }),
@@ -43,17 +50,48 @@ pub(crate) fn structured(
                 details_of(&absorbed.structure, tol, true, cost, None)
             });
             Ok(Structured {
-                problem: absorbed.problem,
+                problem: absorbed.problem.clone(),
+                upper: absorbed.problem,
                 details,
             })
         }
-        BlockUse::AsGiven => {
+        BlockUse::Deflates => match absorbed.deflated {
+            Some(deflated) => {
+                let lead = format!(
+                    "rule {} solves the covariances with the couplings dropped and the diagonal lowered by as much (a problem whose robust optimum is at most the given one's), so its proven lower end holds for the given problem; its upper end is proven on the absorbed problem",
+                    method.name()
+                );
+                let details = details_of(&absorbed.structure, tol, true, None, Some(lead));
+                Ok(Structured {
+                    problem: deflated,
+                    upper: absorbed.problem,
+                    details: Some(details),
+                })
+            }
+            None => as_given(problem, absorbed, settings, method, said),
+        },
+        BlockUse::AsGiven => as_given(problem, absorbed, settings, method, said),
+    }
+}
+
+/// A rule that solves the covariances as given (module docs of `structure::absorb`, "A lower
+/// end"): its `structure` names the blocks of the given problem and why nothing was absorbed.
+fn as_given(
+    problem: FusionProblem,
+    absorbed: Absorbed,
+    settings: &StructureSettings,
+    method: Method,
+    said: bool,
+) -> Result<Structured, InputError> {
+    let tol = settings.coupling_tol;
+    {
+        {
             let details = said.then(|| {
                 let s = &absorbed.structure;
                 let exact = independent_blocks(&problem.P_a, &problem.P_b, &problem.cross_pattern);
                 let kept = (!s.couplings.is_empty()).then(|| {
                     format!(
-                        "{} near-zero coupling{} not absorbed: rule {} gives a proven lower end, which holds for the covariances as given only, so it solves their {} block{} ({} with absorption, as nmci and certified use)",
+                        "{} near-zero coupling{} not absorbed: rule {} stops on a bracket computed on the problem it solves, whose lower end must hold for the covariances as given, so it solves their {} block{} ({} with absorption, as nmci, certified and sdp use)",
                         s.couplings.len(),
                         if s.couplings.len() == 1 { " was" } else { "s were" },
                         method.name(),
@@ -70,7 +108,11 @@ pub(crate) fn structured(
                 };
                 details_of(&as_given, tol, false, None, kept)
             });
-            Ok(Structured { problem, details })
+            Ok(Structured {
+                upper: absorbed.problem,
+                problem,
+                details,
+            })
         }
     }
 }

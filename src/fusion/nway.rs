@@ -202,7 +202,7 @@ pub fn absorb_couplings_nway(
         })
         .collect();
     patterns.extend(wholly_unknown);
-    let (inflated, structure) = absorb(n, &matrices, &patterns, settings)?;
+    let (inflated, _, structure) = absorb(n, &matrices, &patterns, settings)?;
     let estimates = estimates
         .iter()
         .zip(inflated)

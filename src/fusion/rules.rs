@@ -439,8 +439,13 @@ pub enum BlockUse {
     /// A conservative rule that solves each block: near-zero couplings are absorbed, since it
     /// stays conservative on a dominating problem (nmCI, the certified rule).
     Absorbs,
-    /// A relaxation with a proven lower end, which would not hold for the given problem after
-    /// an inflation: it solves the blocks of the covariances as given (the SDPs).
+    /// The sampled SDP: a relaxation with a proven lower end, which would not hold for the
+    /// given problem after an inflation; it solves the *deflated* problem, whose robust optimum
+    /// is at most the given one's (its blocks kept, `structure::absorb`, "A lower end"), and
+    /// takes its bracket's upper end from the absorbed problem.
+    Deflates,
+    /// The cutting planes: their loop stops on a bracket computed on the problem they solve,
+    /// so they solve the covariances as given.
     AsGiven,
 }
 
@@ -449,7 +454,8 @@ impl Method {
     pub fn block_use(self) -> BlockUse {
         match self {
             Method::Nmci | Method::Certified => BlockUse::Absorbs,
-            Method::Sdp | Method::SdpCuts => BlockUse::AsGiven,
+            Method::Sdp => BlockUse::Deflates,
+            Method::SdpCuts => BlockUse::AsGiven,
             Method::Ci | Method::Ici | Method::Ei | Method::Naive => BlockUse::None,
         }
     }

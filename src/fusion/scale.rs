@@ -75,7 +75,7 @@ pub(crate) fn next_up(x: f64) -> f64 {
 }
 
 /// The greatest float below finite `x`.
-fn next_down(x: f64) -> f64 {
+pub(crate) fn next_down(x: f64) -> f64 {
     -next_up(-x)
 }
 

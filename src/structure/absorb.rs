@@ -50,10 +50,19 @@
 //! for the given one, with the same guarantee they have on exact zeros (nmCI's to rounding of
 //! the exact `P`, the certified rule's with every rounding included).
 //!
-//! The argument is about upper bounds. A lower bound on the absorbed problem's robust optimum
-//! is not one on the given problem's (which can only be smaller), so the relaxations (`sdp`,
-//! `sdp_cuts`), whose responses carry a proven lower end, are run on the given problem and
-//! couplings are not absorbed for them.
+//! ## A lower end
+//! The argument is about upper bounds: a lower bound on the absorbed problem's robust optimum
+//! is not one on the given problem's (which can only be smaller). For a lower end, lower the
+//! diagonal instead: `P_a⁻ = D − diag(d_i I)`, each entry rounded down, so
+//! `P_a − P_a⁻ ⪰ E + diag(d_i I) ⪰ 0` by the same inequality. When `P_a⁻`, `P_b⁻` are proven
+//! positive definite, every admissible joint `J⁻` of the *deflated* problem gives the
+//! admissible joint `J⁻ + diag(P_a − P_a⁻, P_b − P_b⁻)` of the given one, with the same `P_ab`;
+//! so for every gain the worst case over the given problem is at least the worst case over the
+//! deflated one, and the robust optima satisfy `V*(deflated) ≤ V*(given) ≤ V*(absorbed)`. The
+//! sampled SDP solves the deflated problem (block by block: it has the blocks), its proven
+//! lower end is one for the given problem, and its bracket's upper end comes from the absorbed
+//! problem ([`Absorbed::deflated`]). The cutting planes stop on their own bracket, computed on
+//! the problem they solve, so they solve the given problem, couplings not absorbed.
 //!
 //! ## The default tolerance
 //! [`DEFAULT_COUPLING_TOL`] is `10⁻⁹`, the relative tolerance nmci already takes for
@@ -72,8 +81,8 @@ use serde::{Deserialize, Serialize};
 
 use super::{connected_components, CrossPattern};
 use crate::error::InputError;
-use crate::fusion::scale::next_up;
-use crate::fusion::verify::up;
+use crate::fusion::scale::{next_down, next_up};
+use crate::fusion::verify::{is_positive_definite, up};
 use crate::fusion::FusionProblem;
 
 /// The default coupling tolerance `τ` (module docs: "The default tolerance").
@@ -205,6 +214,11 @@ pub struct Absorbed {
     /// `P̄_b ⪰ P_b` block-diagonal in [`BlockStructure::blocks`], the same means and pattern.
     /// The given problem itself, bit for bit, when nothing was absorbed.
     pub problem: FusionProblem,
+    /// The problem with the couplings dropped and the diagonals *lowered* by the same `d_i`
+    /// (rounded down): its robust optimum is at most the given problem's, so a proven lower
+    /// bound for it is one for the given problem (module docs, "A lower end"). `None` when
+    /// nothing was absorbed, or when its covariances are not proven positive definite.
+    pub deflated: Option<FusionProblem>,
     /// Its blocks and the couplings absorbed.
     pub structure: BlockStructure,
 }
@@ -287,30 +301,41 @@ pub fn absorb_couplings(
         ("pb".to_string(), &problem.P_b),
     ];
     let patterns = [("pab_unknown".to_string(), &problem.cross_pattern)];
-    let (mut inflated, structure) = absorb(problem.dim(), &matrices, &patterns, settings)?;
+    let (mut inflated, mut lowered, structure) =
+        absorb(problem.dim(), &matrices, &patterns, settings)?;
     let P_b = inflated.pop().expect("two matrices");
     let P_a = inflated.pop().expect("two matrices");
+    let (L_b, L_a) = (lowered.pop().expect("two"), lowered.pop().expect("two"));
+    let deflated = (!structure.couplings.is_empty()
+        && is_positive_definite(&L_a)
+        && is_positive_definite(&L_b))
+    .then(|| FusionProblem {
+        P_a: L_a,
+        P_b: L_b,
+        ..problem.clone()
+    });
     Ok(Absorbed {
         problem: FusionProblem {
             P_a,
             P_b,
             ..problem.clone()
         },
+        deflated,
         structure,
     })
 }
 
 /// The structure of covariances `matrices` (named by their request field) of `n` states
 /// linked by cross patterns `patterns` (named likewise), and the covariances with their
-/// couplings absorbed, in order. A problem where some cross-covariance is wholly unknown is
-/// passed with a fully unknown pattern.
+/// couplings absorbed, and with their diagonals lowered instead, in order. A problem where some
+/// cross-covariance is wholly unknown is passed with a fully unknown pattern.
 #[allow(non_snake_case)]
 pub(crate) fn absorb(
     n: usize,
     matrices: &[(String, &DMatrix<f64>)],
     patterns: &[(String, &CrossPattern)],
     settings: &StructureSettings,
-) -> Result<(Vec<DMatrix<f64>>, BlockStructure), InputError> {
+) -> Result<(Vec<DMatrix<f64>>, Vec<DMatrix<f64>>, BlockStructure), InputError> {
     settings.validate(n)?;
     let tol = settings.coupling_tol;
     if let Some(declared) = &settings.blocks {
@@ -326,13 +351,16 @@ pub(crate) fn absorb(
     let of = block_of(n, &blocks);
     let mut couplings = Vec::new();
     let mut inflated = Vec::with_capacity(matrices.len());
+    let mut deflated = Vec::with_capacity(matrices.len());
     for (name, P) in matrices {
-        let (P_bar, found) = inflate(name, P, &blocks, &of)?;
+        let (P_bar, P_low, found) = inflate(name, P, &blocks, &of)?;
         couplings.extend(found);
         inflated.push(P_bar);
+        deflated.push(P_low);
     }
     Ok((
         inflated,
+        deflated,
         BlockStructure {
             blocks,
             couplings,
@@ -422,15 +450,15 @@ fn near_miss(
 }
 
 /// `P` with its couplings between `blocks` (`of`: the block of each state) absorbed into the
-/// diagonal (module docs), and the couplings found. `P` itself, bit for bit, when there are
-/// none.
+/// diagonal (module docs), the same with the diagonal lowered instead (module docs, "A lower
+/// end"), and the couplings found. `P` itself, bit for bit, twice, when there are none.
 #[allow(non_snake_case)]
 fn inflate(
     name: &str,
     P: &DMatrix<f64>,
     blocks: &[Vec<usize>],
     of: &[usize],
-) -> Result<(DMatrix<f64>, Vec<Coupling>), InputError> {
+) -> Result<(DMatrix<f64>, DMatrix<f64>, Vec<Coupling>), InputError> {
     let m = blocks.len();
     let mut found = Vec::new();
     // Proven bounds r_ij ≥ ‖E_ij‖₂ of each pair's coupling, added to d_i and d_j.
@@ -475,7 +503,7 @@ fn inflate(
         }
     }
     if found.is_empty() {
-        return Ok((P.clone(), found));
+        return Ok((P.clone(), P.clone(), found));
     }
     let d: Vec<f64> = radii
         .iter()
@@ -489,12 +517,12 @@ fn inflate(
         .collect();
     let n = P.nrows();
     let mut P_bar = DMatrix::from_fn(n, n, |i, j| if of[i] == of[j] { P[(i, j)] } else { 0.0 });
+    let mut P_low = P_bar.clone();
     for i in 0..n {
         let di = d[of[i]];
         if di > 0.0 {
-            let sum = P_bar[(i, i)] + di;
-            // Round up: the float sum is within half an ulp of the exact one.
-            let raised = next_up(sum);
+            // Round up (down): the float sum is within half an ulp of the exact one.
+            let raised = next_up(P_bar[(i, i)] + di);
             if !raised.is_finite() {
                 return Err(InputError::OutOfRange {
                     name: name.into(),
@@ -502,9 +530,10 @@ fn inflate(
                 });
             }
             P_bar[(i, i)] = raised;
+            P_low[(i, i)] = next_down(P_low[(i, i)] - di);
         }
     }
-    Ok((P_bar, found))
+    Ok((P_bar, P_low, found))
 }
 
 impl CrossPattern {

@@ -129,7 +129,17 @@ test("the round-off preset keeps nmCI's blocks and says what was absorbed; coupl
   assert.match(await text("#structure-note"), /nmCI's trace is \d\.\d\de-1\d above/);
   assert.ok((await num("#row-nmci .trace")) < (await num("#row-ci .trace")) - 0.01);
   assert.equal(await page.locator("#row-nmci .coin.neg").count(), 0);
+  // The SDP solves the deflated problem block by block: the bracket, proven for the coupled
+  // covariances at both ends, is the one of the same covariances without the couplings (the
+  // two-block preset) to the digits shown.
+  const bracket = async () => (await text("#gap")).match(/\[[^\]]*\]/)[0];
+  const coupled = await bracket();
   await page.screenshot({ path: join(out, "explorer-roundoff.png"), fullPage: true });
+  await page.selectOption("#preset", "twoblock");
+  await settle();
+  assert.equal(await bracket(), coupled);
+  await page.selectOption("#preset", "roundoff");
+  await settle();
   await page.fill("#coupling-tol", "0");
   await settle();
   await assertRulesMatchCli(page, "roundoff, coupling tol 0");

@@ -379,7 +379,8 @@ fn declared_blocks_imply_the_pattern() {
     // Given with the pattern, they agree: the same numbers.
     patterned.pair.blocks = declared.pair.blocks.clone();
     assert_eq!(fuse(&patterned).unwrap().p, d.p);
-    // The certified rule keeps the blocks too; the SDP solves the problem as given and says so.
+    // The certified rule keeps the blocks too; the sampled SDP solves the deflated problem (its
+    // blocks kept) and says so.
     let mut cert = declared.clone();
     cert.method = Method::Certified;
     let cert = fuse(&cert).unwrap();
@@ -394,9 +395,70 @@ fn declared_blocks_imply_the_pattern() {
     sdp.method = Method::Sdp;
     sdp.options.samples = Some(50);
     let sdp = fuse(&sdp).unwrap();
-    let s = sdp.structure.unwrap();
+    let s = sdp.structure.as_ref().unwrap();
+    assert!(s.absorbed && !s.couplings.is_empty());
+    assert!(
+        s.note.as_deref().unwrap().contains("diagonal lowered"),
+        "{:?}",
+        s.note
+    );
+    let Details::Sdp(details) = &sdp.details else {
+        panic!("sdp details")
+    };
+    assert_eq!(details.blocks.len(), 2);
+    let bracket = details.bracket.unwrap();
+    assert!(bracket.lower <= bracket.upper);
+    // The cutting planes stop on their own bracket: they solve the covariances as given.
+    let mut cuts = declared.clone();
+    cuts.method = Method::SdpCuts;
+    let cuts = fuse(&cuts).unwrap();
+    let s = cuts.structure.unwrap();
     assert!(!s.absorbed && s.couplings.is_empty());
     assert!(s.note.unwrap().contains("not absorbed"));
+}
+
+/// The sampled SDP's lower end on the deflated problem is a lower bound for the *given*
+/// coupled problem: below the cutting planes' proven upper end on the given problem (a 2-state
+/// problem, where their bracket closes). The same SDP on the absorbed (inflated) problem would
+/// not be: its lower end is above that upper end, so the check can fail.
+#[test]
+fn the_deflated_lower_end_holds_for_the_coupled_problem() {
+    let c = 1e-3;
+    let pa = DMatrix::from_row_slice(2, 2, &[3.0, c * 3f64.sqrt(), c * 3f64.sqrt(), 1.0]);
+    let pb = DMatrix::from_row_slice(2, 2, &[1.0, -c * 2.0, -c * 2.0, 4.0]);
+    let given =
+        FusionProblem::from_covariances(pa.clone(), pb.clone(), CrossPattern::diagonal(2)).unwrap();
+    let mut req = FuseRequest::new(Method::Sdp, rows(&pa), rows(&pb));
+    req.pair.pab_unknown = Some(vec![vec![true, false], vec![false, true]]);
+    req.pair.coupling_tol = Some(2.0 * c);
+    req.options.samples = Some(100);
+    let sdp = fuse(&req).unwrap();
+    let Details::Sdp(details) = &sdp.details else {
+        panic!("sdp details")
+    };
+    assert_eq!(details.blocks.len(), 2);
+    let lower = details.bracket.unwrap().lower;
+    let cuts = optimal_fusion_cuts(&given, &CutsSettings::default()).unwrap();
+    let upper_given = cuts.certified_trace.unwrap();
+    assert!(lower <= upper_given, "{lower} above {upper_given}");
+    let settings = StructureSettings {
+        coupling_tol: 2.0 * c,
+        ..StructureSettings::default()
+    };
+    let absorbed = absorb_couplings(&given, &settings).unwrap();
+    let inflated = optimal_fusion(
+        &absorbed.problem,
+        &SdpSettings {
+            samples: 100,
+            ..SdpSettings::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        inflated.lower_bound > upper_given,
+        "the inflated problem's lower end {} is not above the given optimum's upper end {upper_given}",
+        inflated.lower_bound
+    );
 }
 
 #[test]
