@@ -202,11 +202,14 @@ pub fn absorb_couplings_nway(
         })
         .collect();
     patterns.extend(wholly_unknown);
-    let (inflated, _, structure) = absorb(n, &matrices, &patterns, settings)?;
+    let (bounds, structure) = absorb(n, &matrices, &patterns, settings)?;
     let estimates = estimates
         .iter()
-        .zip(inflated)
-        .map(|(e, P)| Estimate { x: e.x.clone(), P })
+        .zip(bounds)
+        .map(|(e, b)| Estimate {
+            x: e.x.clone(),
+            P: b.above,
+        })
         .collect();
     Ok((estimates, pairs, structure))
 }

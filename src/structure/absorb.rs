@@ -301,11 +301,15 @@ pub fn absorb_couplings(
         ("pb".to_string(), &problem.P_b),
     ];
     let patterns = [("pab_unknown".to_string(), &problem.cross_pattern)];
-    let (mut inflated, mut lowered, structure) =
-        absorb(problem.dim(), &matrices, &patterns, settings)?;
-    let P_b = inflated.pop().expect("two matrices");
-    let P_a = inflated.pop().expect("two matrices");
-    let (L_b, L_a) = (lowered.pop().expect("two"), lowered.pop().expect("two"));
+    let (mut bounds, structure) = absorb(problem.dim(), &matrices, &patterns, settings)?;
+    let Bounds {
+        above: P_b,
+        below: L_b,
+    } = bounds.pop().expect("two matrices");
+    let Bounds {
+        above: P_a,
+        below: L_a,
+    } = bounds.pop().expect("two matrices");
     let deflated = (!structure.couplings.is_empty()
         && is_positive_definite(&L_a)
         && is_positive_definite(&L_b))
@@ -335,7 +339,7 @@ pub(crate) fn absorb(
     matrices: &[(String, &DMatrix<f64>)],
     patterns: &[(String, &CrossPattern)],
     settings: &StructureSettings,
-) -> Result<(Vec<DMatrix<f64>>, Vec<DMatrix<f64>>, BlockStructure), InputError> {
+) -> Result<(Vec<Bounds>, BlockStructure), InputError> {
     settings.validate(n)?;
     let tol = settings.coupling_tol;
     if let Some(declared) = &settings.blocks {
@@ -350,17 +354,14 @@ pub(crate) fn absorb(
     let near_miss = near_miss(n, matrices, patterns, &blocks, tol);
     let of = block_of(n, &blocks);
     let mut couplings = Vec::new();
-    let mut inflated = Vec::with_capacity(matrices.len());
-    let mut deflated = Vec::with_capacity(matrices.len());
+    let mut bounds = Vec::with_capacity(matrices.len());
     for (name, P) in matrices {
-        let (P_bar, P_low, found) = inflate(name, P, &blocks, &of)?;
+        let (b, found) = inflate(name, P, &blocks, &of)?;
         couplings.extend(found);
-        inflated.push(P_bar);
-        deflated.push(P_low);
+        bounds.push(b);
     }
     Ok((
-        inflated,
-        deflated,
+        bounds,
         BlockStructure {
             blocks,
             couplings,
@@ -458,7 +459,7 @@ fn inflate(
     P: &DMatrix<f64>,
     blocks: &[Vec<usize>],
     of: &[usize],
-) -> Result<(DMatrix<f64>, DMatrix<f64>, Vec<Coupling>), InputError> {
+) -> Result<(Bounds, Vec<Coupling>), InputError> {
     let m = blocks.len();
     let mut found = Vec::new();
     // Proven bounds r_ij ≥ ‖E_ij‖₂ of each pair's coupling, added to d_i and d_j.
@@ -503,7 +504,13 @@ fn inflate(
         }
     }
     if found.is_empty() {
-        return Ok((P.clone(), P.clone(), found));
+        return Ok((
+            Bounds {
+                above: P.clone(),
+                below: P.clone(),
+            },
+            found,
+        ));
     }
     let d: Vec<f64> = radii
         .iter()
@@ -533,7 +540,22 @@ fn inflate(
             P_low[(i, i)] = next_down(P_low[(i, i)] - di);
         }
     }
-    Ok((P_bar, P_low, found))
+    Ok((
+        Bounds {
+            above: P_bar,
+            below: P_low,
+        },
+        found,
+    ))
+}
+
+/// A covariance with its couplings absorbed (`above ⪰ P`) and with its diagonal lowered
+/// instead (`below ⪯ P`; module docs).
+pub(crate) struct Bounds {
+    /// `P̄`.
+    pub above: DMatrix<f64>,
+    /// `P⁻`.
+    pub below: DMatrix<f64>,
 }
 
 impl CrossPattern {
