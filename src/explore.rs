@@ -229,14 +229,14 @@ fn analyse(
     // (`structure::absorb`), the SDP the deflated one; the bracket's upper ends (from the
     // absorbed problem) and its lower end (from the deflated one) are proven for the given one.
     let settings = request.pair.structure_settings();
+    // `relaxed`: the sampled SDP's problem, the deflated one when couplings were absorbed (its
+    // proven lower end holds for the given problem), the given one otherwise.
     let Structured {
         problem: absorbed,
+        relaxed,
         details: structure,
         ..
     } = structured(problem.clone(), &settings, Method::Nmci)?;
-    // The sampled SDP's problem: the deflated one when couplings were absorbed (its proven
-    // lower end holds for the given problem), the given one otherwise.
-    let relaxed = structured(problem.clone(), &settings, Method::Sdp)?.problem;
     check_blocks(Method::Sdp, &relaxed)?;
     let plan = request.options.plan()?;
     check_count(

@@ -145,6 +145,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
         problem,
         upper,
         details,
+        ..
     } = structured(
         request.problem()?,
         &request.pair.structure_settings(),
@@ -238,9 +239,7 @@ fn fuse_nway(
     let (result, details): (NwayResult, _) = if method == Method::Ci {
         (covariance_intersection_nway(&estimates, criterion)?, None)
     } else {
-        let said = !structure.couplings.is_empty()
-            || structure.near_miss.is_some()
-            || settings.blocks.is_some();
+        let said = structure.worth_saying(settings.blocks.is_some());
         let details = said.then(|| details_of(&structure, settings.coupling_tol, true, None, None));
         (
             non_monolithic_ci_nway(&absorbed, &pairs, criterion)?,

@@ -10,9 +10,7 @@ use crate::fusion::nmci::non_monolithic_ci;
 use crate::fusion::rules::{BlockUse, Method};
 use crate::fusion::{Criterion, FusionProblem};
 use crate::structure::absorb::block_of;
-use crate::structure::{
-    absorb_couplings, independent_blocks, Absorbed, BlockStructure, StructureSettings,
-};
+use crate::structure::{absorb_couplings, independent_blocks, BlockStructure, StructureSettings};
 
 /// A problem ready for a rule: the one it solves and what the response says of it.
 pub(crate) struct Structured {
@@ -22,6 +20,9 @@ pub(crate) struct Structured {
     /// The problem whose proven upper ends hold for the given one: the absorbed problem (the
     /// given one itself when nothing was absorbed).
     pub upper: FusionProblem,
+    /// The problem the sampled SDP solves: the deflated one when there is one, the given one
+    /// otherwise (`structure::absorb`, "A lower end").
+    pub relaxed: FusionProblem,
     /// The response's `structure`.
     pub details: Option<StructureDetails>,
 }
@@ -34,87 +35,73 @@ pub(crate) fn structured(
     method: Method,
 ) -> Result<Structured, InputError> {
     let absorbed = absorb_couplings(&problem, settings)?;
-    let said = !absorbed.structure.couplings.is_empty()
-        || absorbed.structure.near_miss.is_some()
-        || settings.blocks.is_some();
+    let said = absorbed.structure.worth_saying(settings.blocks.is_some());
     let tol = settings.coupling_tol;
-    match method.block_use() {
-        BlockUse::None => Ok(Structured {
-            upper: absorbed.problem,
-            problem,
-            details: None,
-        }),
-        BlockUse::Absorbs => {
+    let relaxed = absorbed.deflated.clone().unwrap_or_else(|| problem.clone());
+    let (solved, details) = match (method.block_use(), &absorbed.deflated) {
+        (BlockUse::None, _) => (problem.clone(), None),
+        (BlockUse::Absorbs, _) => {
             let details = said.then(|| {
                 let cost = nmci_trace_cost(&problem, &absorbed.problem, &absorbed.structure);
                 details_of(&absorbed.structure, tol, true, cost, None)
             });
-            Ok(Structured {
-                problem: absorbed.problem.clone(),
-                upper: absorbed.problem,
-                details,
-            })
+            (absorbed.problem.clone(), details)
         }
-        BlockUse::Deflates => match absorbed.deflated {
-            Some(deflated) => {
-                let lead = format!(
-                    "rule {} solves the covariances with the couplings dropped and the diagonal lowered by as much (a problem whose robust optimum is at most the given one's), so its proven lower end holds for the given problem; its upper end is proven on the absorbed problem",
-                    method.name()
-                );
-                let details = details_of(&absorbed.structure, tol, true, None, Some(lead));
-                Ok(Structured {
-                    problem: deflated,
-                    upper: absorbed.problem,
-                    details: Some(details),
-                })
-            }
-            None => as_given(problem, absorbed, settings, method, said),
-        },
-        BlockUse::AsGiven => as_given(problem, absorbed, settings, method, said),
-    }
+        (BlockUse::Deflates, Some(deflated)) => {
+            let lead = format!(
+                "rule {} solves the covariances with the couplings dropped and the diagonal lowered by as much (a problem whose robust optimum is at most the given one's), so its proven lower end holds for the given problem; its upper end is proven on the absorbed problem",
+                method.name()
+            );
+            let details = details_of(&absorbed.structure, tol, true, None, Some(lead));
+            (deflated.clone(), Some(details))
+        }
+        (BlockUse::Deflates, None) | (BlockUse::AsGiven, _) => {
+            let why = if method.block_use() == BlockUse::AsGiven {
+                "stops on a bracket computed on the problem it solves, whose lower end must hold for the covariances as given"
+            } else {
+                "would need the covariances with their diagonal lowered, which are not proven positive definite"
+            };
+            let details = said.then(|| as_given(&problem, &absorbed.structure, tol, method, why));
+            (problem.clone(), details)
+        }
+    };
+    Ok(Structured {
+        problem: solved,
+        upper: absorbed.problem,
+        relaxed,
+        details,
+    })
 }
 
-/// A rule that solves the covariances as given (module docs of `structure::absorb`, "A lower
-/// end"): its `structure` names the blocks of the given problem and why nothing was absorbed.
+/// The `structure` of a rule that solves the covariances as given (module docs of
+/// `structure::absorb`, "A lower end"): the given problem's blocks, and `why` nothing was
+/// absorbed.
 fn as_given(
-    problem: FusionProblem,
-    absorbed: Absorbed,
-    settings: &StructureSettings,
+    problem: &FusionProblem,
+    s: &BlockStructure,
+    tol: f64,
     method: Method,
-    said: bool,
-) -> Result<Structured, InputError> {
-    let tol = settings.coupling_tol;
-    {
-        {
-            let details = said.then(|| {
-                let s = &absorbed.structure;
-                let exact = independent_blocks(&problem.P_a, &problem.P_b, &problem.cross_pattern);
-                let kept = (!s.couplings.is_empty()).then(|| {
-                    format!(
-                        "{} near-zero coupling{} not absorbed: rule {} stops on a bracket computed on the problem it solves, whose lower end must hold for the covariances as given, so it solves their {} block{} ({} with absorption, as nmci, certified and sdp use)",
-                        s.couplings.len(),
-                        if s.couplings.len() == 1 { " was" } else { "s were" },
-                        method.name(),
-                        exact.len(),
-                        if exact.len() == 1 { "" } else { "s" },
-                        s.blocks.len(),
-                    )
-                });
-                let as_given = BlockStructure {
-                    blocks: exact,
-                    couplings: Vec::new(),
-                    exact_blocks: s.exact_blocks,
-                    near_miss: s.near_miss,
-                };
-                details_of(&as_given, tol, false, None, kept)
-            });
-            Ok(Structured {
-                upper: absorbed.problem,
-                problem,
-                details,
-            })
-        }
-    }
+    why: &str,
+) -> StructureDetails {
+    let exact = independent_blocks(&problem.P_a, &problem.P_b, &problem.cross_pattern);
+    let kept = (!s.couplings.is_empty()).then(|| {
+        format!(
+            "{} near-zero coupling{} not absorbed: rule {} {why}, so it solves their {} block{} ({} with absorption, as nmci, certified and sdp use)",
+            s.couplings.len(),
+            if s.couplings.len() == 1 { " was" } else { "s were" },
+            method.name(),
+            exact.len(),
+            if exact.len() == 1 { "" } else { "s" },
+            s.blocks.len(),
+        )
+    });
+    let as_given = BlockStructure {
+        blocks: exact,
+        couplings: Vec::new(),
+        exact_blocks: s.exact_blocks,
+        near_miss: s.near_miss,
+    };
+    details_of(&as_given, tol, false, None, kept)
 }
 
 /// The response's structure of `s`, with a first sentence `lead` before its own note.

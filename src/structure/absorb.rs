@@ -224,6 +224,12 @@ pub struct Absorbed {
 }
 
 impl BlockStructure {
+    /// Whether a response should say how its blocks were found: couplings absorbed, a weak
+    /// coupling keeping blocks merged, or blocks `declared`.
+    pub fn worth_saying(&self, declared: bool) -> bool {
+        !self.couplings.is_empty() || self.near_miss.is_some() || declared
+    }
+
     /// `tr P̄_a + tr P̄_b − tr P_a − tr P_b`, the sum of [`Coupling::trace_added`].
     pub fn trace_added(&self) -> f64 {
         self.couplings.iter().map(|c| c.trace_added).sum()
