@@ -259,6 +259,24 @@ fn the_absorbed_bound_is_conservative_for_the_coupled_covariances() {
                 (added - reported).abs() <= ulps + 1e-12 * reported,
                 "n {n} c {c:e}: added {added:e}, reported {reported:e}"
             );
+            // Each coupling's `norm_bound` is at least its spectral norm (computed here by SVD).
+            for coupling in &absorbed.structure.couplings {
+                let P = if coupling.matrix == "pa" {
+                    &given.P_a
+                } else {
+                    &given.P_b
+                };
+                let (rows, cols) = (
+                    &absorbed.structure.blocks[coupling.blocks[0]],
+                    &absorbed.structure.blocks[coupling.blocks[1]],
+                );
+                let E = DMatrix::from_fn(rows.len(), cols.len(), |i, j| P[(rows[i], cols[j])]);
+                let sigma = E.singular_values().max();
+                assert!(
+                    coupling.norm_bound >= sigma,
+                    "n {n} c {c:e}: {coupling:?} {sigma:e}"
+                );
+            }
             // Sampled admissible cross-covariances of the given problem.
             let samples = sample_cross_covariances(
                 &given,
