@@ -197,7 +197,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let bracket = Bracket {
                         lower: cuts.lower_bound,
                         upper,
-                        upper_rule: Method::Certified,
+                        upper_rule: UpperRule::Certified,
                     };
                     gaps[k].push(bracket.gap_relative());
                     if verbose {

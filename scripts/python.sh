@@ -41,7 +41,7 @@ case "$what" in
   test)
     # The CLI to compare with: the dev build (`cargo test` has built its dependencies); the
     # contract tests compare its output with the release wheel's to the bit.
-    cargo build --quiet --bin nmci
+    cargo build --quiet -p nmci-cli
     NMCI_CLI="$PWD/target/debug/nmci" "$py" -m pytest -q python/tests
     ;;
   bench)

@@ -6,8 +6,11 @@ cd "$(dirname "$0")/.."
 export PATH="$HOME/.cargo/bin:$PATH"
 scripts/setup.sh test
 
+echo "== layers: the library's dependencies and its modules' imports (scripts/layers.py)"
+python3 scripts/layers.py
+
 echo "== native: cargo test (crate, BLAS/LAPACK shims, CLI, doc examples)"
-cargo test --workspace --exclude nmci-python
+cargo test --workspace --exclude nmci-python --all-features
 
 echo "== wasm: wasm-pack test in headless Chromium"
 scripts/wasm.sh test

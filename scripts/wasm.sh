@@ -34,7 +34,8 @@ case "${1:-}" in
     opt=()
     [ "$(setting build wasm_opt)" = "true" ] || opt=(--no-opt)
     wasm-pack build --mode no-install --target "$target" --out-dir "$out_dir" \
-      "$(profile_flag "$(setting build profile)")" "${opt[@]}" --no-pack
+      "$(profile_flag "$(setting build profile)")" "${opt[@]}" --no-pack \
+      -- --features "$(setting build features | tr ' ' ,)"
     # Guard: a symbol missing on wasm32 (e.g. an unpatched BLAS routine) becomes an import
     # from "env" instead of a link error. The package must import nothing from "env".
     node scripts/check-env-imports.mjs "$out_dir"
@@ -47,7 +48,8 @@ case "${1:-}" in
     for t in $(setting test test_files); do tests+=(--test "$t"); done
     WASM_BINDGEN_TEST_TIMEOUT=$(setting test timeout_seconds) \
       wasm-pack test --mode no-install "${headless[@]}" "--$browser" \
-      "$(profile_flag "$(setting test profile)")" -- "${tests[@]}"
+      "$(profile_flag "$(setting test profile)")" -- "${tests[@]}" \
+      --features "$(setting test features | tr ' ' ,)"
     ;;
   *)
     echo "usage: scripts/wasm.sh build|test" >&2

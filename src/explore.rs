@@ -293,7 +293,7 @@ fn analyse(
     let gap = sdp.and_then(|s| s.bracket()).map(|b| Gap {
         lower: b.lower,
         upper: b.upper,
-        upper_rule: b.upper_rule,
+        upper_rule: b.upper_rule.into(),
         absolute: b.gap(),
         relative: b.gap_relative(),
         closed: b.gap_relative() <= CLOSED_RTOL,

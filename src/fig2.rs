@@ -13,7 +13,8 @@
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 
-#[cfg(not(target_arch = "wasm32"))]
+use crate::chart::{Axis, Band, Chart, Line};
+#[cfg(all(feature = "files", not(target_arch = "wasm32")))]
 use crate::error::ReportError;
 use crate::error::RequestError;
 use crate::fusion::check::{fused_coin, margin};
@@ -271,8 +272,9 @@ pub fn fig2_csv(rows: &[Fig2Row]) -> String {
 }
 
 /// Writes `fig2.csv` ([`fig2_csv`]) and the two-panel `fig2.svg` of `runs` runs into `out`
-/// (created if missing): what `nmci fig2` writes. Returns the files. Native only.
-#[cfg(not(target_arch = "wasm32"))]
+/// (created if missing): what `nmci fig2` writes. Returns the files. Native only, feature
+/// `files`.
+#[cfg(all(feature = "files", not(target_arch = "wasm32")))]
 pub fn write_fig2(
     rows: &[Fig2Row],
     runs: usize,
@@ -295,8 +297,85 @@ pub fn write_fig2(
 /// The paper's fig. 2 layout ([`crate::fig2_charts`], the charts the page draws): top,
 /// `‖P_nmCI − P_opt‖₂` against the sample-set size (log–log, median with min and max);
 /// bottom, `λ_min(P − K P_true Kᵀ)` of nmCI and of the SDP.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(all(feature = "files", not(target_arch = "wasm32")))]
 fn fig2_chart(path: &std::path::Path, rows: &[Fig2Row], runs: usize) -> Result<(), ReportError> {
-    let [dev, eig] = crate::chart::fig2_charts(rows, runs);
+    let [dev, eig] = fig2_charts(rows, runs);
     crate::chart::write_svg(path, &[&dev, &eig], (900, 400))
+}
+
+/// Fig. 2's two charts from its summary rows over `runs` runs: `‖P_nmCI − P_opt‖₂` against
+/// the sample-set size (log–log: median line with dots, min–max band), and
+/// `λ_min(P − K P_true Kᵀ)` of nmCI and of the sampled SDP (the zero line dashed: below it,
+/// not conservative for the true `P_ab`).
+pub fn fig2_charts(rows: &[Fig2Row], runs: usize) -> [Chart; 2] {
+    let sizes: Vec<f64> = rows.iter().map(|r| r.samples as f64).collect();
+    let (x_lo, x_hi) = sizes
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    // Both charts on the same sample-size axis (the sizes, widened by a factor 1.25).
+    let x_range = x_lo.is_finite().then_some((x_lo / 1.25, x_hi * 1.25));
+    let x = || Axis {
+        label: "samples N".into(),
+        log: true,
+        range: x_range,
+    };
+    let median_band = |label: &str, colour: &str, pick: &dyn Fn(&Fig2Row) -> [f64; 3]| {
+        let col = |k: usize| rows.iter().map(|r| pick(r)[k]).collect::<Vec<f64>>();
+        (
+            Band {
+                label: None,
+                colour: colour.into(),
+                opacity: 0.18,
+                x: sizes.clone(),
+                lower: col(1),
+                upper: col(2),
+            },
+            Line {
+                label: Some(label.into()),
+                colour: colour.into(),
+                width: 2,
+                dashed: false,
+                dots: true,
+                points: sizes.iter().copied().zip(col(0)).collect(),
+            },
+        )
+    };
+    let (sdp, nmci) = (crate::Method::Sdp.info(), crate::Method::Nmci.info());
+    let (dev_band, dev_line) = median_band("sampled SDP vs nmCI", sdp.colour, &|r| r.dev);
+    let (opt_band, opt_line) = median_band(sdp.label, sdp.colour, &|r| r.eig_opt);
+    let (nm_band, nm_line) = median_band(nmci.label, nmci.colour, &|r| r.eig_nmci);
+    let zero = Line {
+        label: None,
+        colour: "#000000".into(),
+        width: 1,
+        dashed: true,
+        dots: false,
+        points: x_range.map_or(Vec::new(), |(lo, hi)| vec![(lo, 0.0), (hi, 0.0)]),
+    };
+    [
+        Chart {
+            title: format!("‖P_nmCI − P_opt‖₂ over {runs} runs (median; band: min to max)"),
+            x: x(),
+            y: Axis {
+                label: "deviation".into(),
+                log: true,
+                range: None,
+            },
+            bands: vec![dev_band],
+            lines: vec![dev_line],
+        },
+        Chart {
+            title: "λ_min(P − K P_true Kᵀ): below 0 = not conservative for the true P_ab".into(),
+            x: x(),
+            y: Axis {
+                label: "λ_min".into(),
+                log: false,
+                range: None,
+            },
+            bands: vec![opt_band, nm_band],
+            lines: vec![zero, opt_line, nm_line],
+        },
+    ]
 }

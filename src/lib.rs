@@ -60,26 +60,26 @@ pub use api::{
     FuseResponse, Gains, NwayEstimate, NwayPair, Options, PairInput, Plan, Rows, SdpDetails,
     StructureDetails, MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
 };
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(all(feature = "charts", not(target_arch = "wasm32")))]
 pub use chart::charts_svg;
-pub use chart::{
-    coin_chart, draw as draw_chart, fig2_charts, study_charts, Axis, Band, Chart, Line,
-};
+#[cfg(feature = "charts")]
+pub use chart::draw as draw_chart;
+pub use chart::{Axis, Band, Chart, Line};
 pub use error::{
     request_field, DrawError, InputError, ReportError, RequestError, SampleError, SolveError,
 };
 pub use explore::{
     explore, explore_with_memo, CoinStats, Exploration, ExploreRequest, Gap, RuleReport,
 };
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(all(feature = "files", not(target_arch = "wasm32")))]
 pub use fig2::write_fig2;
 pub use fig2::{
-    fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row, MAX_FIG2_RUNS,
-    MAX_FIG2_SIZES,
+    fig2_charts, fig2_csv, fig2_problem, fig2_run, fig2_summary, Fig2Config, Fig2Record, Fig2Row,
+    MAX_FIG2_RUNS, MAX_FIG2_SIZES,
 };
 pub use fusion::bracket::{
     ci_upper_bound, lower_bound as lagrangian_lower_bound, nmci_upper_bound, trace_upper_bound,
-    Bracket, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
+    Bracket, UpperBounds, UpperRule, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
 };
 pub use fusion::certify::{
     certified_fusion, certified_fusion_memo, certify_gain, CertificateMemo, Certificates,
@@ -102,6 +102,7 @@ pub use fusion::nway::{
     absorb_couplings_nway, covariance_intersection_nway, non_monolithic_ci_nway, NwayResult,
     PairPattern,
 };
+pub use fusion::program::SdpStatus;
 pub use fusion::rules::{
     rules, BlockUse, Criteria, Guarantee, Limits, Method, RequestOption, RuleInfo, RULES,
 };
@@ -109,11 +110,10 @@ pub use fusion::sample::{
     sample_cross_covariances, sample_cross_covariances_with, AutoChoice, CrossSamples, SamplerKind,
     SamplerSettings, AUTO_MIN_ACCEPTED, AUTO_PILOT_TRIALS, MAX_SAMPLE_COUNT, MAX_SAMPLE_ENTRIES,
 };
-pub use fusion::sdp::{
-    optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings, SdpStatus,
-};
+pub use fusion::sdp::{optimal_fusion, optimal_fusion_for_samples, SdpResult, SdpSettings};
 pub use fusion::{validate_covariance, Criterion, Estimate, Fused, FusionProblem};
 pub use linalg::{logdet_spd, min_eigenvalue};
+pub use sim::{coin_chart, study_charts};
 pub use structure::{
     absorb_couplings, check_partition, independent_blocks, Absorbed, BlockStructure, Coupling,
     CrossPattern, StructureSettings, COUPLING_HINT, DEFAULT_COUPLING_TOL,

@@ -10,6 +10,7 @@ use crate::error::RequestError;
 use crate::sim::{CoinTail, LiveCoin, LiveCoinPart, LiveRules, LiveStudy, StudyConfig, TraceTail};
 use crate::{ExploreRequest, Fig2Config, Fig2Record};
 
+#[cfg(feature = "charts")]
 mod canvas;
 
 /// A request object, parsed exactly as the CLI parses JSON: through a `serde_json::Value`,
@@ -384,7 +385,8 @@ pub fn fig2_summary(config: JsValue, runs: JsValue) -> Result<JsValue, JsError> 
 /// Draws a chart ([`crate::Chart`], as `Study.charts()` and [`fig2_charts`] give it) onto
 /// `canvas`, `width` × `height` CSS pixels, with the code that writes the CLI's SVG files
 /// ([`crate::draw_chart`]); returns the number of points drawn per line. Throws when the
-/// object is not a chart or the canvas cannot be drawn on.
+/// object is not a chart or the canvas cannot be drawn on. Feature `charts` (the page's build).
+#[cfg(feature = "charts")]
 #[wasm_bindgen]
 pub fn draw_chart(
     canvas: web_sys::HtmlCanvasElement,

@@ -345,7 +345,7 @@ impl ResponseWire {
         if let Some(b) = b {
             self.lower_bound = Some(b.lower);
             self.upper_bound = Some(b.upper);
-            self.upper_bound_rule = Some(b.upper_rule);
+            self.upper_bound_rule = Some(b.upper_rule.into());
             self.gap = Some(b.gap());
             self.gap_relative = Some(b.gap_relative());
         }
@@ -363,7 +363,7 @@ impl ResponseWire {
         Some(Bracket {
             lower: self.lower_bound?,
             upper: self.upper_bound?,
-            upper_rule: self.upper_bound_rule?,
+            upper_rule: self.upper_bound_rule?.upper_rule()?,
         })
     }
 

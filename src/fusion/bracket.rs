@@ -4,52 +4,9 @@
 //! The robust optimum is `V* = min tr P̄` over `K_a` (`K_b = I − K_a`) and `P̄` with
 //! `P̄ ⪰ K J Kᵀ` for every admissible joint covariance `J` (paper eq. (robust_sdp)).
 //!
-//! ## The lower end: a Lagrangian bound checked in exact arithmetic
-//! Let `J_1, …, J_M` be admissible (each `J_i ⪰ 0` with the diagonal blocks `P_a`, `P_b` and
-//! the known zeros) and `Λ_1, …, Λ_M ⪰ 0` (`n × n`) with `Σ Λ_i ⪯ σ I`. For every robust-
-//! feasible `(K, P̄)`, `P̄ ⪰ K J_i Kᵀ` and `P̄ ⪰ 0`, so
-//!
-//! `σ tr P̄ ≥ ⟨Σ Λ_i, P̄⟩ ≥ Σ ⟨Λ_i, K J_i Kᵀ⟩ = f(K_a) ≥ min_{K_a} f`,
-//!
-//! and `V* ≥ min f / σ`. With `e_f = e_b + K_a d`, `d = e_a − e_b`, each term is
-//! `⟨Λ_i, K_a S_i K_aᵀ⟩ + 2⟨Λ_i C_i, K_a⟩ + ⟨Λ_i, P_b⟩` (`S_i = P_a + P_b − X_i − X_iᵀ`,
-//! `C_i = X_iᵀ − P_b`, `X_i` the cross block of `J_i`), so with `v = vec K_a`,
-//! `f(v) = vᵀ H v + 2 gᵀ v + c₀`, `H = Σ S_i ⊗ Λ_i ⪰ 0`. For any `v̂` and `μ ≤ λ_min(H)`,
-//! `μ > 0`: `f(v) ≥ f(v̂) + 2 rᵀ(v − v̂) + μ ‖v − v̂‖² ≥ f(v̂) − ‖r‖²/μ`, `r = H v̂ + g`.
-//!
-//! The `J_i` and `Λ_i` come from the relaxation the caller solved (the sampled SDP's or the
-//! cutting planes' constraints and the solver's dual matrices; any choice is valid, a good
-//! one is tight), `v̂` solves `H v̂ = −g` approximately. Everything is then *checked*, not
-//! trusted: each `J_i` is proven PSD by `fusion::verify::is_psd` (pulled towards `P_ab = 0`,
-//! which keeps it admissible, if needed; dropped if that fails — dropping a term keeps the
-//! bound valid); each `Λ_i` is shifted until proven PSD; `σ = 1 + ‖Σ Λ_i − I‖_F` rounded
-//! up; `μ` is proven by the same test on `H − μ I`; `f(v̂)` and `‖r‖²` are enclosed in
-//! balls. So **`lower_bound ≤ V*` holds in exact arithmetic for the problem's floats** (the
-//! inputs as symmetrised, `(A + Aᵀ)/2`: `FusionProblem` stores them so), on
-//! the floating-point model of `fusion::verify`, whatever the solver's accuracy (a loose
-//! solve only makes the bound weaker). This is the approach of Jansson, Chaykin and Keil,
-//! "Rigorous error bounds for the optimal value in semidefinite programming", SIAM J.
-//! Numer. Anal. 46(1), 2007, specialised to this program (the gain is eliminated exactly
-//! instead of bounded a priori).
-//!
-//! **Independent blocks.** When `P_a`, `P_b` and the pattern split the state into
-//! independent blocks, every admissible `J` is block diagonal (in the blocks' order), and the
-//! bound is computed per block `B` with `J_i` built on that block (and `P_a`, `P_b`'s blocks
-//! elsewhere). For any robust-feasible `(K, P̄)`, the diagonal block
-//! `(K J Kᵀ)_BB = Σ_C K_BC J_CC K_BCᵀ ⪰ K_BB J_BB K_BBᵀ`, and `K_BB` is itself unbiased
-//! (`(K_a)_BB + (K_b)_BB = I`), so `tr P̄_BB` is at least block `B`'s bound, and the sum of
-//! the per-block bounds (rounded down) is a lower bound on `V*`.
-//!
-//! ## The upper end
-//! Each conservative rule gives a `P̄` that dominates `K J Kᵀ` for every admissible `J`, so
-//! its trace bounds `V*` from above. To be a bound in floating point too, the trace is
-//! recomputed in exact arithmetic with rounding enclosed:
-//! - CI with weight `ω ∈ (0, 1)` and any gain `K_a`: for every `J ⪰ 0` with diagonal blocks
-//!   `P_a`, `P_b`, `K J Kᵀ ⪯ ω⁻¹ K_a P_a K_aᵀ + (1−ω)⁻¹ K_b P_b K_bᵀ` (Young's inequality;
-//!   `ω ∈ {0, 1}` needs `K_a = 0`, resp. `K_a = I`), so the upper end is the rounded-up
-//!   trace of the right side for the rule's own `ω` and gain; nmCI sums it over its blocks.
-//! - The certified rule: its `P̄` is proven (`fusion::certify`); its trace is rounded up.
-//!
+//! The lower end is `fusion::lower` ([`lower_bound`], a Lagrangian bound checked in exact
+//! arithmetic), the upper ends `fusion::upper` (each conservative rule's trace, recomputed
+//! with rounding enclosed). This module composes them:
 //! `upper_bound` is the smallest of these, `lower_bound ≤ V* ≤ upper_bound` holds
 //! rigorously, and `gap = upper_bound − lower_bound ≥ 0` (rounded up).
 //!
@@ -86,20 +43,20 @@
 //! test) the carried-over bound exceeds the certified rule's trace by only `2√(t₀ d) + d`, and
 //! the second solve is saved (`docs/development.md` has the timings).
 
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use nalgebra::DMatrix;
 
 use super::certify::{
     certification_blocks, certified_fusion, certified_fusion_memo, certify_gain, CertificateMemo,
     CertifiedResult, CertifySettings,
 };
-use super::ci::{covariance_intersection, CiResult};
-use super::nmci::{non_monolithic_ci, NmciResult};
-use super::rules::Method;
-use super::verify::{down, is_psd, norm2_up, psd_shift, up, Ball, BallMatrix, Dot, U};
+use super::ci::covariance_intersection;
+pub use super::lower::lower_bound;
+use super::nmci::non_monolithic_ci;
+pub use super::upper::{ci_upper_bound, nmci_upper_bound, trace_upper_bound};
+use super::verify::{Ball, BallMatrix, Dot};
 use super::Criterion;
 use super::{Fused, FusionProblem};
 use crate::error::{InputError, SolveError};
-use crate::linalg::cholesky_of;
 
 /// The relative gap below which a bracket counts as closed: the robust optimum is then
 /// proven to that relative accuracy (`gap ≤ 10⁻⁶ · upper`).
@@ -239,7 +196,19 @@ pub struct Bracket {
     /// A proven upper bound: the smallest rigorous trace of the conservative rules computed.
     pub upper: f64,
     /// The rule that gives `upper`.
-    pub upper_rule: Method,
+    pub upper_rule: UpperRule,
+}
+
+/// A rule whose proven trace can be a bracket's upper end (`fusion::upper`); its
+/// request-level name is the registry's (`Method::from`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum UpperRule {
+    /// CI (trace criterion).
+    Ci,
+    /// Non-monolithic CI (trace criterion).
+    Nmci,
+    /// The certified rule.
+    Certified,
 }
 
 impl Bracket {
@@ -308,9 +277,9 @@ impl UpperBounds {
     /// The smallest bound and its rule. Ties go to nmCI, then CI (the closed-form rules); the
     /// certified rule is named only when it is smaller by more than `10⁻¹²` relative (where
     /// it takes CI's bound per block, the two differ by rounding only).
-    pub fn best(&self) -> Option<(f64, Method)> {
-        let mut best: Option<(f64, Method)> = None;
-        for (v, rule) in [(self.nmci, Method::Nmci), (self.ci, Method::Ci)] {
+    pub fn best(&self) -> Option<(f64, UpperRule)> {
+        let mut best: Option<(f64, UpperRule)> = None;
+        for (v, rule) in [(self.nmci, UpperRule::Nmci), (self.ci, UpperRule::Ci)] {
             if let Some(v) = v {
                 if best.is_none_or(|(b, _)| v < b) {
                     best = Some((v, rule));
@@ -319,7 +288,7 @@ impl UpperBounds {
         }
         if let Some(c) = self.certified {
             if best.is_none_or(|(b, _)| c < b * (1.0 - 1e-12)) {
-                best = Some((c, Method::Certified));
+                best = Some((c, UpperRule::Certified));
             }
         }
         best
@@ -333,348 +302,6 @@ impl UpperBounds {
             upper_rule,
         })
     }
-}
-
-/// `tr P` rounded up.
-pub fn trace_upper_bound(p: &DMatrix<f64>) -> f64 {
-    BallMatrix::exact(p).trace().upper()
-}
-
-/// The rounded-up trace of `ω⁻¹ K_a P_a K_aᵀ + (1−ω)⁻¹ K_b P_b K_bᵀ` (`K_b = I − K_a`
-/// exactly) for CI's weight and gain: a proven upper bound on `V*` (module docs).
-pub fn ci_upper_bound(problem: &FusionProblem, ci: &CiResult) -> Option<f64> {
-    weighted_upper(&problem.P_a, &problem.P_b, &ci.fused.K_a, ci.omega)
-}
-
-/// nmCI's bound: [`ci_upper_bound`] summed over its blocks (its gain must be block diagonal).
-pub fn nmci_upper_bound(problem: &FusionProblem, nm: &NmciResult) -> Option<f64> {
-    let n = problem.dim();
-    let mut block_of = vec![usize::MAX; n];
-    for (b, block) in nm.blocks.iter().enumerate() {
-        for &i in block {
-            block_of[i] = b;
-        }
-    }
-    let mixes =
-        (0..n).any(|i| (0..n).any(|j| block_of[i] != block_of[j] && nm.fused.K_a[(i, j)] != 0.0));
-    if mixes || block_of.contains(&usize::MAX) {
-        return None;
-    }
-    let mut total = Dot::new();
-    for (block, &omega) in nm.blocks.iter().zip(&nm.omega) {
-        let pick = |m: &DMatrix<f64>| {
-            DMatrix::from_fn(block.len(), block.len(), |i, j| m[(block[i], block[j])])
-        };
-        let b = weighted_upper(
-            &pick(&problem.P_a),
-            &pick(&problem.P_b),
-            &pick(&nm.fused.K_a),
-            omega,
-        )?;
-        total.add(Ball::exact(b));
-    }
-    Some(total.ball().upper())
-}
-
-#[allow(non_snake_case)]
-fn weighted_upper(
-    P_a: &DMatrix<f64>,
-    P_b: &DMatrix<f64>,
-    K_a: &DMatrix<f64>,
-    omega: f64,
-) -> Option<f64> {
-    // The rule's own ω; where it does not fit the gain exactly (an endpoint with a gain that
-    // is not exactly 0 or I), ω = 1/2, for which Young's inequality holds for any gain.
-    young_bound(P_a, P_b, K_a, omega)
-        .or_else(|| young_bound(P_a, P_b, K_a, 0.5))
-        .map(|m| m.trace().upper())
-}
-
-/// `ω⁻¹ K_a P_a K_aᵀ + (1−ω)⁻¹ K_b P_b K_bᵀ` (`K_b = I − K_a` exactly) as a ball matrix: for
-/// every `J ⪰ 0` with diagonal blocks `P_a`, `P_b` it dominates `K J Kᵀ` (Young's inequality,
-/// module docs). `ω ∈ {0, 1}` only with `K_a = 0`, resp. `K_a = I` (then `K J Kᵀ` is the one
-/// term); `None` otherwise or for `ω ∉ [0, 1]`.
-#[allow(non_snake_case)]
-pub(crate) fn young_bound(
-    P_a: &DMatrix<f64>,
-    P_b: &DMatrix<f64>,
-    K_a: &DMatrix<f64>,
-    omega: f64,
-) -> Option<BallMatrix> {
-    let n = P_a.nrows();
-    let K_b = BallMatrix::identity_minus(K_a);
-    let Ka = BallMatrix::exact(K_a);
-    let a = Ka.mul(&BallMatrix::exact(P_a)).mul(&Ka.transpose());
-    let b = K_b.mul(&BallMatrix::exact(P_b)).mul(&K_b.transpose());
-    if omega == 0.0 {
-        return K_a.iter().all(|&k| k == 0.0).then_some(b);
-    }
-    if omega == 1.0 {
-        let identity =
-            (0..n).all(|i| (0..n).all(|j| K_a[(i, j)] == if i == j { 1.0 } else { 0.0 }));
-        return identity.then_some(a);
-    }
-    if !(omega > 0.0 && omega < 1.0) {
-        return None;
-    }
-    let wa = Ball::exact(omega).recip()?;
-    let one_minus = 1.0 - omega;
-    let wb = Ball {
-        mid: one_minus,
-        rad: up(U * one_minus, 1),
-    }
-    .recip()?;
-    Some(BallMatrix::from_fn(n, n, |i, j| {
-        let mut d = Dot::new();
-        d.add_prod(wa, a.at(i, j));
-        d.add_prod(wb, b.at(i, j));
-        d.ball()
-    }))
-}
-
-/// The `ω` minimising `tr` of [`young_bound`] for a fixed gain: `√A / (√A + √B)` with
-/// `A = tr K_a P_a K_aᵀ`, `B = tr K_b P_b K_bᵀ` (any `ω` gives a valid bound).
-#[allow(non_snake_case)]
-pub(crate) fn young_omega(P_a: &DMatrix<f64>, P_b: &DMatrix<f64>, K_a: &DMatrix<f64>) -> f64 {
-    let n = P_a.nrows();
-    let K_b = DMatrix::identity(n, n) - K_a;
-    let a = (K_a * P_a * K_a.transpose()).trace().max(0.0).sqrt();
-    let b = (&K_b * P_b * K_b.transpose()).trace().max(0.0).sqrt();
-    if a == 0.0 {
-        0.0
-    } else if b == 0.0 {
-        1.0
-    } else {
-        a / (a + b)
-    }
-}
-
-/// A proven lower bound on the robust optimum `V*` of `problem` from admissible cross blocks
-/// `cross[i]` and dual matrices `duals[i]` (module docs); `0` when nothing can be proven.
-#[allow(non_snake_case)]
-pub fn lower_bound(
-    problem: &FusionProblem,
-    cross: &[&DMatrix<f64>],
-    duals: &[DMatrix<f64>],
-) -> f64 {
-    let n = problem.dim();
-    let mut terms: Vec<(DMatrix<f64>, DMatrix<f64>)> = Vec::new(); // (X_i, Λ_i)
-    for (X, L) in cross.iter().zip(duals) {
-        if X.shape() != (n, n)
-            || L.shape() != (n, n)
-            || X.iter().chain(L.iter()).any(|x| !x.is_finite())
-        {
-            continue;
-        }
-        let Some(X) = admissible(problem, X) else {
-            continue;
-        };
-        let Some(L) = proven_psd(&symmetric_floats(L)) else {
-            continue;
-        };
-        terms.push((X, L));
-    }
-    if terms.is_empty() {
-        return 0.0;
-    }
-    // σ ≥ λ_max(Σ Λ_i): 1 + ‖Σ Λ_i − I‖_F.
-    let sum_minus_i = BallMatrix::from_fn(n, n, |r, c| {
-        let mut d = Dot::new();
-        for (_, L) in &terms {
-            d.add(Ball::exact(L[(r, c)]));
-        }
-        if r == c {
-            d.add(Ball::exact(-1.0));
-        }
-        d.ball()
-    });
-    let fro = norm2_up(
-        sum_minus_i
-            .mid
-            .iter()
-            .zip(sum_minus_i.rad.iter())
-            .map(|(m, r)| m.abs() + r),
-        3 * n * n + 6,
-    );
-    let sigma = up(1.0 + fro, 2);
-    // S_i, C_i as balls; H = Σ S_i ⊗ Λ_i, g = vec Σ Λ_i C_i, c₀ = Σ ⟨Λ_i, P_b⟩.
-    let sc: Vec<(BallMatrix, BallMatrix)> = terms
-        .iter()
-        .map(|(X, _)| {
-            let S = BallMatrix::from_fn(n, n, |k, l| {
-                let mut d = Dot::new();
-                for v in [
-                    problem.P_a[(k, l)],
-                    problem.P_b[(k, l)],
-                    -X[(k, l)],
-                    -X[(l, k)],
-                ] {
-                    d.add(Ball::exact(v));
-                }
-                d.ball()
-            });
-            let C = BallMatrix::from_fn(n, n, |k, l| {
-                let mut d = Dot::new();
-                d.add(Ball::exact(X[(l, k)]));
-                d.add(Ball::exact(-problem.P_b[(k, l)]));
-                d.ball()
-            });
-            (S.symmetrized(), C)
-        })
-        .collect();
-    let nn = n * n;
-    let H = BallMatrix::from_fn(nn, nn, |a, b| {
-        let (k, r) = (a / n, a % n);
-        let (l, s) = (b / n, b % n);
-        let mut d = Dot::new();
-        for ((_, L), (S, _)) in terms.iter().zip(&sc) {
-            d.add_prod(S.at(k, l), Ball::exact(L[(r, s)]));
-        }
-        d.ball()
-    })
-    .symmetrized();
-    let g: Vec<Ball> = (0..nn)
-        .map(|a| {
-            let (k, r) = (a / n, a % n);
-            let mut d = Dot::new();
-            for ((_, L), (_, C)) in terms.iter().zip(&sc) {
-                for t in 0..n {
-                    d.add_prod(Ball::exact(L[(r, t)]), C.at(t, k));
-                }
-            }
-            d.ball()
-        })
-        .collect();
-    let mut c0 = Dot::new();
-    for (_, L) in &terms {
-        for r in 0..n {
-            for c in 0..n {
-                c0.add_exact_prod(L[(r, c)], problem.P_b[(r, c)]);
-            }
-        }
-    }
-    let c0 = c0.ball();
-    // μ ≤ λ_min(H), proven.
-    let estimate = SymmetricEigen::new(H.mid.clone()).eigenvalues.min();
-    if estimate.is_nan() || estimate <= 0.0 {
-        return 0.0;
-    }
-    let mut mu = 0.5 * estimate;
-    let mut proven_mu = None;
-    for _ in 0..20 {
-        let mut shifted = H.clone();
-        for i in 0..nn {
-            let m = shifted.mid[(i, i)] - mu;
-            shifted.rad[(i, i)] = up(shifted.rad[(i, i)] + U * m.abs(), 3);
-            shifted.mid[(i, i)] = m;
-        }
-        if is_psd(&shifted.mid, &shifted.rad) {
-            proven_mu = Some(mu);
-            break;
-        }
-        mu *= 0.5;
-    }
-    let Some(mu) = proven_mu else {
-        return 0.0;
-    };
-    // v̂ ≈ −H⁻¹ g.
-    let g_mid = DVector::from_iterator(nn, g.iter().map(|b| b.mid));
-    let v = match cholesky_of(H.mid.clone()) {
-        Some(ch) => -ch.solve(&g_mid),
-        None => DVector::zeros(nn),
-    };
-    if v.iter().any(|x| !x.is_finite()) {
-        return 0.0;
-    }
-    // f(v̂) and r = H v̂ + g as balls.
-    let mut f = Dot::new();
-    let mut r_sq = 0.0;
-    for a in 0..nn {
-        let mut ra = Dot::new();
-        for b in 0..nn {
-            let w = v[a] * v[b];
-            f.add_prod(
-                H.at(a, b),
-                Ball {
-                    mid: w,
-                    rad: up(U * w.abs(), 1),
-                },
-            );
-            ra.add_prod(H.at(a, b), Ball::exact(v[b]));
-        }
-        ra.add(g[a]);
-        let ra = ra.ball();
-        let mag = ra.mid.abs() + ra.rad;
-        r_sq += mag * mag;
-        f.add_prod(g[a], Ball::exact(2.0 * v[a]));
-    }
-    f.add(c0);
-    let f_low = f.ball().lower();
-    let penalty = up(up(r_sq, 2 * nn + 2) / mu, 2);
-    let numerator = Ball {
-        mid: f_low - penalty,
-        rad: 0.0,
-    }
-    .lower();
-    if numerator.is_nan() || numerator <= 0.0 {
-        return 0.0;
-    }
-    down(numerator / sigma, 2)
-}
-
-/// The admissible joint covariance nearest to `X` on the segment to `P_ab = 0` that can be
-/// proven PSD (known zeros forced): `X` itself or `(1 − 2⁻ᵏ) X`; `None` if none is proven.
-#[allow(non_snake_case)]
-fn admissible(problem: &FusionProblem, X: &DMatrix<f64>) -> Option<DMatrix<f64>> {
-    let n = problem.dim();
-    let X = DMatrix::from_fn(n, n, |i, j| {
-        if problem.cross_pattern.is_unknown(i, j) {
-            X[(i, j)]
-        } else {
-            0.0
-        }
-    });
-    for t in [
-        1.0,
-        1.0 - 2f64.powi(-40),
-        1.0 - 2f64.powi(-26),
-        1.0 - 2f64.powi(-14),
-        0.99,
-        0.9,
-    ] {
-        let Xt = &X * t;
-        let J = problem.joint_covariance(&Xt);
-        // joint_covariance copies P_a, P_b, Xt and Xtᵀ: exactly symmetric.
-        if is_psd(&J, &DMatrix::zeros(2 * n, 2 * n)) {
-            return Some(Xt);
-        }
-    }
-    None
-}
-
-/// `(M + Mᵀ)/2` in floats (exactly symmetric).
-fn symmetric_floats(m: &DMatrix<f64>) -> DMatrix<f64> {
-    DMatrix::from_fn(m.nrows(), m.ncols(), |i, j| 0.5 * (m[(i, j)] + m[(j, i)]))
-}
-
-/// `M + t I` (floats) proven PSD for the smallest `t` of a doubling sequence.
-fn proven_psd(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
-    let n = m.nrows();
-    if is_psd(m, &DMatrix::zeros(n, n)) {
-        return Some(m.clone());
-    }
-    let mut t = psd_shift(&BallMatrix::exact(m))?;
-    for _ in 0..40 {
-        let mut s = m.clone();
-        for i in 0..n {
-            s[(i, i)] += t;
-        }
-        if is_psd(&s, &DMatrix::zeros(n, n)) {
-            return Some(s);
-        }
-        t *= 2.0;
-    }
-    None
 }
 
 #[cfg(test)]

@@ -162,10 +162,10 @@ use clarabel::solver::SupportedConeT;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
-use super::bracket::{trace_upper_bound, young_bound, young_omega};
 use super::ci::covariance_intersection;
+use super::program::{check_time_limit, solve_program, svec_index, Deadline, Kkt, SdpStatus};
 use super::scale::{largest_variance, Pow2};
-use super::sdp::{solve_program, svec_index, Deadline, Kkt, SdpStatus};
+use super::upper::{trace_upper_bound, young_bound, young_omega};
 use super::verify::{is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use super::{per_block, Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
@@ -489,16 +489,6 @@ pub(crate) fn cone_generators(count: u32) -> Result<Vec<[[i64; 3]; 3]>, SolveErr
             .collect();
     }
     Ok(cones)
-}
-
-/// Checks an optional wall-clock limit (positive and finite).
-pub(crate) fn check_time_limit(limit: Option<f64>) -> Result<(), SolveError> {
-    match limit {
-        Some(t) if !(t > 0.0 && t.is_finite()) => Err(SolveError::InvalidSettings(format!(
-            "time_limit must be a positive number of seconds (got {t})"
-        ))),
-        _ => Ok(()),
-    }
 }
 
 /// The certified rule's certificate on each independent block.

@@ -55,17 +55,14 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::bracket::trace_upper_bound;
-use super::certify::{
-    certification_blocks, certified_fusion, check_time_limit, Certificates, CertifySettings,
-};
+use super::certify::{certification_blocks, certified_fusion, Certificates, CertifySettings};
 use super::check::{error_covariance, lowest_margin, margin};
 use super::nmci::non_monolithic_ci;
+use super::program::{check_time_limit, solve_program, svec_index, Deadline, Kkt, SdpStatus};
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
 use super::scale::Pow2;
-use super::sdp::{
-    solve_program, solve_samples, svec_index, Deadline, Kkt, SdpResult, SdpSettings, SdpStatus,
-};
+use super::sdp::{solve_samples, SdpResult, SdpSettings};
+use super::upper::trace_upper_bound;
 use super::{Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::symmetrize;

@@ -8,12 +8,15 @@ pub(crate) mod cuts;
 pub(crate) mod ei;
 pub(crate) mod ici;
 pub(crate) mod known;
+pub(crate) mod lower;
 pub(crate) mod nmci;
 pub(crate) mod nway;
+pub(crate) mod program;
 pub(crate) mod rules;
 pub(crate) mod sample;
 pub(crate) mod scale;
 pub(crate) mod sdp;
+pub(crate) mod upper;
 pub(crate) mod verify;
 
 use nalgebra::{DMatrix, DVector};

@@ -66,6 +66,30 @@ pub enum Method {
     Naive,
 }
 
+impl From<super::bracket::UpperRule> for Method {
+    fn from(rule: super::bracket::UpperRule) -> Self {
+        use super::bracket::UpperRule;
+        match rule {
+            UpperRule::Ci => Method::Ci,
+            UpperRule::Nmci => Method::Nmci,
+            UpperRule::Certified => Method::Certified,
+        }
+    }
+}
+
+impl Method {
+    /// The bracket's name for this rule, when its proven trace can be a bracket's upper end.
+    pub fn upper_rule(self) -> Option<super::bracket::UpperRule> {
+        use super::bracket::UpperRule;
+        match self {
+            Method::Ci => Some(UpperRule::Ci),
+            Method::Nmci => Some(UpperRule::Nmci),
+            Method::Certified => Some(UpperRule::Certified),
+            _ => None,
+        }
+    }
+}
+
 /// What a rule's bound is guaranteed for (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

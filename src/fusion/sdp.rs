@@ -43,38 +43,19 @@
 //! subset of them, hence optimal for the full `N`-sample program.
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use clarabel::solver::SupportedConeT;
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use super::bracket::lower_bound;
-use super::certify::check_time_limit;
 use super::check::{lowest_margin, margin};
+use super::lower::lower_bound;
+pub use super::program::SdpStatus;
+use super::program::{check_time_limit, solve_program, svec_index, Deadline, Kkt};
 use super::sample::{sample_cross_covariances, AutoChoice, CrossSamples, SamplerSettings};
 use super::scale::Pow2;
 use super::{per_block, Fused, FusionProblem};
 use crate::error::SolveError;
 use crate::linalg::{cholesky_of, symmetrize};
 use crate::structure::independent_blocks;
-
-/// How Clarabel ended a solve that produced a usable bound (in JSON: `"Solved"`,
-/// `"AlmostSolved"`, as Clarabel spells it).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum SdpStatus {
-    /// Solved to the requested tolerances.
-    Solved,
-    /// Solved to Clarabel's reduced tolerances: a valid but less accurate result.
-    AlmostSolved,
-}
-
-impl SdpStatus {
-    /// The status name as Clarabel spells it.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            SdpStatus::Solved => "Solved",
-            SdpStatus::AlmostSolved => "AlmostSolved",
-        }
-    }
-}
 
 /// Settings of the sampled SDP, with defaults and [`SdpSettings::validate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -140,66 +121,6 @@ impl SdpSettings {
         }
         self.sampler.validate()?;
         check_time_limit(self.time_limit)
-    }
-}
-
-/// A wall-clock deadline (`web_time`: `performance.now()` in the browser).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Deadline {
-    end: Option<web_time::Instant>,
-    limit: f64,
-}
-
-impl Deadline {
-    /// `limit` seconds from now (`None`: never). A limit beyond what the clock can represent
-    /// (`Duration` holds at most `u64::MAX` seconds, and the instant it ends at must exist)
-    /// is a deadline that cannot pass: the same as none, not an error and not a clamp.
-    pub(crate) fn after(limit: Option<f64>) -> Self {
-        Self {
-            end: limit.and_then(|t| {
-                let duration = web_time::Duration::try_from_secs_f64(t).ok()?;
-                web_time::Instant::now().checked_add(duration)
-            }),
-            limit: limit.unwrap_or(f64::INFINITY),
-        }
-    }
-
-    /// Seconds left (infinite without a limit; 0 when past).
-    pub(crate) fn remaining(&self) -> f64 {
-        match self.end {
-            None => f64::INFINITY,
-            Some(end) => end
-                .saturating_duration_since(web_time::Instant::now())
-                .as_secs_f64(),
-        }
-    }
-
-    /// `fraction` of the seconds left, at least a millisecond (`None` without a deadline):
-    /// the time limit of a part of the solve.
-    pub(crate) fn share(&self, fraction: f64) -> Option<f64> {
-        self.end.map(|_| (fraction * self.remaining()).max(1e-3))
-    }
-
-    /// Whether the deadline has passed.
-    pub(crate) fn passed(&self) -> bool {
-        self.remaining() <= 0.0
-    }
-
-    /// The error of a solve stopped by this deadline.
-    pub(crate) fn error(&self, what: &str) -> SolveError {
-        SolveError::TimeLimit {
-            seconds: self.limit,
-            what: what.into(),
-        }
-    }
-
-    /// `Err` if the deadline has passed.
-    pub(crate) fn check(&self, what: &str) -> Result<(), SolveError> {
-        if self.passed() {
-            Err(self.error(what))
-        } else {
-            Ok(())
-        }
     }
 }
 
@@ -460,104 +381,6 @@ struct Solved {
     dual_objective: f64,
     /// The dual matrix of each LMI's `P̄` block (`Λ_i`, `Σ Λ_i ≈ I`), in `active` order.
     duals: Vec<DMatrix<f64>>,
-}
-
-/// Clarabel's KKT solver for a program.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Kkt {
-    /// The platform's: natively faer's supernodal LDLᵀ — the sampled SDP's and the
-    /// certificate's KKT systems are an arrow of dense PSD-cone blocks around the few gain
-    /// variables, where it is several times faster than QDLDL's scalar factorization; faer
-    /// does not build for 32-bit wasm, where QDLDL is used.
-    Platform,
-    /// QDLDL everywhere: the cutting planes' worst-case search (one small cone). With faer
-    /// there, the search missed violations QDLDL's solves find (the anti-diagonal bracket test
-    /// `bracket::higher_levels_…`, case 2: the cuts' lower end stopped at 4.6214578 instead of
-    /// 4.6214648, leaving the bracket open), and the search is local, so a weaker worst case
-    /// is a weaker cut.
-    Qdldl,
-}
-
-impl Kkt {
-    fn method(self) -> &'static str {
-        match self {
-            #[cfg(not(target_arch = "wasm32"))]
-            Kkt::Platform => "faer",
-            #[cfg(target_arch = "wasm32")]
-            Kkt::Platform => "qdldl",
-            Kkt::Qdldl => "qdldl",
-        }
-    }
-}
-
-/// Builds and solves one Clarabel program — every program of the crate goes through here
-/// (the sampled SDP, the certified bound's SDP, the cutting planes' worst-case search) — with
-/// the crate's settings: one thread (the caller — a study, a Python process pool, a page's
-/// worker — owns the parallelism), `tolerance` on the absolute and relative gap and on
-/// feasibility, at most `max_iter` iterations, and the time left before `deadline`, with the
-/// KKT solver `kkt`; when faer's factorization breaks down (status `NumericalError` or
-/// `InsufficientProgress`: seen on certificate programs, where faer's first solve returned
-/// NaN), the program is solved again with QDLDL.
-///
-/// Returns the solver (its solution) and the status when Clarabel solved the program to its
-/// tolerance (`Solved`) or to its reduced one (`AlmostSolved`); a program stopped by the
-/// deadline is [`SolveError::TimeLimit`] naming `what`, any other status
-/// [`SolveError::SolverFailed`]. Never hidden: the caller reports the status.
-#[allow(non_snake_case)]
-#[allow(clippy::too_many_arguments)]
-pub(super) fn solve_program(
-    P: &CscMatrix<f64>,
-    q: &[f64],
-    A: &CscMatrix<f64>,
-    b: &[f64],
-    cones: &[SupportedConeT<f64>],
-    kkt: Kkt,
-    (max_iter, tolerance): (u32, f64),
-    deadline: &Deadline,
-    what: &str,
-) -> Result<(DefaultSolver<f64>, SdpStatus), SolveError> {
-    let run = |method: &str| -> Result<DefaultSolver<f64>, SolveError> {
-        let settings = DefaultSettings {
-            verbose: false,
-            max_threads: 1,
-            max_iter,
-            tol_gap_abs: tolerance,
-            tol_gap_rel: tolerance,
-            tol_feas: tolerance,
-            time_limit: deadline.remaining(),
-            direct_solve_method: method.into(),
-            ..DefaultSettings::default()
-        };
-        let mut solver = DefaultSolver::new(P, q, A, b, cones, settings)
-            .map_err(|e| SolveError::Setup(e.to_string()))?;
-        solver.solve();
-        Ok(solver)
-    };
-    let mut solver = run(kkt.method())?;
-    let broke_down = matches!(
-        solver.solution.status,
-        SolverStatus::NumericalError | SolverStatus::InsufficientProgress
-    );
-    if broke_down && kkt.method() != "qdldl" {
-        solver = run("qdldl")?;
-    }
-    let status = match solver.solution.status {
-        SolverStatus::Solved => SdpStatus::Solved,
-        SolverStatus::AlmostSolved => SdpStatus::AlmostSolved,
-        SolverStatus::MaxTime => return Err(deadline.error(what)),
-        other => {
-            return Err(SolveError::SolverFailed {
-                status: format!("{other:?}"),
-                iterations: solver.solution.iterations,
-            })
-        }
-    };
-    Ok((solver, status))
-}
-
-/// svec index of `(r, c)`, `r ≤ c`, in Clarabel's column-major upper-triangle order.
-pub(super) fn svec_index(r: usize, c: usize) -> usize {
-    c * (c + 1) / 2 + r
 }
 
 #[allow(non_snake_case)]

@@ -384,9 +384,9 @@ impl LiveCoin {
         }
     }
 
-    /// The COIN chart so far ([`crate::chart::coin_chart`], as `coin.svg`).
+    /// The COIN chart so far ([`super::coin_chart`], as `coin.svg`).
     pub fn chart(&self) -> crate::Chart {
-        crate::chart::coin_chart(&self.config, &self.series())
+        super::coin_chart(&self.config, &self.series())
     }
 }
 

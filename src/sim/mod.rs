@@ -14,17 +14,19 @@
 //! [`write_study`] writes a study's files. [`sweep`] searches the networks
 //! the paper's text allows for the one its numbers fit (its figure is not in the source).
 
+mod charts;
 mod coin;
 mod draw;
 mod live;
 mod model;
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(all(feature = "files", not(target_arch = "wasm32")))]
 mod report;
 mod scenario;
 mod shard;
 mod study;
 mod sweep;
 
+pub use charts::{coin_chart, study_charts};
 pub use coin::{coin_series, ErrorPropagation};
 pub use draw::network_svg;
 pub use live::{
@@ -32,7 +34,7 @@ pub use live::{
     TraceTail, COIN_WORKER_ESTIMATORS, WORKER_RULES,
 };
 pub use model::Model;
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(all(feature = "files", not(target_arch = "wasm32")))]
 pub use report::{write_study, write_sweep};
 pub use scenario::{ScalarMeasurement, Scenario};
 #[cfg(not(target_arch = "wasm32"))]
@@ -304,7 +306,7 @@ impl StudyConfig {
 
     /// A configuration from TOML text (the form of `configs/paper.toml`; missing keys take
     /// their defaults, unknown keys are refused). Not validated: see [`StudyConfig::validate`].
-    #[cfg(not(target_arch = "wasm32"))]
+    #[cfg(all(feature = "files", not(target_arch = "wasm32")))]
     pub fn from_toml(text: &str) -> Result<Self, SimError> {
         toml::from_str(text).map_err(|e| SimError::InvalidConfig(e.message().to_string()))
     }

@@ -11,9 +11,9 @@ mod golden;
 
 mod bracket;
 mod certify;
+#[cfg(feature = "files")]
 mod charts;
 mod ci;
-mod cli;
 mod cuts;
 mod explore;
 mod fig2;

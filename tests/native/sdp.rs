@@ -258,8 +258,8 @@ fn certified_gap_brackets_the_robust_optimum() {
         assert!(upper <= 2.0 * (1.0 + 1e-14), "upper {upper}");
         assert!(lower >= 2.0 * (1.0 - 1e-6), "lower {lower}");
         assert!(
-            r.bracket().map(|b| b.upper_rule) == Some(Method::Nmci)
-                || r.bracket().map(|b| b.upper_rule) == Some(Method::Certified),
+            r.bracket().map(|b| b.upper_rule) == Some(UpperRule::Nmci)
+                || r.bracket().map(|b| b.upper_rule) == Some(UpperRule::Certified),
             "{:?}",
             r.bracket().map(|b| b.upper_rule)
         );
@@ -292,7 +292,7 @@ fn certified_gap_brackets_the_robust_optimum() {
         upper, 2.0000000000000044,
         "README: at most 2.0000000000000044"
     );
-    assert_eq!(r.bracket().map(|b| b.upper_rule), Some(Method::Nmci));
+    assert_eq!(r.bracket().map(|b| b.upper_rule), Some(UpperRule::Nmci));
     assert!(
         r.bracket().unwrap().gap_relative() <= 2e-11,
         "README: 2·10⁻¹¹"
@@ -348,9 +348,9 @@ fn certified_gap_brackets_the_robust_optimum() {
             "n={n}: {upper} vs CI {ci}, nmCI {nm}"
         );
         match r.bracket().map(|b| b.upper_rule) {
-            Some(Method::Ci) => assert!(upper >= ci && upper <= ci * (1.0 + 1e-13)),
-            Some(Method::Nmci) => assert!(upper >= nm && upper <= nm * (1.0 + 1e-13)),
-            Some(Method::Certified) => assert!(upper < ci.min(nm)),
+            Some(UpperRule::Ci) => assert!(upper >= ci && upper <= ci * (1.0 + 1e-13)),
+            Some(UpperRule::Nmci) => assert!(upper >= nm && upper <= nm * (1.0 + 1e-13)),
+            Some(UpperRule::Certified) => assert!(upper < ci.min(nm)),
             other => panic!("n={n}: upper bound rule {other:?}"),
         }
         // The JSON carries the same numbers.

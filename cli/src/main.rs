@@ -5,7 +5,6 @@
 //! `nmci track` runs the tracking study (see `configs/paper.toml`), or with `--first-run` a
 //! shard of its runs; `nmci merge` puts shards together.
 
-#[cfg(not(target_arch = "wasm32"))]
 mod cli {
     use std::io::Read;
     use std::path::PathBuf;
@@ -445,11 +444,6 @@ mod cli {
     }
 }
 
-#[cfg(not(target_arch = "wasm32"))]
 fn main() -> std::process::ExitCode {
     cli::main()
 }
-
-/// The CLI is native only; the wasm build of this crate is the library.
-#[cfg(target_arch = "wasm32")]
-fn main() {}

@@ -1,4 +1,5 @@
 //! The `nmci` binary: JSON in, JSON out; bad input exits non-zero with one line on stderr.
+#![allow(non_snake_case)] // textbook symbols: P_a, K_b, …
 
 use std::io::Write;
 use std::process::{Command, Stdio};
@@ -342,7 +343,7 @@ fn sweep_writes_the_ranking_the_best_configuration_and_its_drawing() {
 fn the_readme_cli_examples_print_what_the_readme_shows() {
     for (file, examples) in [("README.md", 1), ("docs/contract.md", 3)] {
         let text =
-            std::fs::read_to_string(format!("{}/{file}", env!("CARGO_MANIFEST_DIR"))).unwrap();
+            std::fs::read_to_string(format!("{}/../{file}", env!("CARGO_MANIFEST_DIR"))).unwrap();
         assert_eq!(
             cli_examples_checked(file, &text),
             examples,
@@ -411,7 +412,7 @@ fn cli_examples_checked(file: &str, text: &str) -> usize {
 #[test]
 fn the_paper_example_prose_figures_hold() {
     let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
     let (code, out, _) = nmci(
         &["fuse"],
         r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, false], [false, true]], "method": "ci"}"#,
@@ -679,4 +680,99 @@ fn the_structure_note_goes_to_stderr_and_refusals_exit_nonzero() {
         assert_eq!(err.lines().count(), 1, "{err}");
         assert!(err.contains(needle), "{err}");
     }
+}
+
+/// The SVG files are the library's drawings of the study's and fig. 2's charts.
+#[test]
+fn the_clis_figures_are_this_codes_drawings() {
+    use nmci::sim::{run_study, StudyConfig};
+    use nmci::{charts_svg, fig2_charts, fig2_run, fig2_summary, study_charts, Fig2Config};
+    let config = StudyConfig {
+        runs: 2,
+        steps: 12,
+        seed: 5,
+        coin: true,
+        ..StudyConfig::default()
+    };
+    let dir = std::env::temp_dir().join(format!("nmci-charts-{}", std::process::id()));
+    let (code, _, err) = nmci(
+        &[
+            "track",
+            "--runs",
+            "2",
+            "--steps",
+            "12",
+            "--seed",
+            "5",
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    let (summary, _) = run_study(&config).unwrap();
+    for (name, chart) in study_charts(&config, &summary, config.runs) {
+        let file = std::fs::read_to_string(dir.join(format!("{name}.svg"))).unwrap();
+        assert_eq!(
+            file,
+            charts_svg(&[&chart], (900, 480)).unwrap(),
+            "{name}.svg"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    let out = std::env::temp_dir().join(format!("nmci-charts-fig2-{}", std::process::id()));
+    let (code, _, err) = nmci(
+        &[
+            "fig2",
+            "--runs",
+            "3",
+            "--sizes",
+            "1,10,50",
+            "--seed",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    let fig2 = Fig2Config {
+        runs: 3,
+        sizes: vec![1, 10, 50],
+        seed: 2,
+    };
+    let runs: Vec<_> = (0..3).map(|r| fig2_run(&fig2, r).unwrap()).collect();
+    let [dev, eig] = fig2_charts(&fig2_summary(&fig2, &runs), 3);
+    let file = std::fs::read_to_string(out.join("fig2.svg")).unwrap();
+    assert_eq!(file, charts_svg(&[&dev, &eig], (900, 400)).unwrap());
+    // One document holding both charts (each drawn once, closed once).
+    assert_eq!(
+        (file.matches("<svg").count(), file.matches("</svg>").count()),
+        (1, 1)
+    );
+    assert!(file.trim_end().ends_with("</svg>"));
+    assert!(file.contains("samples N") && file.contains("λ_min") && file.contains("deviation"));
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn a_request_past_the_byte_limit_is_not_read_whole() {
+    use nmci::MAX_REQUEST_BYTES;
+    let text = " ".repeat(MAX_REQUEST_BYTES + 1);
+    // The CLI stops reading one byte past it, exits non-zero and says why.
+    let path = std::env::temp_dir().join(format!("nmci-too-large-{}.json", std::process::id()));
+    std::fs::write(&path, text.as_bytes()).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_nmci"))
+        .args(["fuse", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains(&format!(
+            "longer than the limit of {MAX_REQUEST_BYTES} bytes"
+        )),
+        "{stderr}"
+    );
 }
