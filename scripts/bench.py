@@ -1,0 +1,209 @@
+#!/usr/bin/env python3
+"""Runs the benchmarks and writes docs/benchmarks.md (called by scripts/bench.sh).
+
+Every figure the README and docs quote about speed or bracket closure comes from this report:
+each section gives its command, and the header the commit, date and machine of the one run
+that produced them all, peers (numpy, scipy, cvxpy) measured in the same run.
+
+Sections (each one command, run in order on an otherwise idle machine):
+  rust      criterion benches of benches/fusion.rs (a chosen set, shortened measurement)
+  brackets  examples/certify_levels: proven brackets at 2 and 3 states, the default certificate
+  study     `nmci track` (release), the paper's 16-agent study, and its headline result
+  python    scripts/python.sh bench: nmci from Python against numpy, scipy and cvxpy
+  browser   tests/e2e/bench-explore.mjs and bench-study.mjs in headless Chromium
+
+`scripts/bench.sh [SECTION ...]` runs the named sections only and keeps the others' last
+results (docs/benchmarks.md holds each section's own run date and commit then).
+"""
+
+import datetime
+import json
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+REPORT = ROOT / "docs" / "benchmarks.md"
+STATE = ROOT / "docs" / "benchmarks.json"  # each section's last output, for partial reruns
+
+# The criterion benches reported: (filter regex, what it measures).
+RUST_BENCHES = [
+    ("^ci/trace/", "CI, exact optimal ω (trace), two random SPD covariances of n states"),
+    ("^nmci/112x8$", "nmCI on the study's 112 states in 8 independent blocks"),
+    ("^eigen/symmetric/112$", "nalgebra's symmetric eigendecomposition at n = 112 (the floor of a CI)"),
+    ("^sdp/paper/", "the sampled SDP on the paper's example, by sample count"),
+    ("^fuse/sdp/", "a whole `sdp` request of 1000 samples, proven bracket included"),
+    ("^certified/1/paper_one_zero$", "the certified rule, level 1, paper's example with one known zero"),
+    ("^certified/2/random3$", "the certified rule, level 2, a random 3-state problem"),
+    ("^explore/", "the explorer's analysis of a preset (every rule, bracket, margins), native"),
+]
+
+
+def sh(cmd, **kw):
+    """Runs `cmd` (a shell string) in the repository, echoing it; returns stdout."""
+    print(f"$ {cmd}", file=sys.stderr, flush=True)
+    out = subprocess.run(cmd, shell=True, cwd=ROOT, check=True, capture_output=True, text=True, **kw)
+    sys.stderr.write(out.stderr[-2000:])
+    return out.stdout
+
+
+def machine():
+    cpu = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem = ""
+    try:
+        kb = int(re.search(r"MemTotal:\s+(\d+)", Path("/proc/meminfo").read_text()).group(1))
+        mem = f", {kb / 2**20:.0f} GiB"
+    except (OSError, AttributeError):
+        pass
+    rustc = subprocess.run(["rustc", "--version"], capture_output=True, text=True).stdout.strip()
+    return f"{cpu}, {os.cpu_count()} cores{mem}, {platform.system()} {platform.release()}; {rustc}"
+
+
+def commit():
+    rev = sh("git rev-parse --short HEAD").strip()
+    dirty = sh("git status --porcelain --untracked-files=no -- src cli python benches examples scripts tests www Cargo.toml Cargo.lock").strip()
+    return rev + (" with uncommitted changes" if dirty else "")
+
+
+def rust():
+    filt = "|".join(f"({f})" for f, _ in RUST_BENCHES)
+    cmd = f"cargo bench --bench fusion -- --warm-up-time 1 --measurement-time 4 '{filt}'"
+    out = sh(cmd)
+    rows = []
+    # criterion: "<id>  time:   [low est high]" (the id may be on its own line before).
+    pending = None
+    for line in out.splitlines():
+        m = re.match(r"^(\S.*?)\s+time:\s+\[(.*?)\]", line)
+        if m:
+            rows.append((m.group(1).strip(), m.group(2)))
+            pending = None
+            continue
+        m = re.match(r"^\s+time:\s+\[(.*?)\]", line)
+        if m and pending:
+            rows.append((pending, m.group(1)))
+            pending = None
+            continue
+        if line and not line.startswith(" ") and "time:" not in line and not line.startswith(("Benchmarking", "Found", "Warning", "change", "Performance", "No change", "  ")):
+            pending = line.strip()
+    table = ["| bench | what | time (criterion: low, estimate, high) |", "|---|---|---|"]
+    for name, times in rows:
+        what = next((w for f, w in RUST_BENCHES if re.search(f, name)), "")
+        table.append(f"| `{name}` | {what} | {times} |")
+    return cmd, "\n".join(table)
+
+
+def brackets():
+    parts = []
+    cmds = []
+    # The defaults: two states, 24 sectors (level 1 beside it); three states, level 2.
+    for args in ["--dims 2 --count 50 --levels 1 --sectors 24", "--dims 3 --count 50 --levels 2"]:
+        cmd = f"cargo run --quiet --release --example certify_levels -- {args}"
+        cmds.append(cmd)
+        out = sh(cmd)
+        parts.append("\n".join(l for l in out.splitlines() if l.startswith("|")))
+    return " ; ".join(cmds), "\n\n".join(parts)
+
+
+def study():
+    sh("cargo build --quiet --release -p nmci-cli")
+    with tempfile.TemporaryDirectory() as out:
+        cmd = f"target/release/nmci track --out {out}"
+        t = time.perf_counter()
+        sh(cmd)
+        seconds = time.perf_counter() - t
+        summary = json.loads(Path(out, "summary.json").read_text())
+        same = all(
+            Path(out, f.name).read_bytes() == f.read_bytes()
+            for f in (ROOT / "docs/figures/track").iterdir()
+            if f.is_file() and (Path(out) / f.name).exists()
+        )
+    ci, nm = summary["ci"], summary["nmci"]
+    rmse = 1 - nm["rmse_mean"] / ci["rmse_mean"]
+    two = 1 - nm["two_sigma_mean"] / ci["two_sigma_mean"]
+    text = (
+        f"{summary['runs']} runs × {summary['steps']} steps, five estimators and the exact COIN: "
+        f"**{seconds:.1f} s** wall clock on this machine's cores "
+        f"({'files byte-identical to' if same else 'files DIFFER from'} `docs/figures/track`).\n\n"
+        f"| | CI | nmCI | nmCI against CI |\n|---|---|---|---|\n"
+        f"| mean position RMSE | {ci['rmse_mean']:.4g} | {nm['rmse_mean']:.4g} | {-100 * rmse:+.0f} % |\n"
+        f"| mean 2σ | {ci['two_sigma_mean']:.4g} | {nm['two_sigma_mean']:.4g} | {-100 * two:+.0f} % |\n"
+        f"| largest exact COIN | {ci['coin_max']:.4g} | {nm['coin_max']:.4g} | |"
+    )
+    return f"time {cmd}", text
+
+
+def python():
+    cmd = "scripts/python.sh bench"
+    out = sh(f"bash {cmd}")
+    return cmd, out.strip()
+
+
+def browser():
+    sh("bash scripts/wasm.sh build")
+    cmds, lines = [], []
+    for cmd in ["node tests/e2e/bench-explore.mjs 30", "node tests/e2e/bench-study.mjs 3"]:
+        cmds.append(cmd)
+        out = sh(cmd)
+        lines += [f"- {l}" for l in out.splitlines() if "min " in l or "median" in l]
+    return " ; ".join(cmds), "\n".join(lines)
+
+
+SECTIONS = {
+    "rust": ("Rust (criterion)", rust),
+    "brackets": ("Proven brackets (the certified rule against the cutting planes' lower end)", brackets),
+    "study": ("The 16-agent tracking study", study),
+    "python": ("From Python, beside numpy, scipy and cvxpy", python),
+    "browser": ("In the browser (wasm, headless Chromium)", browser),
+}
+
+
+def main():
+    wanted = sys.argv[1:] or list(SECTIONS)
+    unknown = [w for w in wanted if w not in SECTIONS]
+    if unknown:
+        sys.exit(f"unknown section(s) {unknown}; sections: {', '.join(SECTIONS)}")
+    state = json.loads(STATE.read_text()) if STATE.exists() else {}
+    rev, when, where = commit(), datetime.date.today().isoformat(), machine()
+    for key in wanted:
+        title, run = SECTIONS[key]
+        cmd, body = run()
+        state[key] = {"command": cmd, "body": body, "commit": rev, "date": when, "machine": where}
+        STATE.write_text(json.dumps(state, indent=1, ensure_ascii=False) + "\n")
+    lines = [
+        "# Benchmarks",
+        "",
+        "Generated by `scripts/bench.sh` (do not edit: rerun it). Each section gives the command",
+        "that produced it and the commit, date and machine of that run; peers in a section were",
+        "measured in the same run. Times are wall clock on the machine named.",
+        "",
+    ]
+    for key, (title, _) in SECTIONS.items():
+        if key not in state:
+            continue
+        s = state[key]
+        lines += [
+            f"## {title}",
+            "",
+            f"`{s['command']}` — commit {s['commit']}, {s['date']}, {s['machine']}.",
+            "",
+            s["body"],
+            "",
+        ]
+    REPORT.write_text("\n".join(lines))
+    print(f"wrote {REPORT.relative_to(ROOT)}")
+
+
+if __name__ == "__main__":
+    main()
