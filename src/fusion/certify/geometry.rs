@@ -1,0 +1,139 @@
+//! The cones of directions of the sector and cone families: their multipliers, exact in integers
+//! (the covering argument is the parent's module docs, "Sectors").
+
+use nalgebra::DMatrix;
+
+use crate::error::SolveError;
+
+/// Most sectors accepted (`CertifySettings::sectors`).
+pub const MAX_SECTORS: u32 = 64;
+
+/// The sectors' multipliers: integer directions `d_k ≈ 2⁶ (cos πk/S, sin πk/S)`,
+/// `k = 0..S`, with `d_S = −d_0`, and for each sector `q(v) = det(d_k, v)·det(v, d_{k+1})`
+/// by its coefficients on `v₁², v₁v₂, v₂²` (integers below `2¹⁴` times `2⁻¹²`, exact). Consecutive directions are
+/// checked to turn counterclockwise within the closed upper half-plane, exactly in
+/// integers — the covering argument of the module docs needs nothing else.
+pub(crate) fn sector_multipliers(count: u32) -> Result<Vec<[f64; 3]>, SolveError> {
+    let radius = 64.0;
+    let s = count as usize;
+    let mut d: Vec<[i64; 2]> = (0..=s)
+        .map(|k| {
+            let t = std::f64::consts::PI * k as f64 / count as f64;
+            [
+                (radius * t.cos()).round() as i64,
+                (radius * t.sin()).round() as i64,
+            ]
+        })
+        .collect();
+    d[0] = [64, 0];
+    d[s] = [-64, 0];
+    let turns = d
+        .windows(2)
+        .all(|w| w[0][1] >= 0 && w[1][1] >= 0 && w[0][0] * w[1][1] - w[0][1] * w[1][0] > 0);
+    if count < 2 || !turns {
+        return Err(SolveError::InvalidSettings(format!(
+            "sectors must be in 2..={MAX_SECTORS} (got {count})"
+        )));
+    }
+    Ok(d.windows(2)
+        .map(|w| {
+            let ([x0, y0], [x1, y1]) = (w[0], w[1]);
+            // (x0 v₂ − y0 v₁)(y1 v₁ − x1 v₂) / 2¹²: integers below 2¹⁴ times a power of two,
+            // exact, and of order one (the solver needs a well-scaled program).
+            let scale = 1.0 / (radius * radius);
+            [
+                (-y0 * y1) as f64 * scale,
+                (x0 * y1 + y0 * x1) as f64 * scale,
+                (-x0 * x1) as f64 * scale,
+            ]
+        })
+        .collect())
+}
+
+/// The multipliers of each piece of directions (module docs, "Sectors"): for two states one
+/// per sector of [`sector_multipliers`]; for three states, `count` ∈ {4, 16, 64} cones
+/// spanned by integer generators — the four octants of `v₃ ≥ 0`, each split 0, 1 or 2 times
+/// into four at its edges' midpoints (the generators `u_i + u_j`), an exact subdivision of the
+/// octant — with the three products `q_ij(v) = (n_i·v)(n_j·v)`, `i < j`, of the cone's facet
+/// normals `n_i = u_j × u_k`: on the cone all `n_i·v` share a sign (`n_i·v = λ_i det U` for
+/// `v = Σ λ_i u_i`), so every `q_ij ≥ 0` there and on its negative, and the octants and their
+/// negatives cover space. Each matrix is scaled by a power of two to entries of order one
+/// (exact).
+#[allow(non_snake_case)]
+pub(crate) fn cone_multipliers(n: usize, count: u32) -> Result<Vec<Vec<DMatrix<f64>>>, SolveError> {
+    match n {
+        2 => Ok(sector_multipliers(count)?
+            .into_iter()
+            .map(|sigma| {
+                vec![DMatrix::from_row_slice(
+                    2,
+                    2,
+                    &[sigma[0], 0.5 * sigma[1], 0.5 * sigma[1], sigma[2]],
+                )]
+            })
+            .collect()),
+        3 => Ok(cone_generators(count)?
+            .iter()
+            .map(|u| {
+                let cross = |a: [i64; 3], b: [i64; 3]| {
+                    [
+                        a[1] * b[2] - a[2] * b[1],
+                        a[2] * b[0] - a[0] * b[2],
+                        a[0] * b[1] - a[1] * b[0],
+                    ]
+                };
+                let normals = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])];
+                [(0, 1), (0, 2), (1, 2)]
+                    .iter()
+                    .map(|&(i, j)| {
+                        let (a, b) = (normals[i], normals[j]);
+                        // 2 S = a bᵀ + b aᵀ in integers, then scaled by a power of two.
+                        let twice: Vec<i64> = (0..9)
+                            .map(|e| a[e / 3] * b[e % 3] + b[e / 3] * a[e % 3])
+                            .collect();
+                        let largest = twice.iter().map(|v| v.abs()).max().unwrap_or(1).max(1);
+                        let scale = 0.5 / (largest as f64).log2().ceil().exp2();
+                        DMatrix::from_iterator(3, 3, twice.iter().map(|&v| v as f64 * scale))
+                    })
+                    .collect()
+            })
+            .collect()),
+        _ => Err(SolveError::InvalidSettings(format!(
+            "cones of directions certify blocks of two or three states (got a block of {n})"
+        ))),
+    }
+}
+
+/// The integer generators of the cones of [`cone_multipliers`] for three states.
+pub(crate) fn cone_generators(count: u32) -> Result<Vec<[[i64; 3]; 3]>, SolveError> {
+    let splits = match count {
+        4 => 0,
+        16 => 1,
+        64 => 2,
+        _ => {
+            return Err(SolveError::InvalidSettings(format!(
+                "three-state blocks are certified on 4, 16 or 64 cones (got {count})"
+            )))
+        }
+    };
+    let mut cones: Vec<[[i64; 3]; 3]> = [(1, 1), (-1, 1), (-1, -1), (1, -1)]
+        .iter()
+        .map(|&(x, y)| [[x, 0, 0], [0, y, 0], [0, 0, 1]])
+        .collect();
+    let add = |a: [i64; 3], b: [i64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+    for _ in 0..splits {
+        cones = cones
+            .iter()
+            .flat_map(|&[u1, u2, u3]| {
+                let (m12, m13, m23) = (add(u1, u2), add(u1, u3), add(u2, u3));
+                [
+                    [u1, m12, m13],
+                    [u2, m12, m23],
+                    [u3, m13, m23],
+                    [m12, m23, m13],
+                ]
+            })
+            .collect();
+    }
+    Ok(cones)
+}

@@ -1,0 +1,226 @@
+use super::{geometry::*, layout::*, memo::*, repair::*, rule::*, settings::*};
+
+use nalgebra::DMatrix;
+
+use crate::fusion::FusionProblem;
+
+use crate::CrossPattern;
+use rand::{Rng, SeedableRng};
+
+#[test]
+fn the_memo_keeps_the_last_blocks_used_and_changes_no_number() {
+    // `n` one-state blocks with distinct variances (each cross block wholly unknown: CI's
+    // bound, so cheap); `shift` moves every variance.
+    let problem = |n: usize, shift: f64| {
+        let d = |f: fn(usize) -> f64| {
+            DMatrix::from_fn(n, n, |i, j| if i == j { f(i) + shift } else { 0.0 })
+        };
+        FusionProblem::from_covariances(
+            d(|i| 1.0 + i as f64),
+            d(|i| 3.0 + 0.5 * i as f64),
+            CrossPattern::diagonal(n),
+        )
+        .unwrap()
+    };
+    let settings = CertifySettings::default();
+    let run = |memo: &mut CertificateMemo, p: &FusionProblem| {
+        let got = certified_fusion_memo(p, &settings, memo).unwrap();
+        assert_eq!(got, certified_fusion(p, &settings).unwrap());
+        (memo.hits(), memo.len())
+    };
+    let mut memo = CertificateMemo::new();
+    assert!(memo.is_empty());
+    // Four blocks, twice: all four kept, then all four reused.
+    assert_eq!(run(&mut memo, &problem(4, 0.0)), (0, 4));
+    assert!(!memo.is_empty());
+    assert_eq!(run(&mut memo, &problem(4, 0.0)), (4, 4));
+    // MEMO_BLOCKS + 2 new blocks: the memo holds the last MEMO_BLOCKS of them.
+    let big = problem(MEMO_BLOCKS + 2, 10.0);
+    assert_eq!(run(&mut memo, &big), (4, MEMO_BLOCKS));
+    // The first two were evicted first (least recently used); the cyclic order then
+    // evicts each block before it comes round again: no hit, the same result.
+    assert_eq!(run(&mut memo, &big), (4, MEMO_BLOCKS));
+    // The blocks used last are kept: the last MEMO_BLOCKS of `big` again.
+    let tail = FusionProblem::from_covariances(
+        big.P_a
+            .view((2, 2), (MEMO_BLOCKS, MEMO_BLOCKS))
+            .into_owned(),
+        big.P_b
+            .view((2, 2), (MEMO_BLOCKS, MEMO_BLOCKS))
+            .into_owned(),
+        CrossPattern::diagonal(MEMO_BLOCKS),
+    )
+    .unwrap();
+    assert_eq!(run(&mut memo, &tail), (4 + MEMO_BLOCKS as u64, MEMO_BLOCKS));
+    // With a time limit the memo is neither read nor written.
+    let limited = CertifySettings {
+        time_limit: Some(60.0),
+        ..settings
+    };
+    let mut fresh = CertificateMemo::new();
+    for _ in 0..2 {
+        certified_fusion_memo(&tail, &limited, &mut fresh).unwrap();
+    }
+    assert_eq!((fresh.hits(), fresh.len()), (0, 0));
+}
+
+#[test]
+#[allow(non_snake_case)]
+fn cones_cover_space_exactly_and_their_multipliers_are_the_normals_products() {
+    // The proof needs: every v ≠ 0 lies in some cone or its negative, where each q_ij is
+    // ≥ 0. Checked exactly in integers over every direction of a 17³ grid (the cones'
+    // generators have entries up to 4, so the grid meets every cone's interior and
+    // boundary), and each multiplier matrix, evaluated exactly (dyadic entries, small
+    // integer v), equals the product of its two normals' forms up to its power-of-two
+    // scale.
+    for count in [4u32, 16, 64] {
+        let cones = cone_generators(count).unwrap();
+        let mults = cone_multipliers(3, count).unwrap();
+        assert_eq!(cones.len(), count as usize);
+        let cross = |a: [i64; 3], b: [i64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let dot = |a: [i64; 3], b: [i64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let normals: Vec<[[i64; 3]; 3]> = cones
+            .iter()
+            .map(|u| [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])])
+            .collect();
+        for x in -8i64..=8 {
+            for y in -8i64..=8 {
+                for z in -8i64..=8 {
+                    let v = [x, y, z];
+                    if v == [0, 0, 0] {
+                        continue;
+                    }
+                    let inside = normals.iter().position(|nn| {
+                        let d = nn.map(|n| dot(n, v));
+                        d.iter().all(|&t| t >= 0) || d.iter().all(|&t| t <= 0)
+                    });
+                    let k = inside.unwrap_or_else(|| panic!("{count} cones miss {v:?}"));
+                    let d = normals[k].map(|n| dot(n, v));
+                    for (S, (i, j)) in mults[k].iter().zip([(0, 1), (0, 2), (1, 2)]) {
+                        let vf = v.map(|t| t as f64);
+                        let mut q = 0.0;
+                        for a in 0..3 {
+                            for b in 0..3 {
+                                q += vf[a] * S[(a, b)] * vf[b];
+                            }
+                        }
+                        let exact = (d[i] * d[j]) as f64;
+                        assert!(q >= 0.0, "{count} cones: q < 0 at {v:?}");
+                        // q = exact · 2^-e for the matrix's scale: the ratio is a power of
+                        // two (or both are zero).
+                        if exact == 0.0 {
+                            assert_eq!(q, 0.0);
+                        } else {
+                            let ratio = q / exact;
+                            assert_eq!(ratio, ratio.log2().round().exp2(), "{v:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(cone_generators(8).is_err());
+    assert!(cone_multipliers(4, 4).is_err());
+}
+
+#[test]
+fn sector_multipliers_cover_the_plane_exactly() {
+    // The proof needs only: every v ≠ 0 has some sector with q_k(v) ≥ 0. Checked exactly
+    // (coefficients · 2¹² are integers, products in i128) on every integer direction of a
+    // fine grid — a missing or inverted sector leaves an arc of π/S ≥ π/64 uncovered,
+    // which holds many of them — and each q_k is positive inside its own sector's arc
+    // and negative just outside both of its ends.
+    for count in 2..=MAX_SECTORS {
+        let q: Vec<[i128; 3]> = sector_multipliers(count)
+            .unwrap()
+            .iter()
+            .map(|c| {
+                c.map(|x| {
+                    let i = x * 4096.0;
+                    assert_eq!(i, i.round(), "not an integer times 2⁻¹²");
+                    i as i128
+                })
+            })
+            .collect();
+        assert_eq!(q.len(), count as usize);
+        let eval = |c: &[i128; 3], x: i128, y: i128| c[0] * x * x + c[1] * x * y + c[2] * y * y;
+        for x in -300i128..=300 {
+            for y in -300i128..=300 {
+                if (x, y) != (0, 0) {
+                    assert!(
+                        q.iter().any(|c| eval(c, x, y) >= 0),
+                        "{count} sectors miss ({x}, {y})"
+                    );
+                }
+            }
+        }
+        for (k, c) in q.iter().enumerate() {
+            let t = |f: f64| std::f64::consts::PI * (k as f64 + f) / count as f64;
+            let at = |t: f64| ((1e6 * t.cos()) as i128, (1e6 * t.sin()) as i128);
+            let (xm, ym) = at(t(0.5));
+            assert!(eval(c, xm, ym) > 0, "{count}: sector {k} mid");
+            for outside in [t(-0.3), t(1.3)] {
+                let (x, y) = at(outside);
+                assert!(eval(c, x, y) < 0, "{count}: sector {k} outside");
+            }
+        }
+    }
+    assert!(sector_multipliers(1).is_err());
+}
+
+#[test]
+fn zero_groups_sum_to_exactly_zero() {
+    // Every entry ends a multiple of the group's grid g, so the sum is checked exactly in
+    // integers (i128 multiples of g), not in floating point.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    for len in [2usize, 3, 5, 17, 100] {
+        for scale in [1e-12, 1.0, 3e7] {
+            let mut x: Vec<f64> = (0..len)
+                .map(|_| scale * rng.random_range(-1.0..1.0))
+                .collect();
+            let before = x.clone();
+            let group: Vec<usize> = (0..len).collect();
+            exact_zero_sum(&mut x, &group);
+            assert!(sums_to_zero(&x));
+            let bound = before.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let g = x
+                .iter()
+                .filter(|v| **v != 0.0)
+                .map(|v| v.abs())
+                .fold(f64::INFINITY, f64::min);
+            let ints: i128 = x
+                .iter()
+                .map(|v| {
+                    // exact multiples of the smallest power of two dividing the entries
+                    let e = (g.log2().floor() as i32) - 60;
+                    let q = v / 2f64.powi(e);
+                    assert_eq!(q, q.round(), "not on a grid");
+                    q as i128
+                })
+                .sum();
+            assert_eq!(ints, 0, "len {len} scale {scale}");
+            let moved = x
+                .iter()
+                .zip(&before)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0f64, f64::max);
+            let sum: f64 = before.iter().sum();
+            assert!(moved <= sum.abs() + 1e-12 * bound, "moved {moved}");
+        }
+    }
+}
+
+#[test]
+fn cone_sizes_and_monomials() {
+    assert_eq!(CertifySettings::cone_size(2, 1), 9);
+    assert_eq!(CertifySettings::cone_size(3, 3), 66);
+    assert_eq!(CertifySettings::cone_size(4, 2), 84);
+    assert_eq!(monomials(3, 2).len(), 6);
+    assert_eq!(multinomial(&[2, 1]), 3.0);
+}
