@@ -24,7 +24,10 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
-use nmci::*;
+use nmci::{
+    certify::*, check::*, contract::*, explore::*, nway::*, rules::*, sample::*, sdp::*,
+    structure::*, *,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;

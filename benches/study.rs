@@ -9,7 +9,7 @@
 
 use std::time::Instant;
 
-use nmci::sim::{
+use nmci::study::{
     coin_parallel, simulate_rules_parallel, simulate_run, study_parallel, Model, Rule, Storage,
     StudyConfig,
 };

@@ -22,7 +22,7 @@
 //! redrawn: nmCI, resp. CI, is optimal there.
 #![allow(non_snake_case)]
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{bounds::*, certify::*, rules::*, sdp::*, structure::*, *};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;

@@ -4,7 +4,7 @@
 //! `cargo run --release --example cuts_probe -- 3 4 5 6`
 #![allow(non_snake_case)]
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{check::*, sample::*, sdp::*, structure::*, *};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 // The tests' seeded generators (same draws: the documented numbers are unchanged).

@@ -143,7 +143,7 @@ pub enum InputError {
         problem: String,
     },
     /// An entry of `P_a` or `P_b` between two declared blocks above the coupling tolerance:
-    /// the blocks are not independent in it (`crate::absorb_couplings`).
+    /// the blocks are not independent in it (`crate::structure::absorb_couplings`).
     #[error("{}[{row}][{col}] = {value} couples blocks {} and {} ({relative:.1e} relative to the square root of its diagonal entries, above coupling_tol {tol:e}): the declared blocks are not independent", request_field(name), blocks[0], blocks[1])]
     CouplingTooLarge {
         /// The covariance's request field (`pa`, `pb`, `estimates[i].p`).
@@ -162,7 +162,7 @@ pub enum InputError {
         tol: f64,
     },
     /// An unknown entry of the pattern of `P_ab` between two declared blocks: declared blocks
-    /// have independent errors, so it must be a known zero (`crate::absorb_couplings`).
+    /// have independent errors, so it must be a known zero (`crate::structure::absorb_couplings`).
     #[error("{field}[{row}][{col}] is true, but states {row} and {col} are in declared blocks {} and {}, whose errors are independent (make it false, or join the blocks)", blocks[0], blocks[1])]
     PatternCrossesBlocks {
         /// The pattern's request field (`pab_unknown`, `patterns[k].pab_unknown`).
@@ -293,14 +293,14 @@ pub enum SolveError {
     Input(#[from] InputError),
 }
 
-/// Any failure of a [`crate::FuseRequest`]: the one error type of the JSON contract shared
+/// Any failure of a [`crate::contract::FuseRequest`]: the one error type of the JSON contract shared
 /// by the CLI and the wasm module.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum RequestError {
     /// The request is not valid JSON, has an unknown field, or a value of the wrong type.
     #[error("invalid request: {0}")]
     Malformed(String),
-    /// The request text is longer than [`crate::MAX_REQUEST_BYTES`] (refused before parsing).
+    /// The request text is longer than [`crate::contract::MAX_REQUEST_BYTES`] (refused before parsing).
     #[error("invalid request: longer than the limit of {limit} bytes ({bytes} bytes read)")]
     TooLarge {
         /// The bytes read (the CLI stops one past the limit).
@@ -436,7 +436,7 @@ pub enum ReportError {
     },
 }
 
-/// A chart could not be drawn ([`crate::Chart`]): the plotting library's or the canvas'
+/// A chart could not be drawn ([`crate::chart::Chart`]): the plotting library's or the canvas'
 /// message.
 #[derive(Debug, Clone, PartialEq, Error)]
 #[error("cannot draw the chart: {0}")]

@@ -136,8 +136,8 @@ pub struct Exploration {
     /// The two estimates' covariances summarised as the rules' responses are (`trace`,
     /// `det`): `P_a`, then `P_b`.
     pub estimates: [CovarianceSummary; 2],
-    /// Every rule the explorer computes ([`crate::RuleInfo::explorer`]), in
-    /// [`crate::RULES`] order. CI, nmCI and ICI use the request's criterion; the SDP and the
+    /// Every rule the explorer computes ([`crate::rules::RuleInfo::explorer`]), in
+    /// [`crate::rules::RULES`] order. CI, nmCI and ICI use the request's criterion; the SDP and the
     /// certified rule (blocks of at most [`BRACKET_CERTIFY_MAX_BLOCK`] states) minimise the
     /// trace.
     pub rules: Vec<RuleReport>,
@@ -184,10 +184,10 @@ fn region_seed(seed: u64) -> u64 {
 /// Analyses one explorer state.
 ///
 /// ```
-/// let req: nmci::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],
+/// let req: nmci::explore::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],
 ///     "pb": [[1,0],[0,4]], "pab_unknown": [[true,false],[false,true]], "samples": 50}"#).unwrap();
-/// let a = nmci::explore(&req).unwrap();
-/// assert_eq!(a.response(nmci::Method::Nmci).unwrap().trace, 2.0);
+/// let a = nmci::explore::explore(&req).unwrap();
+/// assert_eq!(a.response(nmci::rules::Method::Nmci).unwrap().trace, 2.0);
 /// assert!(a.gap.unwrap().absolute.abs() < 1e-6);
 /// assert_eq!(a.region.len(), 300 * 4);
 /// ```
@@ -200,12 +200,12 @@ pub fn explore(request: &ExploreRequest) -> Result<Exploration, RequestError> {
 /// solves that block's certificate alone (the page keeps one memo per worker).
 ///
 /// ```
-/// let req: nmci::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],
+/// let req: nmci::explore::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],
 ///     "pb": [[1,0],[0,4]], "pab_unknown": [[true,false],[false,true]], "samples": 50}"#).unwrap();
-/// let mut memo = nmci::CertificateMemo::new();
-/// let first = nmci::explore_with_memo(&req, &mut memo).unwrap();
-/// assert_eq!(first, nmci::explore(&req).unwrap());
-/// assert_eq!(nmci::explore_with_memo(&req, &mut memo).unwrap(), first);
+/// let mut memo = nmci::certify::CertificateMemo::new();
+/// let first = nmci::explore::explore_with_memo(&req, &mut memo).unwrap();
+/// assert_eq!(first, nmci::explore::explore(&req).unwrap());
+/// assert_eq!(nmci::explore::explore_with_memo(&req, &mut memo).unwrap(), first);
 /// assert!(memo.hits() > 0);
 /// ```
 pub fn explore_with_memo(

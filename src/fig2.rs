@@ -56,7 +56,7 @@ pub const MAX_FIG2_SIZES: usize = 64;
 impl Fig2Config {
     /// Checks the settings: at least one run and at most [`MAX_FIG2_RUNS`]; one to
     /// [`MAX_FIG2_SIZES`] sizes, each from 1 to the sampled SDP's
-    /// [`MAX_SAMPLES`](crate::MAX_SAMPLES).
+    /// [`MAX_SAMPLES`](crate::contract::MAX_SAMPLES).
     pub fn validate(&self) -> Result<(), RequestError> {
         if self.runs == 0 {
             return Err(RequestError::invalid("runs", "fig2 needs at least one run"));
@@ -85,12 +85,16 @@ impl Fig2Config {
                 ),
             ));
         }
-        if let Some(&n) = self.sizes.iter().find(|&&n| n > crate::MAX_SAMPLES) {
+        if let Some(&n) = self
+            .sizes
+            .iter()
+            .find(|&&n| n > crate::contract::MAX_SAMPLES)
+        {
             return Err(RequestError::invalid(
                 "sizes",
                 format!(
                     "a sample-set size of {n} is above the sampled SDP's limit of {} samples",
-                    crate::MAX_SAMPLES
+                    crate::contract::MAX_SAMPLES
                 ),
             ));
         }
@@ -294,7 +298,7 @@ pub fn write_fig2(
     Ok(vec![csv, svg])
 }
 
-/// The paper's fig. 2 layout ([`crate::fig2_charts`], the charts the page draws): top,
+/// The paper's fig. 2 layout ([`crate::fig2::fig2_charts`], the charts the page draws): top,
 /// `‖P_nmCI − P_opt‖₂` against the sample-set size (log–log, median with min and max);
 /// bottom, `λ_min(P − K P_true Kᵀ)` of nmCI and of the SDP.
 #[cfg(all(feature = "files", not(target_arch = "wasm32")))]
@@ -342,7 +346,10 @@ pub fn fig2_charts(rows: &[Fig2Row], runs: usize) -> [Chart; 2] {
             },
         )
     };
-    let (sdp, nmci) = (crate::Method::Sdp.info(), crate::Method::Nmci.info());
+    let (sdp, nmci) = (
+        crate::rules::Method::Sdp.info(),
+        crate::rules::Method::Nmci.info(),
+    );
     let (dev_band, dev_line) = median_band("sampled SDP vs nmCI", sdp.colour, &|r| r.dev);
     let (opt_band, opt_line) = median_band(sdp.label, sdp.colour, &|r| r.eig_opt);
     let (nm_band, nm_line) = median_band(nmci.label, nmci.colour, &|r| r.eig_nmci);

@@ -118,7 +118,7 @@ impl CrossPattern {
 ///
 /// ```
 /// use nalgebra::DMatrix;
-/// use nmci::{independent_blocks, CrossPattern};
+/// use nmci::{CrossPattern, structure::independent_blocks};
 /// let P_a = DMatrix::from_diagonal_element(2, 2, 3.0);
 /// let P_b = DMatrix::from_diagonal_element(2, 2, 1.0);
 /// let blocks = independent_blocks(&P_a, &P_b, &CrossPattern::diagonal(2));

@@ -1,5 +1,5 @@
-//! The wasm-bindgen bindings: a thin layer over [`crate::fuse`], [`crate::explore`], the
-//! fig. 2 study ([`crate::fig2_run`]) and the tracking study ([`crate::sim::LiveStudy`]). No logic lives here.
+//! The wasm-bindgen bindings: a thin layer over [`crate::contract::fuse`], [`crate::explore::explore`], the
+//! fig. 2 study ([`crate::fig2::fig2_run`]) and the tracking study ([`crate::sim::LiveStudy`]). No logic lives here.
 
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -7,8 +7,9 @@ use wasm_bindgen::prelude::*;
 
 use crate::api::FuseRequest;
 use crate::error::RequestError;
+use crate::explore::ExploreRequest;
+use crate::fig2::{Fig2Config, Fig2Record};
 use crate::sim::{CoinTail, LiveCoin, LiveCoinPart, LiveRules, LiveStudy, StudyConfig, TraceTail};
-use crate::{ExploreRequest, Fig2Config, Fig2Record};
 
 #[cfg(feature = "charts")]
 mod canvas;
@@ -82,11 +83,11 @@ pub fn panic_for_test(message: &str) {
     panic!("{message}");
 }
 
-/// Every fusion rule ([`crate::RULES`]): name, label, legend, guarantee, colour, criteria,
+/// Every fusion rule ([`crate::rules::RULES`]): name, label, legend, guarantee, colour, criteria,
 /// options, whether it fuses N estimates and whether the explorer computes it.
 #[wasm_bindgen]
 pub fn rules() -> Result<JsValue, JsError> {
-    to_js(&crate::RULES)
+    to_js(&crate::rules::RULES)
 }
 
 /// The tracking study's estimators in report order ([`crate::sim::estimators`]): name, label,
@@ -98,21 +99,21 @@ pub fn study_estimators() -> Result<JsValue, JsError> {
 
 thread_local! {
     /// The certified blocks [`explore`] keeps between calls.
-    static EXPLORE_MEMO: std::cell::RefCell<crate::CertificateMemo> = Default::default();
+    static EXPLORE_MEMO: std::cell::RefCell<crate::certify::CertificateMemo> = Default::default();
 }
 
-/// Analyses one explorer state (see [`crate::ExploreRequest`]): CI, nmCI, the sampled-SDP
+/// Analyses one explorer state (see [`crate::explore::ExploreRequest`]): CI, nmCI, the sampled-SDP
 /// bound, the gap, the region of possible true fused covariances and each rule's worst
 /// conservativeness margin. The region crosses as a `Float64Array` in `region`
 /// (`region_count` row-major `n × n` matrices).
 /// Throws as [`fuse`] does.
 /// The certified rule's blocks are memoized per module instance (one per worker,
-/// [`crate::explore_with_memo`]): the same numbers, an edit in one block solves that block.
+/// [`crate::explore::explore_with_memo`]): the same numbers, an edit in one block solves that block.
 #[wasm_bindgen]
 pub fn explore(request: JsValue) -> Result<JsValue, JsValue> {
     let request: ExploreRequest = parse(request).map_err(thrown)?;
     let analysis = EXPLORE_MEMO
-        .with(|memo| crate::explore_with_memo(&request, &mut memo.borrow_mut()))
+        .with(|memo| crate::explore::explore_with_memo(&request, &mut memo.borrow_mut()))
         .map_err(thrown)?;
     let object = to_js(&analysis)?;
     let region = js_sys::Float64Array::from(analysis.region.as_slice());
@@ -168,7 +169,7 @@ impl Study {
         Ok(self.inner.advance(steps)?)
     }
 
-    /// The charts so far, `{nees, rmse, omega, coin}` ([`crate::study_charts`]; `coin` only
+    /// The charts so far, `{nees, rmse, omega, coin}` ([`crate::study::study_charts`]; `coin` only
     /// with COIN), for [`draw_chart`].
     pub fn charts(&self) -> Result<JsValue, JsError> {
         let object = js_sys::Object::new();
@@ -292,7 +293,7 @@ impl StudyCoin {
         Ok(object)
     }
 
-    /// The COIN chart so far ([`crate::coin_chart`]), for [`draw_chart`].
+    /// The COIN chart so far ([`crate::study::coin_chart`]), for [`draw_chart`].
     pub fn chart(&self) -> Result<JsValue, JsError> {
         to_js(&self.inner.chart())
     }
@@ -366,25 +367,25 @@ pub fn study_networks() -> Result<JsValue, JsError> {
     })
 }
 
-/// Run `run` of the paper's fig. 2 study ([`crate::fig2_run`]): `config` has the keys of
-/// [`crate::Fig2Config`] (`runs`, `sizes`, `seed`); returns one record per sample-set size.
+/// Run `run` of the paper's fig. 2 study ([`crate::fig2::fig2_run`]): `config` has the keys of
+/// [`crate::fig2::Fig2Config`] (`runs`, `sizes`, `seed`); returns one record per sample-set size.
 #[wasm_bindgen]
 pub fn fig2_run(config: JsValue, run: usize) -> Result<JsValue, JsError> {
     let config: Fig2Config = parse(config)?;
-    to_js(&crate::fig2_run(&config, run)?)
+    to_js(&crate::fig2::fig2_run(&config, run)?)
 }
 
-/// The rows of `fig2.csv` ([`crate::fig2_summary`]) from the records of the runs done so far.
+/// The rows of `fig2.csv` ([`crate::fig2::fig2_summary`]) from the records of the runs done so far.
 #[wasm_bindgen]
 pub fn fig2_summary(config: JsValue, runs: JsValue) -> Result<JsValue, JsError> {
     let config: Fig2Config = parse(config)?;
     let runs: Vec<Vec<Fig2Record>> = parse(runs)?;
-    to_js(&crate::fig2_summary(&config, &runs))
+    to_js(&crate::fig2::fig2_summary(&config, &runs))
 }
 
-/// Draws a chart ([`crate::Chart`], as `Study.charts()` and [`fig2_charts`] give it) onto
+/// Draws a chart ([`crate::chart::Chart`], as `Study.charts()` and [`fig2_charts`] give it) onto
 /// `canvas`, `width` × `height` CSS pixels, with the code that writes the CLI's SVG files
-/// ([`crate::draw_chart`]); returns the number of points drawn per line. Throws when the
+/// ([`crate::chart::draw`]); returns the number of points drawn per line. Throws when the
 /// object is not a chart or the canvas cannot be drawn on. Feature `charts` (the page's build).
 #[cfg(feature = "charts")]
 #[wasm_bindgen]
@@ -403,22 +404,22 @@ pub fn draw_chart(
             MIN.0, MIN.1
         )));
     }
-    let chart: crate::Chart = parse_own(chart)?;
+    let chart: crate::chart::Chart = parse_own(chart)?;
     let backend = canvas::CanvasBackend::new(&canvas, width, height)
         .map_err(|e| JsError::new(&e.to_string()))?;
     let area = backend.into_drawing_area();
-    crate::draw_chart(&chart, &area)
+    crate::chart::draw(&chart, &area)
         .and_then(|()| area.present())
         .map_err(|e| JsError::new(&format!("cannot draw the chart: {e}")))?;
     Ok(chart.drawn_points().into_iter().map(|n| n as u32).collect())
 }
 
-/// Fig. 2's two charts ([`crate::fig2_charts`]) from the rows of [`fig2_summary`] and the
+/// Fig. 2's two charts ([`crate::fig2::fig2_charts`]) from the rows of [`fig2_summary`] and the
 /// runs they summarise.
 #[wasm_bindgen]
 pub fn fig2_charts(rows: JsValue, runs: usize) -> Result<JsValue, JsError> {
-    let rows: Vec<crate::Fig2Row> = parse_own(rows)?;
-    to_js(&crate::fig2_charts(&rows, runs))
+    let rows: Vec<crate::fig2::Fig2Row> = parse_own(rows)?;
+    to_js(&crate::fig2::fig2_charts(&rows, runs))
 }
 
 /// The crate version.

@@ -7,7 +7,7 @@
 #![cfg(target_arch = "wasm32")]
 
 use js_sys::{Reflect, JSON};
-use nmci::{FuseResponse, Method};
+use nmci::{contract::FuseResponse, rules::Method};
 use wasm_bindgen::{JsCast, JsValue};
 use wasm_bindgen_test::*;
 
@@ -79,7 +79,7 @@ fn paper_example_nmci() {
 fn paper_example_sdp() {
     let r = call(request("sdp")).unwrap();
     assert!((r.trace - 2.0).abs() < 1e-6, "trace {}", r.trace);
-    let nmci::Details::Sdp(d) = &r.details else {
+    let nmci::contract::Details::Sdp(d) = &r.details else {
         panic!("{:?}", r.details)
     };
     assert_eq!(d.samples, 100);
@@ -103,7 +103,7 @@ fn certified_rule_in_wasm() {
         "pab_unknown": [[true, true], [false, true]], "method": "certified"}"#;
     let r = call(JSON::parse(body).unwrap()).unwrap();
     assert!((r.trace - 2.0).abs() < 1e-6, "trace {}", r.trace);
-    assert!(matches!(r.details, nmci::Details::Certified(_)));
+    assert!(matches!(r.details, nmci::contract::Details::Certified(_)));
     assert!(r.upper_bound().unwrap() >= r.trace);
 }
 
@@ -182,16 +182,19 @@ fn thrown_errors_carry_the_field() {
     }
 }
 
-/// The page reads the rules from the registry: `rules()` is `nmci::RULES`, serialised.
+/// The page reads the rules from the registry: `rules()` is `nmci::rules::RULES`, serialised.
 #[wasm_bindgen_test]
 fn rules_are_the_registry() {
     let rules: serde_json::Value =
         serde_wasm_bindgen::from_value(nmci::wasm::rules().unwrap()).unwrap();
-    assert_eq!(rules, serde_json::to_value(nmci::RULES).unwrap());
+    assert_eq!(rules, serde_json::to_value(nmci::rules::RULES).unwrap());
     let estimators: serde_json::Value =
         serde_wasm_bindgen::from_value(nmci::wasm::study_estimators().unwrap()).unwrap();
     assert_eq!(estimators[0]["name"], "central");
-    assert_eq!(estimators[1]["colour"], nmci::Method::Ci.info().colour);
+    assert_eq!(
+        estimators[1]["colour"],
+        nmci::rules::Method::Ci.info().colour
+    );
 }
 
 #[wasm_bindgen_test]
@@ -206,7 +209,7 @@ fn explore_hands_the_region_over_as_a_typed_array() {
     assert!(region.is_instance_of::<js_sys::Float64Array>());
     let region = js_sys::Float64Array::from(region).to_vec();
     assert_eq!(region.len(), 50 * 4);
-    let rules: Vec<nmci::RuleReport> =
+    let rules: Vec<nmci::explore::RuleReport> =
         serde_wasm_bindgen::from_value(Reflect::get(&out, &"rules".into()).unwrap()).unwrap();
     let nmci = rules.iter().find(|r| r.method == Method::Nmci).unwrap();
     assert_eq!(nmci.response.as_ref().unwrap().trace, 2.0);
@@ -242,7 +245,7 @@ fn tiny_study_matches_the_native_golden_numbers() {
     let mut study = nmci::wasm::Study::new(config).unwrap();
     while !study.advance(7).unwrap() {}
     let view = study.view().unwrap();
-    let report: nmci::sim::StudyReport =
+    let report: nmci::study::StudyReport =
         serde_wasm_bindgen::from_value(Reflect::get(&view, &"report".into()).unwrap()).unwrap();
     golden::within_1e9(
         &golden::headline(&report),
@@ -276,7 +279,7 @@ fn a_study_shared_by_two_workers_is_the_one_worker_study_bit_for_bit() {
         for name in ["nees", "rmse", "two_sigma", "omega", "coin"] {
             assert_eq!(series(&a, name), series(&b, name), "{name}");
         }
-        let report = |v: &JsValue| -> nmci::sim::StudyReport {
+        let report = |v: &JsValue| -> nmci::study::StudyReport {
             serde_wasm_bindgen::from_value(Reflect::get(v, &"report".into()).unwrap()).unwrap()
         };
         assert_eq!(report(&a), report(&b));
@@ -332,9 +335,9 @@ fn every_method_matches_the_stored_native_responses() {
 #[wasm_bindgen_test]
 fn fig2_matches_the_stored_native_records() {
     let config = golden::fig2_config();
-    let stored: Vec<Vec<nmci::Fig2Record>> = serde_json::from_str(golden::FIG2).unwrap();
+    let stored: Vec<Vec<nmci::fig2::Fig2Record>> = serde_json::from_str(golden::FIG2).unwrap();
     let js_config = JSON::parse(&serde_json::to_string(&config).unwrap()).unwrap();
-    let got: Vec<Vec<nmci::Fig2Record>> = (0..config.runs)
+    let got: Vec<Vec<nmci::fig2::Fig2Record>> = (0..config.runs)
         .map(|run| {
             let js = nmci::wasm::fig2_run(js_config.clone(), run)
                 .unwrap_or_else(|e| panic!("run {run}: {:?}", JsValue::from(e)));

@@ -118,7 +118,7 @@ mod cli {
     /// `nmci fig2`: runs in parallel, `fig2.csv` and the two-panel `fig2.svg`.
     fn fig2(runs: usize, sizes: Vec<usize>, seed: u64, out: PathBuf) -> Result<String, String> {
         use indicatif::{ProgressBar, ProgressStyle};
-        use nmci::{fig2_run, fig2_summary, Fig2Config};
+        use nmci::fig2::{fig2_run, fig2_summary, Fig2Config};
         use rayon::prelude::*;
 
         let config = Fig2Config { runs, sizes, seed };
@@ -139,7 +139,7 @@ mod cli {
             .map_err(|e| e.to_string())?;
         bar.finish_and_clear();
         let rows = fig2_summary(&config, &records);
-        nmci::write_fig2(&rows, runs, &out).map_err(|e| e.to_string())?;
+        nmci::fig2::write_fig2(&rows, runs, &out).map_err(|e| e.to_string())?;
         let csv_path = out.join("fig2.csv");
         let failures: usize = rows.iter().map(|r| r.failures).sum();
         Ok(format!(
@@ -151,19 +151,19 @@ mod cli {
     }
 
     /// A study configuration from a TOML file, or the defaults.
-    fn load_config(path: Option<PathBuf>) -> Result<nmci::sim::StudyConfig, String> {
+    fn load_config(path: Option<PathBuf>) -> Result<nmci::study::StudyConfig, String> {
         match path {
             Some(path) => {
                 let text = std::fs::read_to_string(&path)
                     .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-                nmci::sim::StudyConfig::from_toml(&text).map_err(|e| match e {
-                    nmci::sim::SimError::InvalidConfig(m) => {
+                nmci::study::StudyConfig::from_toml(&text).map_err(|e| match e {
+                    nmci::study::SimError::InvalidConfig(m) => {
                         format!("invalid configuration {}: {m}", path.display())
                     }
                     e => e.to_string(),
                 })
             }
-            None => Ok(nmci::sim::StudyConfig::default()),
+            None => Ok(nmci::study::StudyConfig::default()),
         }
     }
 
@@ -171,14 +171,14 @@ mod cli {
     /// drawing, and the top of the ranking on standard output.
     fn sweep(
         config: Option<PathBuf>,
-        family: nmci::sim::Family,
+        family: nmci::study::Family,
         short_list: usize,
         runs: Option<usize>,
         steps: Option<usize>,
         out: PathBuf,
     ) -> Result<String, String> {
         use indicatif::{ProgressBar, ProgressStyle};
-        use nmci::sim::*;
+        use nmci::study::*;
 
         let mut study = load_config(config)?;
         study.runs = runs.unwrap_or(study.runs);
@@ -197,7 +197,7 @@ mod cli {
             .map_err(|e| e.to_string())?,
         );
         let started = std::time::Instant::now();
-        let report = nmci::sim::sweep(&config, |done, total| {
+        let report = nmci::study::sweep(&config, |done, total| {
             bar.set_length(total as u64);
             bar.set_position(done as u64);
         })
@@ -229,7 +229,7 @@ mod cli {
         out: PathBuf,
     ) -> Result<String, String> {
         use indicatif::{ProgressBar, ProgressStyle};
-        use nmci::sim::*;
+        use nmci::study::*;
 
         let mut cfg = load_config(config)?;
         cfg.runs = runs.unwrap_or(cfg.runs);
@@ -284,7 +284,7 @@ mod cli {
     /// `nmci merge`: reads shards (files, or every `shard-*.json` in folders), merges them
     /// into one study and writes what `nmci track` writes.
     fn merge(inputs: Vec<PathBuf>, out: PathBuf) -> Result<String, String> {
-        use nmci::sim::*;
+        use nmci::study::*;
         let mut files = Vec::new();
         for input in inputs {
             if input.is_dir() {
@@ -319,10 +319,10 @@ mod cli {
         ))
     }
 
-    /// The request text, read up to one byte past [`nmci::MAX_REQUEST_BYTES`]: a longer input
+    /// The request text, read up to one byte past [`nmci::contract::MAX_REQUEST_BYTES`]: a longer input
     /// is refused without being read whole.
     fn read_input(file: Option<PathBuf>) -> Result<String, String> {
-        let limit = nmci::MAX_REQUEST_BYTES;
+        let limit = nmci::contract::MAX_REQUEST_BYTES;
         let mut bytes = Vec::new();
         match file {
             Some(path) if path.as_os_str() != "-" => std::fs::File::open(&path)
@@ -352,7 +352,7 @@ mod cli {
         let (tx, rx) = mpsc::channel();
         let request = text.to_string();
         let worker = std::thread::spawn(move || {
-            let out = nmci::fuse_json(&request).map_err(|e| e.to_string());
+            let out = nmci::contract::fuse_json(&request).map_err(|e| e.to_string());
             let _ = tx.send(());
             out
         });
@@ -416,8 +416,8 @@ mod cli {
             } => sweep(
                 config,
                 match links {
-                    Some(count) => nmci::sim::Family::Links { count },
-                    None => nmci::sim::Family::Bridges { extra },
+                    Some(count) => nmci::study::Family::Links { count },
+                    None => nmci::study::Family::Bridges { extra },
                 },
                 short_list,
                 runs,

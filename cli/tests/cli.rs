@@ -318,12 +318,12 @@ fn sweep_writes_the_ranking_the_best_configuration_and_its_drawing() {
         .unwrap()
         .starts_with("reference,4-7 7-11 12-13,false,"));
     // The best network as a configuration `nmci track` runs.
-    let best: nmci::sim::StudyConfig =
+    let best: nmci::study::StudyConfig =
         toml::from_str(&std::fs::read_to_string(dir.join("best.toml")).unwrap()).unwrap();
-    let report: nmci::sim::SweepReport =
+    let report: nmci::study::SweepReport =
         serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap()).unwrap();
     assert_eq!(best.scenario.bridges, report.ranked[0].links);
-    assert_eq!(nmci::sim::check_text(&best.scenario), Ok(()));
+    assert_eq!(nmci::study::check_text(&best.scenario), Ok(()));
     let svg = std::fs::read_to_string(dir.join("network.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.matches("<circle").count() == 16);
     // Bad input: non-zero exit, the reason on stderr.
@@ -457,7 +457,7 @@ fn same(a: &serde_json::Value, b: &serde_json::Value) -> bool {
 /// key are refused with the reason.
 #[test]
 fn track_equals_the_sequential_study_and_applies_its_configuration() {
-    use nmci::sim::{run_study, StudyConfig, StudyReport};
+    use nmci::study::{run_study, StudyConfig, StudyReport};
     let dir = std::env::temp_dir().join(format!("nmci-track-config-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let cfg = dir.join("study.toml");
@@ -490,8 +490,8 @@ fn track_equals_the_sequential_study_and_applies_its_configuration() {
         runs: 2,
         seed: 5,
         coin: false,
-        scenario: nmci::sim::Scenario {
-            bridges: nmci::sim::FIGURE_BRIDGES.to_vec(),
+        scenario: nmci::study::Scenario {
+            bridges: nmci::study::FIGURE_BRIDGES.to_vec(),
             ..Default::default()
         },
         ..StudyConfig::default()
@@ -685,8 +685,12 @@ fn the_structure_note_goes_to_stderr_and_refusals_exit_nonzero() {
 /// The SVG files are the library's drawings of the study's and fig. 2's charts.
 #[test]
 fn the_clis_figures_are_this_codes_drawings() {
-    use nmci::sim::{run_study, StudyConfig};
-    use nmci::{charts_svg, fig2_charts, fig2_run, fig2_summary, study_charts, Fig2Config};
+    use nmci::study::{run_study, StudyConfig};
+    use nmci::{
+        chart::charts_svg,
+        fig2::{fig2_charts, fig2_run, fig2_summary, Fig2Config},
+        study::study_charts,
+    };
     let config = StudyConfig {
         runs: 2,
         steps: 12,
@@ -757,7 +761,7 @@ fn the_clis_figures_are_this_codes_drawings() {
 
 #[test]
 fn a_request_past_the_byte_limit_is_not_read_whole() {
-    use nmci::MAX_REQUEST_BYTES;
+    use nmci::contract::MAX_REQUEST_BYTES;
     let text = " ".repeat(MAX_REQUEST_BYTES + 1);
     // The CLI stops reading one byte past it, exits non-zero and says why.
     let path = std::env::temp_dir().join(format!("nmci-too-large-{}.json", std::process::id()));

@@ -3,7 +3,7 @@
 //! The Python package `nmci` (python/nmci/__init__.py) wraps these functions in typed, documented
 //! functions and classes. Here:
 //! - arrays cross as numpy `float64` (and `bool` patterns) and go out as numpy arrays;
-//! - requests go through the same [`nmci::FuseRequest`] / [`nmci::fuse`] contract as the CLI and
+//! - requests go through the same [`nmci::contract::FuseRequest`] / [`nmci::contract::fuse`] contract as the CLI and
 //!   the page (the array entry point fills the request's matrices from numpy instead of JSON),
 //!   so every rule, default, check and error message is the Rust one;
 //! - every solve, sample and study runs with the GIL released ([`Python::detach`]) and inside
@@ -19,8 +19,11 @@ use numpy::{PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use nmci::sim::{MergeError, SimError, StudyConfig, StudyShard};
-use nmci::{FuseRequest, FuseResponse, Gains, RequestError, SampleError, SolveError};
+use nmci::study::{MergeError, SimError, StudyConfig, StudyShard};
+use nmci::{
+    contract::{FuseRequest, FuseResponse, Gains},
+    RequestError, SampleError, SolveError,
+};
 
 /// The exception of `nmci._errors` named `kind`, carrying `message`.
 fn error(py: Python<'_>, kind: &str, message: String) -> PyErr {
@@ -219,7 +222,7 @@ type NumpyEstimate<'py> = (
 /// The JSON contract as text: exactly `nmci fuse`.
 #[pyfunction]
 fn fuse_json(py: Python<'_>, request: String) -> PyResult<String> {
-    detached(py, move || nmci::fuse_json(&request))?.map_err(|e| request_error(py, e))
+    detached(py, move || nmci::contract::fuse_json(&request))?.map_err(|e| request_error(py, e))
 }
 
 /// The key whose value holds byte column `column` (1-based) of `options`, a flat JSON object
@@ -270,7 +273,7 @@ fn fuse_arrays<'py>(
     request.pair.pab_unknown = pab_unknown.as_ref().map(bool_rows);
     request.estimates = estimates.map(|list| {
         list.iter()
-            .map(|(x, p)| nmci::NwayEstimate {
+            .map(|(x, p)| nmci::contract::NwayEstimate {
                 x: x.as_ref().map(|v| v.as_array().to_vec()),
                 p: rows(p),
             })
@@ -278,14 +281,15 @@ fn fuse_arrays<'py>(
     });
     request.patterns = patterns.map(|list| {
         list.iter()
-            .map(|(i, j, m)| nmci::NwayPair {
+            .map(|(i, j, m)| nmci::contract::NwayPair {
                 i: *i,
                 j: *j,
                 pab_unknown: bool_rows(m),
             })
             .collect()
     });
-    let response = detached(py, move || nmci::fuse(&request))?.map_err(|e| request_error(py, e))?;
+    let response =
+        detached(py, move || nmci::contract::fuse(&request))?.map_err(|e| request_error(py, e))?;
     response_dict(py, response)
 }
 
@@ -299,7 +303,7 @@ fn conservativeness_index(
 ) -> PyResult<f64> {
     // P a covariance; E of its size, finite and symmetric (checked by the Rust API).
     let (P, E) = (matrix(&P), matrix(&E));
-    detached(py, move || nmci::conservativeness_index(&P, &E))?
+    detached(py, move || nmci::check::conservativeness_index(&P, &E))?
         .map_err(|e| error_at(py, "InputError", e.to_string(), e.request_field()))
 }
 
@@ -317,7 +321,7 @@ fn sample_cross_covariances<'py>(
     sampler: Option<&str>,
     max_trials: Option<u64>,
 ) -> PyResult<(Bound<'py, PyArray3<f64>>, u64)> {
-    let kind: Option<nmci::SamplerKind> = sampler
+    let kind: Option<nmci::sample::SamplerKind> = sampler
         .map(|s| serde_json::from_value(serde_json::Value::from(s)))
         .transpose()
         .map_err(|e| {
@@ -326,14 +330,14 @@ fn sample_cross_covariances<'py>(
         })?;
     // The request's problem builder and options: the same checks, defaults and messages as
     // `fuse`.
-    let pair = nmci::PairInput {
+    let pair = nmci::contract::PairInput {
         pab_unknown: pab_unknown.as_ref().map(bool_rows),
-        ..nmci::PairInput::new(rows(&pa), rows(&pb))
+        ..nmci::contract::PairInput::new(rows(&pa), rows(&pb))
     };
     let problem = pair
         .problem()
         .map_err(|e| request_error(py, RequestError::Input(e)))?;
-    let options = nmci::Options {
+    let options = nmci::contract::Options {
         sampler: kind,
         seed,
         max_trials,
@@ -342,7 +346,7 @@ fn sample_cross_covariances<'py>(
     let sdp = options.plan().map_err(|e| request_error(py, e))?.sdp;
     let (seed, settings) = (sdp.seed, sdp.sampler);
     let samples = detached(py, move || {
-        nmci::sample_cross_covariances(&problem, count, seed, settings)
+        nmci::sample::sample_cross_covariances(&problem, count, seed, settings)
     })?
     .map_err(|e| request_error(py, RequestError::Sample(e)))?;
     let stack: Vec<Vec<Vec<f64>>> = samples
@@ -366,10 +370,10 @@ fn config_from_toml(py: Python<'_>, text: &str) -> PyResult<String> {
     serde_json::to_string(&config).map_err(|e| error(py, "InternalError", e.to_string()))
 }
 
-/// The registry of rules ([`nmci::RULES`]) as JSON text.
+/// The registry of rules ([`nmci::rules::RULES`]) as JSON text.
 #[pyfunction]
 fn rules_json() -> String {
-    serde_json::to_string(&nmci::RULES).expect("the registry serialises")
+    serde_json::to_string(&nmci::rules::RULES).expect("the registry serialises")
 }
 
 /// The JSON request field of an input named in an error (`P_a` → `pa`; [`nmci::request_field`]).
@@ -394,7 +398,7 @@ fn parse_config(py: Python<'_>, config: &str) -> PyResult<StudyConfig> {
 /// A whole study: configuration, every run's trace and the summary.
 #[pyclass(module = "nmci._nmci", frozen)]
 struct Study {
-    inner: nmci::sim::Study,
+    inner: nmci::study::Study,
 }
 
 #[pymethods]
@@ -455,13 +459,13 @@ impl Study {
     /// Writes what `nmci track` writes into `out`; returns the files.
     fn write(&self, py: Python<'_>, out: std::path::PathBuf) -> PyResult<Vec<String>> {
         let study = self.inner.clone();
-        let files = detached(py, move || nmci::sim::write_study(&study, &out))?
+        let files = detached(py, move || nmci::study::write_study(&study, &out))?
             .map_err(|e| error(py, "OutputError", e.to_string()))?;
         Ok(files.iter().map(|p| p.display().to_string()).collect())
     }
 }
 
-/// Runs `first_run..first_run + runs` of a study (see `nmci::sim::merge_shards`).
+/// Runs `first_run..first_run + runs` of a study (see `nmci::study::merge_shards`).
 #[pyclass(module = "nmci._nmci", frozen)]
 struct Shard {
     inner: StudyShard,
@@ -526,7 +530,7 @@ impl Shard {
 /// The shard files of a folder (`shard-*.json`), sorted by name.
 #[pyfunction]
 fn shard_files(py: Python<'_>, dir: std::path::PathBuf) -> PyResult<Vec<String>> {
-    let files = nmci::sim::shard_files(&dir).map_err(|e| {
+    let files = nmci::study::shard_files(&dir).map_err(|e| {
         error(
             py,
             "MergeError",
@@ -541,8 +545,8 @@ fn shard_files(py: Python<'_>, dir: std::path::PathBuf) -> PyResult<Vec<String>>
 fn run_study(py: Python<'_>, config: &str) -> PyResult<Study> {
     let config = parse_config(py, config)?;
     let study = parallel(py, move || -> Result<_, SimError> {
-        let model = nmci::sim::Model::new(&config.scenario)?;
-        nmci::sim::study_parallel(&config, &model, || {})
+        let model = nmci::study::Model::new(&config.scenario)?;
+        nmci::study::study_parallel(&config, &model, || {})
     })?
     .map_err(|e| sim_error(py, e))?;
     Ok(Study { inner: study })
@@ -553,8 +557,8 @@ fn run_study(py: Python<'_>, config: &str) -> PyResult<Study> {
 fn run_shard(py: Python<'_>, config: &str, first_run: usize) -> PyResult<Shard> {
     let config = parse_config(py, config)?;
     let shard = parallel(py, move || -> Result<_, SimError> {
-        let model = nmci::sim::Model::new(&config.scenario)?;
-        nmci::sim::run_shard(&config, &model, first_run, || {})
+        let model = nmci::study::Model::new(&config.scenario)?;
+        nmci::study::run_shard(&config, &model, first_run, || {})
     })?
     .map_err(|e| sim_error(py, e))?;
     Ok(Shard { inner: shard })
@@ -564,7 +568,7 @@ fn run_shard(py: Python<'_>, config: &str, first_run: usize) -> PyResult<Shard> 
 #[pyfunction]
 fn merge(py: Python<'_>, shards: Vec<PyRef<'_, Shard>>) -> PyResult<Study> {
     let shards: Vec<StudyShard> = shards.iter().map(|s| s.inner.clone()).collect();
-    let study = detached(py, move || nmci::sim::merge_shards(shards))?.map_err(|e| {
+    let study = detached(py, move || nmci::study::merge_shards(shards))?.map_err(|e| {
         let kind = match e {
             MergeError::Invalid(_) => "StudyError",
             _ => "MergeError",
@@ -577,7 +581,7 @@ fn merge(py: Python<'_>, shards: Vec<PyRef<'_, Shard>>) -> PyResult<Study> {
 /// The rows of `fig2.csv` (one per sample-set size) and the number of runs behind them.
 #[pyclass(module = "nmci._nmci", frozen)]
 struct Fig2Rows {
-    rows: Vec<nmci::Fig2Row>,
+    rows: Vec<nmci::fig2::Fig2Row>,
     runs: usize,
 }
 
@@ -591,7 +595,7 @@ impl Fig2Rows {
     /// Writes what `nmci fig2` writes (`fig2.csv`, `fig2.svg`) into `out`; returns the files.
     fn write(&self, py: Python<'_>, out: std::path::PathBuf) -> PyResult<Vec<String>> {
         let (rows, runs) = (self.rows.clone(), self.runs);
-        let files = detached(py, move || nmci::write_fig2(&rows, runs, &out))?
+        let files = detached(py, move || nmci::fig2::write_fig2(&rows, runs, &out))?
             .map_err(|e| error(py, "OutputError", e.to_string()))?;
         Ok(files.iter().map(|p| p.display().to_string()).collect())
     }
@@ -601,14 +605,14 @@ impl Fig2Rows {
 #[pyfunction]
 fn fig2(py: Python<'_>, runs: usize, sizes: Vec<usize>, seed: u64) -> PyResult<Fig2Rows> {
     use rayon::prelude::*;
-    let config = nmci::Fig2Config { runs, sizes, seed };
+    let config = nmci::fig2::Fig2Config { runs, sizes, seed };
     let rows = parallel(py, move || -> Result<_, RequestError> {
         config.validate()?;
         let records = (0..config.runs)
             .into_par_iter()
-            .map(|r| nmci::fig2_run(&config, r))
+            .map(|r| nmci::fig2::fig2_run(&config, r))
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(nmci::fig2_summary(&config, &records))
+        Ok(nmci::fig2::fig2_summary(&config, &records))
     })?
     .map_err(|e| request_error(py, e))?;
     Ok(Fig2Rows { rows, runs })

@@ -58,7 +58,7 @@ pub const MAX_TRIALS: u64 = 100_000_000;
 pub const MAX_ESTIMATES: usize = 32;
 
 /// A covariance's size: a response's `trace` and `det` ([`FuseResponse`]), and the explorer's
-/// row of each estimate ([`crate::Exploration::estimates`]).
+/// row of each estimate ([`crate::explore::Exploration::estimates`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CovarianceSummary {
     /// The field it comes from (`pa`, `pb`; `p` for a response).
@@ -123,10 +123,10 @@ pub(crate) fn response(
 /// Runs a request.
 ///
 /// ```
-/// let req: nmci::FuseRequest = serde_json::from_str(
+/// let req: nmci::contract::FuseRequest = serde_json::from_str(
 ///     r#"{"pa": [[3,0],[0,1]], "pb": [[1,0],[0,4]],
 ///         "pab_unknown": [[true,false],[false,true]], "method": "nmci"}"#).unwrap();
-/// let res = nmci::fuse(&req).unwrap();
+/// let res = nmci::contract::fuse(&req).unwrap();
 /// assert_eq!(res.omega(), Some(vec![0.0, 1.0]));
 /// assert_eq!(res.trace, 2.0);
 /// ```

@@ -3,7 +3,7 @@
 //! A request is made of parts shared by its two kinds: [`PairInput`] (the two estimates and
 //! what is known of `P_ab`) and [`Options`] (criterion, sampler, certificate, time limit), each
 //! declared once and flattened into the JSON object of [`FuseRequest`] and
-//! [`crate::ExploreRequest`]. [`Options::plan`] validates the options and fills in every
+//! [`crate::explore::ExploreRequest`]. [`Options::plan`] validates the options and fills in every
 //! default — the settings types' own `Default`s ([`SdpSettings`], [`SamplerSettings`],
 //! [`CertifySettings`], [`CutsSettings`]), so a default lives in one place — giving the
 //! [`Plan`] that `fuse` and `explore` both run.
@@ -80,7 +80,7 @@ pub(crate) fn matrix(name: &str, rows: &[Vec<f64>]) -> Result<DMatrix<f64>, Inpu
 }
 
 /// Two estimates and what is known of their cross-covariance: the fields `pa`, `pb`, `xa`,
-/// `xb` and `pab_unknown` of [`FuseRequest`] and [`crate::ExploreRequest`].
+/// `xb` and `pab_unknown` of [`FuseRequest`] and [`crate::explore::ExploreRequest`].
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PairInput {
     /// `P_a`, row-major nested rows (required unless an N-way request gives `estimates`).
@@ -104,7 +104,7 @@ pub struct PairInput {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub blocks: Option<Vec<Vec<usize>>>,
     /// The relative size up to which an entry of a covariance between blocks is absorbed
-    /// ([`StructureSettings::coupling_tol`]; default [`crate::DEFAULT_COUPLING_TOL`], 0 = exact
+    /// ([`StructureSettings::coupling_tol`]; default [`crate::structure::DEFAULT_COUPLING_TOL`], 0 = exact
     /// zeros only). Also for N-way.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coupling_tol: Option<f64>,
@@ -189,7 +189,7 @@ impl PairInput {
     }
 }
 
-/// The options of [`FuseRequest`] and [`crate::ExploreRequest`]: every field absent means the
+/// The options of [`FuseRequest`] and [`crate::explore::ExploreRequest`]: every field absent means the
 /// default, which [`Options::plan`] takes from the settings types.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Options {
@@ -264,10 +264,10 @@ impl Options {
     /// defaults.
     ///
     /// ```
-    /// let plan = nmci::Options { samples: Some(50), ..Default::default() }.plan().unwrap();
+    /// let plan = nmci::contract::Options { samples: Some(50), ..Default::default() }.plan().unwrap();
     /// assert_eq!(plan.sdp.samples, 50);
-    /// assert_eq!(plan.sdp.sampler, nmci::SamplerSettings::default());
-    /// let bad = nmci::Options { level: Some(0), ..Default::default() }.plan().unwrap_err();
+    /// assert_eq!(plan.sdp.sampler, nmci::sample::SamplerSettings::default());
+    /// let bad = nmci::contract::Options { level: Some(0), ..Default::default() }.plan().unwrap_err();
     /// assert_eq!(bad.field().as_deref(), Some("level"));
     /// ```
     pub fn plan(&self) -> Result<Plan, RequestError> {
@@ -375,7 +375,7 @@ pub struct FuseRequest {
     pub pair: PairInput,
     /// The rule.
     pub method: Method,
-    /// The options (which apply to which method: [`crate::RuleInfo::options`]).
+    /// The options (which apply to which method: [`crate::rules::RuleInfo::options`]).
     #[serde(flatten)]
     pub options: Options,
     /// N-way fusion (methods `ci`, `nmci`): `k ≥ 2` estimates, instead of `pa`, `pb`, `xa`,
@@ -429,10 +429,10 @@ impl FuseRequest {
     /// fully unknown `P_ab`, the defaults), to be completed through its `pair` and `options`.
     ///
     /// ```
-    /// let mut req = nmci::FuseRequest::new(nmci::Method::Nmci, vec![vec![3.0, 0.0], vec![0.0, 1.0]],
+    /// let mut req = nmci::contract::FuseRequest::new(nmci::rules::Method::Nmci, vec![vec![3.0, 0.0], vec![0.0, 1.0]],
     ///                                      vec![vec![1.0, 0.0], vec![0.0, 4.0]]);
     /// req.pair.pab_unknown = Some(vec![vec![true, false], vec![false, true]]);
-    /// assert_eq!(nmci::fuse(&req).unwrap().trace, 2.0);
+    /// assert_eq!(nmci::contract::fuse(&req).unwrap().trace, 2.0);
     /// ```
     pub fn new(method: Method, pa: Vec<Vec<f64>>, pb: Vec<Vec<f64>>) -> Self {
         Self {
@@ -518,7 +518,7 @@ impl FuseRequest {
         Ok(plan)
     }
 
-    /// The sizes against the method's [`crate::Limits`] and [`MAX_ESTIMATES`], before any
+    /// The sizes against the method's [`crate::rules::Limits`] and [`MAX_ESTIMATES`], before any
     /// matrix is built (the block limit needs the problem: [`check_blocks`]).
     fn check_sizes(&self) -> Result<(), RequestError> {
         let max = self.method.info().limits.max_dim;
@@ -597,7 +597,7 @@ impl TryFrom<FuseRequestWire> for FuseRequest {
 }
 
 /// `Err` naming `pab_unknown` when an independent block of `problem` is larger than
-/// `method`'s [`crate::Limits::max_block`].
+/// `method`'s [`crate::rules::Limits::max_block`].
 pub(crate) fn check_blocks(method: Method, problem: &FusionProblem) -> Result<(), RequestError> {
     let max = method.info().limits.max_block;
     if problem.dim() <= max {

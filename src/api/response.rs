@@ -146,10 +146,10 @@ pub struct SdpDetails {
     /// holds whatever the solver's accuracy. Upper end: the rounded-up trace of the best
     /// conservative rule — CI, nmCI (recomputed with Young's inequality in exact arithmetic)
     /// or the certified rule (when every independent block has at most
-    /// [`crate::BRACKET_CERTIFY_MAX_BLOCK`] states); ties go to CI / nmCI.
+    /// [`crate::bounds::BRACKET_CERTIFY_MAX_BLOCK`] states); ties go to CI / nmCI.
     pub bracket: Option<Bracket>,
     /// The certified rule in the bracket (blocks of at most
-    /// [`crate::BRACKET_CERTIFY_MAX_BLOCK`] states; absent when the caller gave the upper ends).
+    /// [`crate::bounds::BRACKET_CERTIFY_MAX_BLOCK`] states; absent when the caller gave the upper ends).
     pub certificates: Option<Certificates>,
     /// The trace, rounded up, of a bound proven to hold for this method's own gain and every
     /// admissible `P_ab`: an upper bound on what that gain costs when the bound must hold for

@@ -249,7 +249,7 @@ fn tick(v: f64, log: bool) -> String {
 /// what the CLI writes (`nees.svg`, `fig2.svg`, …).
 ///
 /// ```
-/// use nmci::{Axis, Chart, Line};
+/// use nmci::chart::{Axis, Chart, Line};
 /// let chart = Chart {
 ///     title: "a line".into(),
 ///     x: Axis { label: "x".into(), ..Axis::default() },
@@ -258,7 +258,7 @@ fn tick(v: f64, log: bool) -> String {
 ///     lines: vec![Line { label: Some("y = x²".into()), colour: "#d62728".into(), width: 2,
 ///         dashed: false, dots: false, points: (0..5).map(|k| (k as f64, (k * k) as f64)).collect() }],
 /// };
-/// let svg = nmci::charts_svg(&[&chart], (560, 300)).unwrap();
+/// let svg = nmci::chart::charts_svg(&[&chart], (560, 300)).unwrap();
 /// assert!(svg.starts_with("<svg") && svg.contains("y = x²"));
 /// ```
 #[cfg(not(target_arch = "wasm32"))]

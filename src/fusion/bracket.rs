@@ -257,7 +257,7 @@ impl UpperBounds {
     }
 
     /// [`UpperBounds::of`] with nmCI's bound taken on `absorbed`, a problem whose covariances
-    /// dominate `problem`'s with the same pattern (`crate::absorb_couplings`): an upper bound
+    /// dominate `problem`'s with the same pattern (`crate::structure::absorb_couplings`): an upper bound
     /// on its robust optimum is one on `problem`'s, which is never larger (module docs of
     /// `structure::absorb`). CI does not use the blocks and takes `problem` as given.
     pub fn of_absorbed(
@@ -466,7 +466,7 @@ mod tests {
     #[test]
     fn the_cutting_planes_carry_their_certified_rule_to_their_gain() {
         let problem = one_known_zero();
-        let cuts = crate::optimal_fusion_cuts(&problem, &Default::default()).unwrap();
+        let cuts = crate::sdp::optimal_fusion_cuts(&problem, &Default::default()).unwrap();
         let cert = cuts
             .certified
             .as_ref()
@@ -474,13 +474,15 @@ mod tests {
         assert_eq!(Some(trace_upper_bound(&cert.P)), cuts.certified_trace);
         let carried = carried_trace(&problem, &cuts.fused.K_a, cert).unwrap();
         assert!(carried - cuts.lower_bound <= CLOSED_RTOL * carried);
-        let request: crate::FuseRequest = serde_json::from_str(
+        let request: crate::contract::FuseRequest = serde_json::from_str(
             r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]],
                 "pab_unknown": [[true, true], [false, true]], "method": "sdp_cuts"}"#,
         )
         .unwrap();
-        match crate::fuse(&request).unwrap().details {
-            crate::Details::SdpCuts(d) => assert_eq!(d.gain_certified_trace, Some(carried)),
+        match crate::contract::fuse(&request).unwrap().details {
+            crate::contract::Details::SdpCuts(d) => {
+                assert_eq!(d.gain_certified_trace, Some(carried))
+            }
             other => panic!("{other:?}"),
         }
     }

@@ -9,7 +9,7 @@
 //! quantities as [`conservativeness_margin`] and [`fused_coin`] per `P_ab`, summed in another
 //! order (rounding-level differences, tested).
 //!
-//! When the problem has independent blocks ([`crate::independent_blocks`]: `P_a`, `P_b` and
+//! When the problem has independent blocks ([`crate::structure::independent_blocks`]: `P_a`, `P_b` and
 //! every admissible `P_ab` are zero off them) and the rule's `P̄`, `K_a`, `K_b` are zero off
 //! them too (exactly, as every block-wise rule gives them), `P̄ − K P' Kᵀ` and
 //! `L⁻¹ K P' Kᵀ L⁻ᵀ` are block-diagonal for every `P'`, so their eigenvalues are those of
@@ -150,7 +150,7 @@ pub(crate) fn margin(problem: &FusionProblem, fused: &Fused, P_ab: &DMatrix<f64>
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::diagonal(2)).unwrap();
@@ -222,7 +222,7 @@ fn worst_margin_dense(problem: &FusionProblem, fused: &Fused, cross: &[DMatrix<f
 ///
 /// ```
 /// use nalgebra::DMatrix;
-/// use nmci::conservativeness_index;
+/// use nmci::check::conservativeness_index;
 /// let E = DMatrix::from_row_slice(2, 2, &[2.0, 0.5, 0.5, 1.0]);
 /// assert!((conservativeness_index(&E, &E).unwrap() - 1.0).abs() < 1e-12);
 /// assert!((conservativeness_index(&(&E * 4.0), &E).unwrap() - 0.25).abs() < 1e-12);

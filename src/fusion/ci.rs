@@ -556,7 +556,7 @@ pub fn ci_covariance(problem: &FusionProblem, omega: f64) -> Result<DMatrix<f64>
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::{covariance_intersection, Criterion, FusionProblem, CrossPattern};
+/// use nmci::{Criterion, CrossPattern, FusionProblem, rules::covariance_intersection};
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::fully_unknown(2)).unwrap();
@@ -589,7 +589,8 @@ pub fn covariance_intersection(
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
+/// use nmci::rules::covariance_intersection_blocks;
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::fully_unknown(2)).unwrap();

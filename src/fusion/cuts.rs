@@ -214,7 +214,7 @@ pub struct CutsResult {
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::diagonal(2)).unwrap();

@@ -25,7 +25,8 @@ const EQUAL: f64 = 1e-9;
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
+/// use nmci::rules::ellipsoidal_intersection;
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::new(DVector::from_vec(vec![1.0, 2.0]), d(&[3.0, 1.0]),
 ///     DVector::from_vec(vec![5.0, 6.0]), d(&[1.0, 4.0]), CrossPattern::fully_unknown(2)).unwrap();

@@ -129,7 +129,8 @@ fn gain_scales(pencil: &Pencil, omega: f64) -> impl Iterator<Item = f64> + '_ {
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
+/// use nmci::rules::inverse_covariance_intersection;
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::fully_unknown(2)).unwrap();

@@ -18,7 +18,8 @@ use crate::linalg::{
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
+/// use nmci::rules::known_correlation_fusion;
 /// // Independent estimates of equal covariance: the average, with half the covariance.
 /// let I = DMatrix::<f64>::identity(2, 2);
 /// let p = FusionProblem::from_covariances(I.clone() * 2.0, I.clone() * 2.0,
@@ -70,7 +71,8 @@ pub(crate) fn known_fusion(problem: &FusionProblem, P_ab: &DMatrix<f64>) -> Fuse
 ///
 /// ```
 /// use nalgebra::DMatrix;
-/// use nmci::*;
+/// use nmci::prelude::*;
+/// use nmci::rules::naive_fusion;
 /// let I = DMatrix::<f64>::identity(2, 2);
 /// let p = FusionProblem::from_covariances(I.clone() * 2.0, I.clone() * 2.0,
 ///     CrossPattern::fully_unknown(2)).unwrap();

@@ -2,7 +2,7 @@
 //!
 //! The paper's nmGMD (eq. (nmGMD)) fuses independent parts of the state with their own
 //! weights `ω = [ω_x, ω_y, …]`. Here the parts are found, not declared: they are the
-//! [`independent_blocks`](crate::independent_blocks) of `P_a`, `P_b` and the cross pattern.
+//! [`independent_blocks`](crate::structure::independent_blocks) of `P_a`, `P_b` and the cross pattern.
 //! Each block is fused by exact CI; the bound and gains are block-diagonal in that
 //! partition. With a single block nmCI is CI.
 
@@ -26,7 +26,7 @@ pub struct NmciResult {
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::{non_monolithic_ci, Criterion, CrossPattern, FusionProblem};
+/// use nmci::{Criterion, CrossPattern, FusionProblem, rules::non_monolithic_ci};
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::diagonal(2)).unwrap();

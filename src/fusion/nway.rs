@@ -21,7 +21,7 @@
 //! the gradients' spread in floating point, or after 200 iterations (the result's `iterations`
 //! reports the count); a test checks the KKT conditions to `1e-10`
 //! with gradients computed independently. Two estimates are handed to
-//! the exact two-estimate CI ([`covariance_intersection`](crate::covariance_intersection)),
+//! the exact two-estimate CI ([`covariance_intersection`](crate::rules::covariance_intersection)),
 //! so `k = 2` gives exactly the pairwise results.
 //!
 //! Non-monolithic N-way CI splits the state into the independent blocks of all the
@@ -90,7 +90,8 @@ fn check_estimates(estimates: &[Estimate]) -> Result<usize, InputError> {
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
+/// use nmci::nway::covariance_intersection_nway;
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let e = |p: &[f64]| Estimate::new("e", DVector::zeros(2), d(p)).unwrap();
 /// let fused = covariance_intersection_nway(&[e(&[1.0, 9.0]), e(&[9.0, 1.0]), e(&[4.0, 4.0])],

@@ -4,7 +4,7 @@
 //! one table of what is known about each: its name and label, its colour (every chart and the
 //! page read them), what its bound is guaranteed for ([`Guarantee`]), which criteria and which
 //! method-specific request fields it takes, and whether it fuses `k ≥ 2` estimates. The JSON
-//! form of [`Method`], the request check ([`crate::fuse`]), the explorer's list of per-rule
+//! form of [`Method`], the request check ([`crate::contract::fuse`]), the explorer's list of per-rule
 //! reports, the study's charts and the page (through the wasm export `rules()`) read this
 //! table; adding a rule means a variant, a row and its solver.
 //!
@@ -152,7 +152,7 @@ impl Criteria {
     }
 }
 
-/// A method-specific field of a [`crate::FuseRequest`] (serialised as its [`field`](Self::field)).
+/// A method-specific field of a [`crate::contract::FuseRequest`] (serialised as its [`field`](Self::field)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RequestOption {
     /// `samples`.
@@ -249,7 +249,7 @@ pub struct RuleInfo {
     pub limits: Limits,
 }
 
-/// The largest problem a rule accepts through the request contract ([`crate::fuse`], and so
+/// The largest problem a rule accepts through the request contract ([`crate::contract::fuse`], and so
 /// the CLI, the page and Python), checked before any matrix is built; a larger request is
 /// refused with an error naming the field and the limit. The library's functions take any
 /// size (their settings' `time_limit` bounds the solvers). The limits keep every accepted
@@ -260,7 +260,7 @@ pub struct Limits {
     /// Largest state dimension `n` (each estimate's, for N-way fusion).
     pub max_dim: usize,
     /// Largest independent block (states linked through `P_a`, `P_b` or the pattern of
-    /// `P_ab`, [`crate::independent_blocks`]): the size of the programs an SDP rule solves.
+    /// `P_ab`, [`crate::structure::independent_blocks`]): the size of the programs an SDP rule solves.
     pub max_block: usize,
 }
 

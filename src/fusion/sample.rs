@@ -200,7 +200,7 @@ impl CrossSamples {
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::{sample_cross_covariances, CrossPattern, FusionProblem, SamplerSettings};
+/// use nmci::{CrossPattern, FusionProblem, sample::{SamplerSettings, sample_cross_covariances}};
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::diagonal(2)).unwrap();

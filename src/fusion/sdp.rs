@@ -141,7 +141,7 @@ pub struct SdpResult {
     pub samples: usize,
     /// Sampler acceptance rate (1 when the samples were given).
     pub acceptance_rate: f64,
-    /// With [`SamplerKind::Auto`](crate::SamplerKind::Auto): the sampler chosen and why.
+    /// With [`SamplerKind::Auto`](crate::sample::SamplerKind::Auto): the sampler chosen and why.
     pub sampler_choice: Option<AutoChoice>,
     /// Clarabel's dual objective of the final programs, summed over blocks: a lower bound on
     /// the `N`-sample optimum only up to the solver's tolerance (its dual point is feasible
@@ -160,7 +160,7 @@ pub struct SdpResult {
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::{optimal_fusion, CrossPattern, FusionProblem, SdpSettings};
+/// use nmci::{CrossPattern, FusionProblem, sdp::{SdpSettings, optimal_fusion}};
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::diagonal(2)).unwrap();

@@ -38,7 +38,7 @@
 //!   use, so the two cannot drift apart.
 //!
 //! The agent's COIN is then `λ_max(L⁻¹ E L⁻ᵀ)` with `P = L Lᵀ` its covariance and `E` its
-//! diagonal block of `Σ` ([`conservativeness_index`](crate::conservativeness_index)); both are
+//! diagonal block of `Σ` ([`conservativeness_index`](crate::check::conservativeness_index)); both are
 //! block-diagonal over the model blocks, so it is the largest block value. `≤ 1` means the agent's covariance bounds its
 //! true error covariance (conservative); `> 1` means it is overconfident. The centralized
 //! filter is the optimal Kalman filter of the model, so its `E` equals its `P` (COIN `= 1`):

@@ -385,7 +385,7 @@ impl LiveCoin {
     }
 
     /// The COIN chart so far ([`super::coin_chart`], as `coin.svg`).
-    pub fn chart(&self) -> crate::Chart {
+    pub fn chart(&self) -> crate::chart::Chart {
         super::coin_chart(&self.config, &self.series())
     }
 }
@@ -625,10 +625,10 @@ impl LiveStudy {
         (summary, traces.len())
     }
 
-    /// The study's charts so far ([`crate::study_charts`]: what `nmci track` writes as SVG).
-    pub fn charts(&self) -> Vec<(&'static str, crate::Chart)> {
+    /// The study's charts so far ([`crate::study::study_charts`]: what `nmci track` writes as SVG).
+    pub fn charts(&self) -> Vec<(&'static str, crate::chart::Chart)> {
         let (summary, runs) = self.summary();
-        crate::study_charts(&self.config, &summary, runs)
+        super::study_charts(&self.config, &summary, runs)
     }
 
     /// The current snapshot.

@@ -44,7 +44,7 @@ pub enum Rule {
 pub const RULES: [Rule; 4] = [Rule::Ci, Rule::Nmci, Rule::Naive, Rule::Ici];
 
 impl Rule {
-    /// The rule in the registry of rules ([`crate::RULES`]: name, label, colour, guarantee).
+    /// The rule in the registry of rules ([`crate::rules::RULES`]: name, label, colour, guarantee).
     pub fn method(self) -> Method {
         match self {
             Rule::Ci => Method::Ci,

@@ -1,7 +1,7 @@
 //! Structure that survives round-off: declared blocks, and near-zero couplings absorbed into
 //! a block-diagonal bound that provably dominates them.
 //!
-//! [`independent_blocks`](crate::independent_blocks) finds blocks from *exact* zeros. A
+//! [`independent_blocks`](crate::structure::independent_blocks) finds blocks from *exact* zeros. A
 //! filter's covariances rarely keep them: a Riccati recursion leaves cross-axis entries of
 //! order `ε ‖P‖` where the model has none, and one such entry merges two blocks, so nmCI falls
 //! back to CI on them. [`absorb_couplings`] keeps the blocks and pays for it with a proven
@@ -12,7 +12,7 @@
 //! or when `|P_a[i,j]| > τ √(P_a[i,i] P_a[j,j])` or the same holds for `P_b`, with the
 //! coupling tolerance `τ` ([`StructureSettings::coupling_tol`]). The blocks are the connected
 //! components of that graph. With `τ = 0` this is exactly
-//! [`independent_blocks`](crate::independent_blocks). Every entry
+//! [`independent_blocks`](crate::structure::independent_blocks). Every entry
 //! of `P_a`, `P_b` between two blocks is then at most `τ` relative (a *coupling*), and every
 //! entry of `P_ab` between two blocks is a known zero.
 //!
@@ -89,7 +89,7 @@ use crate::fusion::FusionProblem;
 pub const DEFAULT_COUPLING_TOL: f64 = 1e-9;
 
 /// A coupling above this relative size merging blocks is mentioned in
-/// [`Absorbed::note`]: a correlation this weak is more likely round-off or a weak modelled
+/// [`BlockStructure::note`]: a correlation this weak is more likely round-off or a weak modelled
 /// link than a structure the user meant, and the note says which tolerance would split it.
 pub const COUPLING_HINT: f64 = 1e-3;
 
@@ -199,7 +199,7 @@ pub struct BlockStructure {
     pub blocks: Vec<Vec<usize>>,
     /// The couplings absorbed, by matrix then block pair.
     pub couplings: Vec<Coupling>,
-    /// How many blocks exact zeros alone give ([`independent_blocks`](crate::independent_blocks)
+    /// How many blocks exact zeros alone give ([`independent_blocks`](crate::structure::independent_blocks)
     /// of the given problem).
     pub exact_blocks: usize,
     /// The strongest coupling (relative, at most [`COUPLING_HINT`]) left that merges blocks,
@@ -286,7 +286,7 @@ fn blocks_at(
 ///
 /// ```
 /// use nalgebra::DMatrix;
-/// use nmci::*;
+/// use nmci::prelude::*;
 /// // Two axes whose covariances carry a round-off coupling of 1e-13.
 /// let P_a = DMatrix::from_row_slice(2, 2, &[4.0, 1e-13, 1e-13, 1.0]);
 /// let P_b = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 4.0]);

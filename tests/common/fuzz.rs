@@ -11,7 +11,7 @@
 //! the headless-Chromium share draw the same cases).
 #![allow(dead_code)]
 
-use nmci::RULES;
+use nmci::rules::RULES;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Map, Value};

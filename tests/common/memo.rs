@@ -1,7 +1,10 @@
 //! The explorer's memo of certified blocks, checked on both targets.
 #![allow(dead_code)]
 
-use nmci::{explore, explore_with_memo, CertificateMemo, ExploreRequest};
+use nmci::{
+    certify::CertificateMemo,
+    explore::{explore, explore_with_memo, ExploreRequest},
+};
 
 /// A sequence of explorer states analysed with one memo of certified blocks: each analysis
 /// equals a fresh one bit for bit, and the memo's hits and size are as expected (the native

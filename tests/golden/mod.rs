@@ -3,14 +3,14 @@
 //! the same configuration in headless Chromium and must match it to 1e-9).
 #![allow(dead_code)]
 
-use nmci::sim::{StudyConfig, StudyReport};
+use nmci::study::{StudyConfig, StudyReport};
 use serde::{Deserialize, Serialize};
 
 /// `tests/golden/tiny_study.json`.
 pub const TINY_STUDY: &str = include_str!("tiny_study.json");
 
 /// A finished study: its configuration, headline numbers and run-averaged series (flat, as
-/// [`nmci::sim::StudyView`] lays them out).
+/// [`nmci::study::StudyView`] lays them out).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GoldenStudy {
     pub config: StudyConfig,
@@ -189,8 +189,8 @@ fn close(a: &serde_json::Value, b: &serde_json::Value, tol: f64) -> Result<(), S
 pub const FIG2: &str = include_str!("fig2.json");
 
 /// A small fig. 2 study: 4 runs at N = 1, 10, 100.
-pub fn fig2_config() -> nmci::Fig2Config {
-    nmci::Fig2Config {
+pub fn fig2_config() -> nmci::fig2::Fig2Config {
+    nmci::fig2::Fig2Config {
         runs: 4,
         sizes: vec![1, 10, 100],
         seed: 11,
@@ -201,8 +201,8 @@ pub fn fig2_config() -> nmci::Fig2Config {
 /// (closed form) to `1e-9` relative, the SDP's (`deviation`, `eig_opt`, `coin_opt`) to the
 /// solver's tolerance, `1e-6` (absolute below 1).
 pub fn same_fig2(
-    got: &[Vec<nmci::Fig2Record>],
-    stored: &[Vec<nmci::Fig2Record>],
+    got: &[Vec<nmci::fig2::Fig2Record>],
+    stored: &[Vec<nmci::fig2::Fig2Record>],
 ) -> Result<(), String> {
     let near = |a: f64, b: f64, tol: f64| (a - b).abs() <= tol * a.abs().max(b.abs()).max(1.0);
     let near_opt = |a: Option<f64>, b: Option<f64>| match (a, b) {

@@ -9,7 +9,9 @@ use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{
+    bounds::*, certify::*, check::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *,
+};
 
 /// A proven upper bound on the robust optimum: the best of CI, nmCI and a certified rule.
 fn proven_upper(p: &FusionProblem, cert: &CertifiedResult) -> f64 {

@@ -6,7 +6,9 @@ use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{
+    bounds::*, certify::*, check::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *,
+};
 
 fn fresh_margin(p: &FusionProblem, fused: &Fused) -> f64 {
     let fresh = sample_cross_covariances(p, 10_000, 99, SamplerSettings::hit_and_run()).unwrap();

@@ -3,9 +3,11 @@
 //! are this code's drawing — the page draws the same `Chart` objects on a canvas (checked by
 //! the page's end-to-end test).
 
-use nmci::sim::{estimators, run_study, StudyConfig};
+use nmci::study::{estimators, run_study, StudyConfig};
 use nmci::{
-    charts_svg, fig2_charts, fig2_run, fig2_summary, study_charts, Axis, Chart, Fig2Config, Line,
+    chart::{charts_svg, Axis, Chart, Line},
+    fig2::{fig2_charts, fig2_run, fig2_summary, Fig2Config},
+    study::study_charts,
 };
 
 /// The point counts of the SVG's polylines stroked in `colour` (plotters draws each line
@@ -184,10 +186,10 @@ fn fig2_charts_carry_the_rows_median_min_and_max() {
     let [dev, eig] = fig2_charts(&rows, config.runs);
     assert!(dev.x.log && dev.y.log && eig.x.log && !eig.y.log);
     let x: Vec<f64> = rows.iter().map(|r| r.samples as f64).collect();
-    let col = |pick: &dyn Fn(&nmci::Fig2Row) -> [f64; 3], k: usize| -> Vec<f64> {
+    let col = |pick: &dyn Fn(&nmci::fig2::Fig2Row) -> [f64; 3], k: usize| -> Vec<f64> {
         rows.iter().map(|r| pick(r)[k]).collect()
     };
-    let median = |pick: &dyn Fn(&nmci::Fig2Row) -> [f64; 3]| -> Vec<(f64, f64)> {
+    let median = |pick: &dyn Fn(&nmci::fig2::Fig2Row) -> [f64; 3]| -> Vec<(f64, f64)> {
         x.iter().copied().zip(col(pick, 0)).collect()
     };
     assert_eq!(dev.lines[0].points, median(&|r| r.dev));

@@ -5,7 +5,7 @@ use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{check::*, rules::*, sample::*, structure::*, *};
 
 /// The criterion at ω computed directly: P(ω) = (ω P_a⁻¹ + (1−ω) P_b⁻¹)⁻¹.
 fn direct(problem: &FusionProblem, omega: f64, criterion: Criterion) -> f64 {

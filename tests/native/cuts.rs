@@ -4,7 +4,7 @@
 use crate::common;
 
 use common::*;
-use nmci::*;
+use nmci::{check::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *};
 
 #[test]
 fn paper_example_reaches_diag_1_1_with_few_constraints() {

@@ -4,7 +4,7 @@ use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{check::*, contract::*, explore::*, rules::*, sample::*, structure::*, *};
 
 #[test]
 fn known_correlation_fusion_is_the_blue() {

@@ -1,7 +1,7 @@
 //! The paper's fig. 2 study: the sampled SDP approaches nmCI's diag(1, 1) as the sample set
 //! grows, is non-conservative for tiny sets, and nmCI never is.
 
-use nmci::*;
+use nmci::{contract::*, fig2::*};
 
 #[test]
 fn small_fig2_run_reproduces_the_papers_evidence() {

@@ -10,7 +10,7 @@ fn native_responses_of_every_method_match_the_fixture() {
     let fresh: Vec<serde_json::Value> = requests
         .iter()
         .map(|request| {
-            let response = nmci::fuse_json(&request.to_string()).unwrap();
+            let response = nmci::contract::fuse_json(&request.to_string()).unwrap();
             serde_json::json!({
                 "request": request,
                 "response": serde_json::from_str::<serde_json::Value>(&response).unwrap(),
@@ -32,7 +32,7 @@ fn native_responses_of_every_method_match_the_fixture() {
         "re-bless: NMCI_BLESS=1 cargo test"
     );
     // Every method and both two-estimate criteria are in the fixture.
-    for rule in nmci::RULES {
+    for rule in nmci::rules::RULES {
         assert!(
             requests.iter().any(|r| r["method"] == rule.name),
             "{}",
@@ -53,20 +53,26 @@ fn native_responses_of_every_method_match_the_fixture() {
 fn every_response_survives_the_typed_round_trip() {
     let mut responses = Vec::new();
     for request in golden::fixture_requests() {
-        let text = nmci::fuse_json(&request.to_string()).unwrap();
+        let text = nmci::contract::fuse_json(&request.to_string()).unwrap();
         let json: serde_json::Value = serde_json::from_str(&text).unwrap();
-        let typed: nmci::FuseResponse =
+        let typed: nmci::contract::FuseResponse =
             serde_json::from_value(json.clone()).unwrap_or_else(|e| panic!("{request}: {e}"));
         assert_eq!(serde_json::to_value(&typed).unwrap(), json, "{request}");
         let nway = request.get("estimates").is_some();
         let kind_matches = match (&typed.details, typed.method) {
-            (nmci::Details::Nway { .. }, _) => nway,
-            (nmci::Details::Omega(_), nmci::Method::Ci | nmci::Method::Ici) => true,
-            (nmci::Details::Blocks { .. }, nmci::Method::Nmci) => true,
-            (nmci::Details::None, nmci::Method::Ei | nmci::Method::Naive) => true,
-            (nmci::Details::Sdp(_), nmci::Method::Sdp) => true,
-            (nmci::Details::SdpCuts(_), nmci::Method::SdpCuts) => true,
-            (nmci::Details::Certified(_), nmci::Method::Certified) => true,
+            (nmci::contract::Details::Nway { .. }, _) => nway,
+            (
+                nmci::contract::Details::Omega(_),
+                nmci::rules::Method::Ci | nmci::rules::Method::Ici,
+            ) => true,
+            (nmci::contract::Details::Blocks { .. }, nmci::rules::Method::Nmci) => true,
+            (
+                nmci::contract::Details::None,
+                nmci::rules::Method::Ei | nmci::rules::Method::Naive,
+            ) => true,
+            (nmci::contract::Details::Sdp(_), nmci::rules::Method::Sdp) => true,
+            (nmci::contract::Details::SdpCuts(_), nmci::rules::Method::SdpCuts) => true,
+            (nmci::contract::Details::Certified(_), nmci::rules::Method::Certified) => true,
             _ => false,
         };
         assert!(kind_matches, "{request}: {:?}", typed.details);
@@ -79,6 +85,6 @@ fn every_response_survives_the_typed_round_trip() {
         .unwrap();
     let mut broken = sdp.clone();
     broken.as_object_mut().unwrap().remove("lmis");
-    let err = serde_json::from_value::<nmci::FuseResponse>(broken).unwrap_err();
+    let err = serde_json::from_value::<nmci::contract::FuseResponse>(broken).unwrap_err();
     assert!(err.to_string().contains("missing field `lmis`"), "{err}");
 }

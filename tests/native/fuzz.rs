@@ -8,7 +8,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use nmci::{fuse_json, RequestError};
+use nmci::{contract::fuse_json, RequestError};
 
 use crate::common::fuzz;
 

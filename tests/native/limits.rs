@@ -3,7 +3,7 @@
 //! an error naming the field and the limit; at the limit the request is accepted. Also the
 //! time limits that could not be represented (`1e30` s), which used to panic.
 
-use nmci::*;
+use nmci::{certify::*, contract::*, explore::*, rules::*, sample::*, *};
 
 fn identity_rows(n: usize) -> Vec<Vec<f64>> {
     (0..n)
@@ -208,7 +208,7 @@ fn time_limits_beyond_the_clock_are_no_limit() {
 /// at the limits are accepted.
 #[test]
 fn the_studys_sizes_are_limited_by_name() {
-    use nmci::sim::{
+    use nmci::study::{
         run_shard, Model, StudyConfig, MAX_AGENTS, MAX_COIN_SIZE, MAX_DIM, MAX_RUN_STEPS,
     };
     let config = |groups: usize, agents: usize, targets: usize, coin: bool| {

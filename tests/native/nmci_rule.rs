@@ -5,7 +5,7 @@ use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{check::*, rules::*, sample::*, structure::*, *};
 
 #[test]
 fn paper_example_is_diag_1_1_with_omega_0_1() {

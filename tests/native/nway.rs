@@ -5,7 +5,7 @@ use crate::common;
 
 use common::*;
 use nalgebra::{DMatrix, DVector};
-use nmci::*;
+use nmci::{contract::*, nway::*, rules::*, structure::*, *};
 
 fn estimate(x: DVector<f64>, P: DMatrix<f64>) -> Estimate {
     Estimate::new("e", x, P).unwrap()

@@ -1,7 +1,7 @@
 //! Property tests on random SPD pairs and patterns: no panic, conservative, symmetric output.
 
 use nalgebra::{DMatrix, DVector};
-use nmci::*;
+use nmci::{check::*, contract::*, rules::*, sample::*, structure::*, *};
 use proptest::prelude::*;
 
 /// An SPD matrix `G Gᵀ + εI` from raw entries.

@@ -1,11 +1,11 @@
-//! The registry of rules (`nmci::RULES`) against what the code does: names are the JSON
+//! The registry of rules (`nmci::rules::RULES`) against what the code does: names are the JSON
 //! contract's, the options and criteria it lists are exactly the ones a request may set, the
 //! N-way flag is what `estimates` accepts, every response states the registry's guarantee,
 //! and the guarantees are true — the conservative rules hold over drawn admissible
 //! cross-covariances, each of the others has a drawn counterexample.
 
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{check::*, contract::*, rules::*, sample::*, structure::*, *};
 use serde_json::json;
 
 use crate::common::*;

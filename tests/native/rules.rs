@@ -4,7 +4,7 @@ use crate::common;
 
 use common::*;
 use nalgebra::{DMatrix, DVector};
-use nmci::*;
+use nmci::{check::*, rules::*, sample::*, structure::*, *};
 
 /// ICI on P_a = diag(3, 1), P_b = diag(1, 4). Everything is diagonal, so with
 /// Γ = ωP_a + (1−ω)P_b = diag(1 + 2ω, 4 − 3ω):

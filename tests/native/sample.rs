@@ -4,7 +4,7 @@ use crate::common;
 
 use common::*;
 use nalgebra::DMatrix;
-use nmci::*;
+use nmci::{check::*, contract::*, explore::*, rules::*, sample::*, structure::*, *};
 
 #[test]
 fn every_sample_is_admissible_and_respects_known_zeros() {

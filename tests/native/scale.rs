@@ -8,7 +8,7 @@
 use crate::common;
 
 use common::*;
-use nmci::*;
+use nmci::{certify::*, check::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *};
 
 /// The paper's covariances with one known zero (`P_ab[1][0]`), times `s`: the robust optimum
 /// is `2 s` (the bracket closes there at unit scale).

@@ -4,7 +4,7 @@
 use crate::common;
 
 use common::*;
-use nmci::*;
+use nmci::{bounds::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *};
 use rand::Rng;
 
 #[test]

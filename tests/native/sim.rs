@@ -1,7 +1,7 @@
 //! The tracking study's core: derived structure, block storage equal to dense storage,
 //! reproducibility, and the qualitative results of a reduced study.
 
-use nmci::sim::*;
+use nmci::study::*;
 
 fn spec(steps: usize, seed: u64, run: u64, storage: Storage) -> RunSpec {
     RunSpec {
@@ -222,7 +222,7 @@ fn golden_of(view: &StudyView, config: &StudyConfig) -> golden::GoldenStudy {
 fn live_coin_alone_equals_the_studys_coin() {
     let config = tiny_config();
     let (summary, report) = run_study(&config).unwrap();
-    let mut coin = nmci::sim::LiveCoin::new(config.clone()).unwrap();
+    let mut coin = nmci::study::LiveCoin::new(config.clone()).unwrap();
     assert_eq!(coin.view().coin_len, 0);
     let mut chunks = 0;
     while !coin.advance(7).unwrap() {
@@ -258,9 +258,9 @@ fn live_coin_alone_equals_the_studys_coin() {
     }
     assert_eq!(
         coin.chart(),
-        nmci::coin_chart(&config, &summary.coin_series)
+        nmci::study::coin_chart(&config, &summary.coin_series)
     );
-    let charts = nmci::study_charts(&config, &summary, config.runs);
+    let charts = nmci::study::study_charts(&config, &summary, config.runs);
     assert_eq!(charts.last().unwrap(), &("coin", coin.chart()));
 }
 
@@ -1053,7 +1053,7 @@ fn the_documented_weights_and_two_sigma_of_both_networks() {
 /// refused with its reason.
 #[test]
 fn shards_merged_in_any_order_are_the_whole_study_bit_for_bit() {
-    use nmci::sim::{
+    use nmci::study::{
         merge_shards, run_shard, study_parallel, MergeError, StudyShard, SHARD_FORMAT,
     };
     let config = StudyConfig {

@@ -13,7 +13,7 @@
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
-use nmci::*;
+use nmci::{check::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *};
 use rand::Rng;
 
 use crate::common::{block_spd, diag, rng};

@@ -3,7 +3,7 @@
 //! Kalman filter is exact, CI and nmCI are conservative, naive fusion is not).
 
 use nalgebra::{DMatrix, DVector};
-use nmci::sim::*;
+use nmci::study::*;
 
 /// Run `run` of `steps` steps (seed `seed`), done: truth and every estimator's agents.
 fn finished_run(model: &Model, steps: usize, seed: u64, run: u64) -> RunState {
@@ -255,8 +255,8 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
 #[allow(non_snake_case)]
 fn brute_force_check(scenario: &Scenario, steps: usize, rules: &[Rule]) -> usize {
     use nmci::{
-        covariance_intersection, inverse_covariance_intersection, non_monolithic_ci, Criterion,
-        FusionProblem,
+        rules::{covariance_intersection, inverse_covariance_intersection, non_monolithic_ci},
+        Criterion, FusionProblem,
     };
     let model = Model::new(scenario).unwrap();
     let (n, agents) = (model.dim(), scenario.agents());

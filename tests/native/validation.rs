@@ -4,7 +4,9 @@ use crate::common;
 
 use common::*;
 use nalgebra::{DMatrix, DVector};
-use nmci::*;
+use nmci::{
+    certify::*, contract::*, explore::*, nway::*, rules::*, sample::*, sdp::*, structure::*, *,
+};
 
 fn problem(P_a: DMatrix<f64>, P_b: DMatrix<f64>) -> Result<FusionProblem, InputError> {
     FusionProblem::from_covariances(P_a, P_b, CrossPattern::fully_unknown(2))

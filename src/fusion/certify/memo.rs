@@ -12,7 +12,7 @@ use super::settings::*;
 /// How many certified blocks a [`CertificateMemo`] keeps.
 pub const MEMO_BLOCKS: usize = 8;
 
-/// Certified blocks kept for reuse by [`certified_fusion_memo`]: the [`MEMO_BLOCKS`] blocks
+/// Certified blocks kept for reuse by [`certified_fusion_memo`](super::certified_fusion_memo): the [`MEMO_BLOCKS`] blocks
 /// used most recently, each under its exact inputs — the block's `P_a`, `P_b` (bit for bit)
 /// and known-zero pattern, and the settings. A block certified before with the same inputs
 /// gets the same gain, bound, status, iterations, repair, level and sector count as then,

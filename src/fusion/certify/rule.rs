@@ -66,7 +66,7 @@ pub struct CertifiedResult {
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::diagonal(2)).unwrap();
@@ -85,7 +85,8 @@ pub fn certified_fusion(
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
+/// use nmci::certify::{certified_fusion_memo, CertificateMemo};
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::diagonal(2)).unwrap();
@@ -110,7 +111,8 @@ pub fn certified_fusion_memo(
 ///
 /// ```
 /// use nalgebra::{DMatrix, DVector};
-/// use nmci::*;
+/// use nmci::prelude::*;
+/// use nmci::certify::certify_gain;
 /// let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
 /// let p = FusionProblem::from_covariances(d(&[3.0, 1.0]), d(&[1.0, 4.0]),
 ///     CrossPattern::diagonal(2)).unwrap();

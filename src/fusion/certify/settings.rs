@@ -8,7 +8,7 @@ use super::geometry::*;
 use super::layout::*;
 
 /// The default of [`CertifySettings::max_block_dim`], and the certified rule's block limit in
-/// the request contract ([`crate::RULES`]).
+/// the request contract ([`crate::rules::RULES`]).
 pub const MAX_BLOCK_DIM: usize = 6;
 
 /// Settings of the certified bound, with defaults and [`CertifySettings::validate`].
@@ -141,7 +141,7 @@ pub const DEFAULT_SECTORS: u32 = 24;
 
 /// A block solved only `AlmostSolved` whose repair added more than this fraction of its trace
 /// is certified again with the next lower family, and the smaller bound kept (a tenth of
-/// [`crate::CLOSED_RTOL`]: below it the repair cannot keep a bracket open).
+/// [`crate::bounds::CLOSED_RTOL`]: below it the repair cannot keep a bracket open).
 pub(super) const RETRY_REPAIR_RTOL: f64 = 1e-7;
 
 /// Sectors halve down to this count before a failed or reduced-accuracy sector certificate
