@@ -222,7 +222,7 @@ const PRESETS = ["paper", "correlated", "twoblock", "six", "roundoff"];
 // The URL's hash holds the state (a link reproduces the view). After an edit that starts an
 // analysis it is written once the worker is idle, not at the edit: each `replaceState` costs the
 // browser process several milliseconds, which on a machine with few cores ran alongside the
-// worker's analysis and lengthened it (docs/development.md). A link copied before then is
+// worker's analysis and lengthened it. A link copied before then is
 // written first (`share`).
 let hashPending = false;
 function writeHash() {

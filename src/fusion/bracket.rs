@@ -41,7 +41,7 @@
 //! the block limit above), and the smaller of the two is reported. Where the method's gain is
 //! close to the certified rule's (as on the paper's example with one known zero, the unit
 //! test) the carried-over bound exceeds the certified rule's trace by only `2√(t₀ d) + d`, and
-//! the second solve is saved (`docs/development.md` has the timings).
+//! the second solve is saved (`docs/benchmarks.md` has the timings).
 
 use nalgebra::DMatrix;
 
@@ -64,7 +64,7 @@ pub const CLOSED_RTOL: f64 = 1e-6;
 
 /// The certified rule joins the `sdp` / `sdp_cuts` bracket's upper bound when every
 /// independent block has at most this many states (the level-1 program grows as
-/// `(2n² + 1)²`; timings in docs/development.md). Method `"certified"` itself goes to
+/// `(2n² + 1)²`; timings in docs/benchmarks.md). Method `"certified"` itself goes to
 /// [`CertifySettings::max_block_dim`](super::certify::CertifySettings::max_block_dim).
 pub const BRACKET_CERTIFY_MAX_BLOCK: usize = 4;
 

@@ -22,7 +22,7 @@ use super::{
 
 /// How a page shares a study's rules between two run workers: [`LiveStudy::with_second_worker`]
 /// runs the first set, [`LiveRules`] the second. Chosen so that the halves cost about the same
-/// (CI and ICI are the expensive rules: docs/development.md measures each).
+/// (CI and ICI are the expensive rules: docs/benchmarks.md measures them).
 pub const WORKER_RULES: [&[Rule]; 2] = [&[Rule::Ci, Rule::Naive], &[Rule::Nmci, Rule::Ici]];
 
 /// The runs of a study, advanced together a step at a time ([`RunBatch`]: the covariance work
