@@ -10,8 +10,8 @@
 use std::time::Instant;
 
 use nmci::study::{
-    coin_parallel, simulate_rules_parallel, simulate_run, study_parallel, Model, Rule, Storage,
-    StudyConfig,
+    coin_parallel, simulate_rules_parallel, simulate_run, study_parallel, Model, Storage,
+    StudyConfig, StudyRule,
 };
 
 fn report(name: &str, mut seconds: Vec<f64>) {
@@ -64,7 +64,7 @@ fn main() {
         }),
     );
     // The paper's rules only, in the pieces `simulate_runs_parallel` cuts them into.
-    let paper = [Rule::Ci, Rule::Nmci, Rule::Naive];
+    let paper = [StudyRule::Ci, StudyRule::Nmci, StudyRule::Naive];
     report(
         "study/paper_rules",
         time(&|| {

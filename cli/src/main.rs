@@ -171,7 +171,7 @@ mod cli {
     /// drawing, and the top of the ranking on standard output.
     fn sweep(
         config: Option<PathBuf>,
-        family: nmci::study::Family,
+        family: nmci::study::NetworkFamily,
         short_list: usize,
         runs: Option<usize>,
         steps: Option<usize>,
@@ -242,7 +242,7 @@ mod cli {
         } else {
             0
         };
-        let bar = ProgressBar::new((run_pieces(cfg.runs, RULES.len()) + coin_pieces) as u64).with_style(
+        let bar = ProgressBar::new((run_pieces(cfg.runs, STUDY_RULES.len()) + coin_pieces) as u64).with_style(
             ProgressStyle::with_template(
                 "{bar:40} {pos}/{len} rules × slices of runs (+ exact COIN per estimator), {elapsed} (eta {eta})",
             )
@@ -416,8 +416,8 @@ mod cli {
             } => sweep(
                 config,
                 match links {
-                    Some(count) => nmci::study::Family::Links { count },
-                    None => nmci::study::Family::Bridges { extra },
+                    Some(count) => nmci::study::NetworkFamily::Links { count },
+                    None => nmci::study::NetworkFamily::Bridges { extra },
                 },
                 short_list,
                 runs,

@@ -681,7 +681,7 @@ class Study:
 
 
 def rules() -> List[Dict[str, Any]]:
-    """Every fusion rule, from the registry the CLI and the page read (``nmci::RULES``): its
+    """Every fusion rule, from the registry the CLI and the page read (``nmci::rules::RULES``): its
     ``name`` (the ``method`` of the JSON contract), ``label``, ``legend``, ``colour``,
     ``guarantee`` (``conservative``, ``relaxation``, ``common_information`` or ``none``),
     ``criteria``, ``options`` (the method-specific request fields it takes), ``nway``,

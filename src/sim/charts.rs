@@ -3,7 +3,7 @@
 
 use crate::chart::{Axis, Band, Chart, Line};
 
-use super::{Estimator, Rule, StudyConfig, StudySummary};
+use super::{Estimator, StudyConfig, StudyRule, StudySummary};
 
 /// `#rrggbb` of `(r, g, b)`.
 fn hex((r, g, b): (u8, u8, u8)) -> String {
@@ -99,7 +99,7 @@ pub fn study_charts(
     ];
     // ω: CI's one weight, nmCI's per block (red to orange, y blocks dashed), ICI's.
     let blocks = summary.omega_nmci_series.len();
-    let (ci, ici) = (Rule::Ci.method(), Rule::Ici.method());
+    let (ci, ici) = (StudyRule::Ci.method(), StudyRule::Ici.method());
     let mut omega = vec![Line {
         label: Some(ci.label().into()),
         colour: ci.info().colour.into(),

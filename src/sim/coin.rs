@@ -48,7 +48,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::model::Model;
 use super::study::{exchange, fuse, BlockCovariance, Partition};
-use super::{Estimator, Rule, SimError, Storage};
+use super::{Estimator, SimError, Storage, StudyRule};
 use crate::error::InputError;
 use crate::fusion::check::coin_of;
 
@@ -58,7 +58,7 @@ use crate::fusion::check::coin_of;
 pub struct ErrorPropagation {
     part: Partition,
     /// `None`: the centralized filter (one filter applying every agent's measurements).
-    rule: Option<Rule>,
+    rule: Option<StudyRule>,
     neighbours: Vec<Vec<usize>>,
     /// The filters' covariances (means stay at zero: nothing here depends on them).
     filters: Vec<BlockCovariance>,
@@ -240,7 +240,7 @@ impl ErrorPropagation {
         }
     }
 
-    fn exchange(&mut self, model: &Model, rule: Rule) -> Result<(), SimError> {
+    fn exchange(&mut self, model: &Model, rule: StudyRule) -> Result<(), SimError> {
         let count = self.filters.len();
         let blocks = self.part.blocks.len();
         // coefficients[a][k]: agent a's post-exchange error in block k as Σⱼ C_aj eⱼ
@@ -370,7 +370,7 @@ enum Gain {
 /// covariances before (`P_a`, `P_b`) and the fused covariance `P` (see the module docs).
 #[allow(non_snake_case)]
 fn gain_b(
-    rule: Rule,
+    rule: StudyRule,
     omega: &[f64],
     k: usize,
     P_a: &DMatrix<f64>,
@@ -378,14 +378,18 @@ fn gain_b(
     P: &DMatrix<f64>,
 ) -> Result<Gain, InputError> {
     let weight = match rule {
-        Rule::Ci | Rule::Ici => omega.first().copied(),
-        Rule::Nmci => omega.get(k).copied(),
-        Rule::Naive => None,
+        StudyRule::Ci | StudyRule::Ici => omega.first().copied(),
+        StudyRule::Nmci => omega.get(k).copied(),
+        StudyRule::Naive => None,
     };
     // Endpoints exactly: CI/nmCI ω = 1 and ICI ω = 0 keep `a`; CI ω = 0 and ICI ω = 1 take `b`.
     match (rule, weight) {
-        (Rule::Ci | Rule::Nmci, Some(1.0)) | (Rule::Ici, Some(0.0)) => return Ok(Gain::Keep),
-        (Rule::Ci | Rule::Nmci, Some(0.0)) | (Rule::Ici, Some(1.0)) => return Ok(Gain::Take),
+        (StudyRule::Ci | StudyRule::Nmci, Some(1.0)) | (StudyRule::Ici, Some(0.0)) => {
+            return Ok(Gain::Keep)
+        }
+        (StudyRule::Ci | StudyRule::Nmci, Some(0.0)) | (StudyRule::Ici, Some(1.0)) => {
+            return Ok(Gain::Take)
+        }
         _ => {}
     }
     // P P_b⁻¹ = (P_b⁻¹ P)ᵀ (both symmetric).
@@ -394,8 +398,8 @@ fn gain_b(
         .solve(P)
         .transpose();
     Ok(Gain::Mix(match (rule, weight) {
-        (Rule::Naive, _) => over_b,
-        (Rule::Ici, Some(w)) => {
+        (StudyRule::Naive, _) => over_b,
+        (StudyRule::Ici, Some(w)) => {
             let Gamma = P_a * w + P_b * (1.0 - w);
             let over_gamma = crate::linalg::cholesky(&Gamma)
                 .ok_or_else(|| InputError::Unfactored {

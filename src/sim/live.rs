@@ -16,14 +16,17 @@ use serde::{Deserialize, Serialize};
 
 use super::study::assemble_traces;
 use super::{
-    estimators, summarize, ErrorPropagation, Estimator, Model, Rule, RunBatch, RunTrace, SimError,
-    Storage, StudyConfig, StudyReport, StudySummary, RULES,
+    estimators, summarize, ErrorPropagation, Estimator, Model, RunBatch, RunTrace, SimError,
+    Storage, StudyConfig, StudyReport, StudyRule, StudySummary, STUDY_RULES,
 };
 
 /// How a page shares a study's rules between two run workers: [`LiveStudy::with_second_worker`]
 /// runs the first set, [`LiveRules`] the second. Chosen so that the halves cost about the same
 /// (CI and ICI are the expensive rules: docs/benchmarks.md measures them).
-pub const WORKER_RULES: [&[Rule]; 2] = [&[Rule::Ci, Rule::Naive], &[Rule::Nmci, Rule::Ici]];
+pub const WORKER_RULES: [&[StudyRule]; 2] = [
+    &[StudyRule::Ci, StudyRule::Naive],
+    &[StudyRule::Nmci, StudyRule::Ici],
+];
 
 /// The runs of a study, advanced together a step at a time ([`RunBatch`]: the covariance work
 /// of a step once, every run's means beside it), in chunks of steps. The numbers are those of
@@ -168,13 +171,13 @@ pub struct LiveCoin {
 /// Chosen so that the halves cost about the same (docs/study.md measures each).
 pub const COIN_WORKER_ESTIMATORS: [&[Estimator]; 2] = [
     &[
-        Estimator::Decentralized(Rule::Ci),
-        Estimator::Decentralized(Rule::Naive),
+        Estimator::Decentralized(StudyRule::Ci),
+        Estimator::Decentralized(StudyRule::Naive),
     ],
     &[
         Estimator::Central,
-        Estimator::Decentralized(Rule::Nmci),
-        Estimator::Decentralized(Rule::Ici),
+        Estimator::Decentralized(StudyRule::Nmci),
+        Estimator::Decentralized(StudyRule::Ici),
     ],
 ];
 
@@ -438,11 +441,11 @@ pub struct StudyView {
 impl LiveStudy {
     /// Validates the configuration and builds the model.
     pub fn new(config: StudyConfig) -> Result<Self, SimError> {
-        Self::running(config, &RULES)
+        Self::running(config, &STUDY_RULES)
     }
 
     /// Validates the configuration and builds the model and the runs of `rules`.
-    fn running(config: StudyConfig, rules: &[Rule]) -> Result<Self, SimError> {
+    fn running(config: StudyConfig, rules: &[StudyRule]) -> Result<Self, SimError> {
         config.validate()?;
         let model = Model::new(&config.scenario)?;
         let coin = config
@@ -603,7 +606,7 @@ impl LiveStudy {
         let [first, other] = WORKER_RULES.map(|rules| -> Vec<usize> {
             rules
                 .iter()
-                .filter_map(|r| RULES.iter().position(|q| q == r))
+                .filter_map(|r| STUDY_RULES.iter().position(|q| q == r))
                 .collect()
         });
         own.into_iter()

@@ -42,13 +42,13 @@ pub use shard::shard_files;
 pub use shard::{carries_coin, merge_shards, MergeError, Study, StudyShard, SHARD_FORMAT};
 pub use study::{
     merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, simulate_runs_for_rule,
-    Estimator, Rule, RunBatch, RunSpec, RunState, RunTrace, Storage, RULES,
+    Estimator, RunBatch, RunSpec, RunState, RunTrace, Storage, StudyRule, STUDY_RULES,
 };
 #[cfg(not(target_arch = "wasm32"))]
 pub use sweep::sweep;
 pub use sweep::{
     candidate_networks, check_text, covariance_series, Candidate, CovarianceRun, CovarianceSeries,
-    Family, SweepConfig, SweepReport, TextMismatch, FIGURE_BRIDGES, PAPER_OMEGA_CI,
+    NetworkFamily, SweepConfig, SweepReport, TextMismatch, FIGURE_BRIDGES, PAPER_OMEGA_CI,
     PAPER_OMEGA_NMCI_FAR, PAPER_RMSE_REDUCTION, PAPER_TWO_SIGMA_REDUCTION,
 };
 
@@ -396,7 +396,7 @@ impl StudyReport {
 /// The runs of a study, in parallel (rayon) over rules × slices of runs, each piece a
 /// [`RunBatch`] ([`simulate_runs_for_rule`]: the covariances once per piece, every run's means
 /// beside them), calling `on_piece` after each piece (a progress bar of
-/// [`run_pieces`]`(config.runs, RULES.len())`). The traces are bit for bit those of
+/// [`run_pieces`]`(config.runs, STUDY_RULES.len())`). The traces are bit for bit those of
 /// [`simulate_run`] whatever the number of threads or pieces.
 #[cfg(not(target_arch = "wasm32"))]
 pub fn simulate_runs_parallel(
@@ -404,7 +404,7 @@ pub fn simulate_runs_parallel(
     model: &Model,
     on_piece: impl Fn() + Sync,
 ) -> Result<Vec<RunTrace>, SimError> {
-    simulate_rules_parallel(config, model, &RULES, 0, on_piece)
+    simulate_rules_parallel(config, model, &STUDY_RULES, 0, on_piece)
 }
 
 /// How many slices the runs of a study are cut into per rule: each slice repeats the
@@ -425,13 +425,13 @@ pub fn run_pieces(runs: usize, rules: usize) -> usize {
 }
 
 /// Runs `first_run..first_run + config.runs` of a study for the agents of `rules` (with the
-/// centralized filter), as [`simulate_runs_parallel`] runs `0..runs` for all of [`RULES`]: the
+/// centralized filter), as [`simulate_runs_parallel`] runs `0..runs` for all of [`STUDY_RULES`]: the
 /// traces have `central` and one series per rule, in the order given.
 #[cfg(not(target_arch = "wasm32"))]
 pub fn simulate_rules_parallel(
     config: &StudyConfig,
     model: &Model,
-    rules: &[Rule],
+    rules: &[StudyRule],
     first_run: usize,
     on_piece: impl Fn() + Sync,
 ) -> Result<Vec<RunTrace>, SimError> {
@@ -441,7 +441,7 @@ pub fn simulate_rules_parallel(
     let slices = run_slices(config.runs, rules.len());
     let (first, runs) = (first_run as u64, config.runs as u64);
     let bounds = |s: usize| first + runs * s as u64 / slices as u64;
-    let pieces: Vec<(Rule, std::ops::Range<u64>)> = rules
+    let pieces: Vec<(StudyRule, std::ops::Range<u64>)> = rules
         .iter()
         .flat_map(|&rule| (0..slices).map(move |s| (rule, bounds(s)..bounds(s + 1))))
         .collect();
@@ -467,10 +467,11 @@ pub fn simulate_rules_parallel(
         .collect())
 }
 
-/// The estimators of the study in report order: the centralized filter, then [`RULES`]
+/// The estimators of the study in report order: the centralized filter, then [`STUDY_RULES`]
 /// (series `0..` of a [`RunTrace`]).
 pub fn estimators() -> impl Iterator<Item = Estimator> {
-    std::iter::once(Estimator::Central).chain(RULES.iter().copied().map(Estimator::Decentralized))
+    std::iter::once(Estimator::Central)
+        .chain(STUDY_RULES.iter().copied().map(Estimator::Decentralized))
 }
 
 /// Every estimator's exact COIN per step for the headline agent ([`coin_series`]), in
@@ -515,7 +516,7 @@ pub fn run_shard(
         )));
     }
     let (traces, coin) = rayon::join(
-        || simulate_rules_parallel(config, model, &RULES, first_run, &on_piece),
+        || simulate_rules_parallel(config, model, &STUDY_RULES, first_run, &on_piece),
         || {
             carries_coin(config, first_run)
                 .then(|| coin_parallel(config, model, &on_piece))
@@ -549,7 +550,7 @@ pub fn run_study(config: &StudyConfig) -> Result<(StudySummary, StudyReport), Si
     config.validate_run_steps()?;
     let model = Model::new(&config.scenario)?;
     let spec = config.run_spec(0, Storage::Blocks);
-    let mut batch = RunBatch::new(&model, &spec, 0..config.runs as u64, &RULES);
+    let mut batch = RunBatch::new(&model, &spec, 0..config.runs as u64, &STUDY_RULES);
     while !batch.finished() {
         batch.step(&model)?;
     }

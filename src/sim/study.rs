@@ -27,7 +27,7 @@ use crate::linalg::{cholesky, symmetrize_in_place};
 /// The decentralized fusion rules of the study.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Rule {
+pub enum StudyRule {
     /// Monolithic CI (one ω).
     Ci,
     /// Non-monolithic CI (one ω per independent block).
@@ -41,16 +41,21 @@ pub enum Rule {
 
 /// The rules, in report order (series `1..` of a [`RunTrace`]; series 0 is the centralized
 /// filter).
-pub const RULES: [Rule; 4] = [Rule::Ci, Rule::Nmci, Rule::Naive, Rule::Ici];
+pub const STUDY_RULES: [StudyRule; 4] = [
+    StudyRule::Ci,
+    StudyRule::Nmci,
+    StudyRule::Naive,
+    StudyRule::Ici,
+];
 
-impl Rule {
+impl StudyRule {
     /// The rule in the registry of rules ([`crate::rules::RULES`]: name, label, colour, guarantee).
     pub fn method(self) -> Method {
         match self {
-            Rule::Ci => Method::Ci,
-            Rule::Nmci => Method::Nmci,
-            Rule::Naive => Method::Naive,
-            Rule::Ici => Method::Ici,
+            StudyRule::Ci => Method::Ci,
+            StudyRule::Nmci => Method::Nmci,
+            StudyRule::Naive => Method::Naive,
+            StudyRule::Ici => Method::Ici,
         }
     }
 
@@ -67,12 +72,12 @@ pub enum Estimator {
     /// The centralized Kalman filter.
     Central,
     /// The agents' filters fusing with a rule.
-    Decentralized(Rule),
+    Decentralized(StudyRule),
 }
 
 impl Estimator {
     /// The rule, for the decentralized estimators.
-    pub fn rule(self) -> Option<Rule> {
+    pub fn rule(self) -> Option<StudyRule> {
         match self {
             Estimator::Central => None,
             Estimator::Decentralized(rule) => Some(rule),
@@ -81,7 +86,7 @@ impl Estimator {
 
     /// The name used in reports and CSV columns (`central`, then the rules' names).
     pub fn name(self) -> &'static str {
-        self.rule().map_or("central", Rule::name)
+        self.rule().map_or("central", StudyRule::name)
     }
 
     /// The label in charts and tables (`centralized KF`, then the rules' legends).
@@ -356,19 +361,19 @@ pub(super) fn exchange<E: Clone>(
 pub(super) fn fuse(
     model: &Model,
     storage: Storage,
-    rule: Rule,
+    rule: StudyRule,
     a: &mut [DMatrix<f64>],
     b: &[DMatrix<f64>],
 ) -> Result<(Vec<f64>, MeanPlan), SimError> {
     match storage {
         Storage::Blocks => Ok(match rule {
-            Rule::Ci => {
+            StudyRule::Ci => {
                 let (omega, plan) = ci_in_place(a, b, Criterion::Trace)?;
                 (vec![omega], plan)
             }
-            Rule::Nmci => nmci_in_place(a, b, Criterion::Trace)?,
-            Rule::Naive => (vec![], naive_in_place(a, b)),
-            Rule::Ici => {
+            StudyRule::Nmci => nmci_in_place(a, b, Criterion::Trace)?,
+            StudyRule::Naive => (vec![], naive_in_place(a, b)),
+            StudyRule::Ici => {
                 let (omega, plan) = ici_in_place(a, b, Criterion::Trace)?;
                 (vec![omega], plan)
             }
@@ -385,16 +390,16 @@ pub(super) fn fuse(
                 model.cross_pattern.clone(),
             );
             let (fused, omega) = match rule {
-                Rule::Ci => {
+                StudyRule::Ci => {
                     let ci = covariance_intersection(&p, Criterion::Trace)?;
                     (ci.fused, vec![ci.omega])
                 }
-                Rule::Nmci => {
+                StudyRule::Nmci => {
                     let nm = non_monolithic_ci(&p, Criterion::Trace)?;
                     (nm.fused, nm.omega)
                 }
-                Rule::Naive => (naive_fusion(&p), vec![]),
-                Rule::Ici => {
+                StudyRule::Naive => (naive_fusion(&p), vec![]),
+                StudyRule::Ici => {
                     let ici = inverse_covariance_intersection(&p, Criterion::Trace)?;
                     (ici.fused, vec![ici.omega])
                 }
@@ -408,7 +413,7 @@ pub(super) fn fuse(
 /// Per-step results of one run for the headline agent (and the centralized filter).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunTrace {
-    /// NEES per step: `central`, then one series per rule in [`RULES`] order.
+    /// NEES per step: `central`, then one series per rule in [`STUDY_RULES`] order.
     pub nees: Vec<Vec<f64>>,
     /// Position RMSE over all targets per step, same order.
     pub rmse: Vec<Vec<f64>>,
@@ -460,7 +465,7 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
 pub fn simulate_run_for_rule(
     model: &Model,
     spec: &RunSpec,
-    rule: Rule,
+    rule: StudyRule,
 ) -> Result<RunTrace, SimError> {
     let mut run = RunState::with_rules(model, spec, &[rule]);
     while !run.finished() {
@@ -476,7 +481,7 @@ pub fn simulate_runs_for_rule(
     model: &Model,
     spec: &RunSpec,
     runs: std::ops::Range<u64>,
-    rule: Rule,
+    rule: StudyRule,
 ) -> Result<Vec<RunTrace>, SimError> {
     let mut batch = RunBatch::new(model, spec, runs, &[rule]);
     while !batch.finished() {
@@ -485,7 +490,7 @@ pub fn simulate_runs_for_rule(
     Ok(batch.into_traces())
 }
 
-/// Assembles the per-rule traces of one run (from [`simulate_run_for_rule`], in [`RULES`]
+/// Assembles the per-rule traces of one run (from [`simulate_run_for_rule`], in [`STUDY_RULES`]
 /// order) into the trace [`simulate_run`] gives.
 pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
     assemble_traces(parts.into_iter().enumerate().map(|(k, t)| (vec![k], t)))
@@ -627,7 +632,7 @@ pub struct RunBatch {
     /// Cholesky factor `[[l11, 0], [l21, l22]]` of one axis' process noise.
     noise_factor: (f64, f64, f64),
     /// The rules simulated.
-    rules: Vec<Rule>,
+    rules: Vec<StudyRule>,
     /// The centralized filter's covariances.
     central: BlockCovariance,
     /// `agents[rule][agent]`: the agents' covariances, rules as in `rules`.
@@ -694,7 +699,7 @@ impl RunBatch {
         model: &Model,
         spec: &RunSpec,
         runs: impl IntoIterator<Item = u64>,
-        rules: &[Rule],
+        rules: &[StudyRule],
     ) -> Self {
         let sc = &model.scenario;
         let part = Partition::new(model, spec.storage);
@@ -882,10 +887,10 @@ impl RunBatch {
                 for omega in &watched {
                     let trace = &mut run.trace;
                     match rule {
-                        Rule::Ci => trace.omega_ci.push(omega[0]),
-                        Rule::Nmci => trace.omega_nmci.push(omega.clone()),
-                        Rule::Ici => trace.omega_ici.push(omega[0]),
-                        Rule::Naive => {}
+                        StudyRule::Ci => trace.omega_ci.push(omega[0]),
+                        StudyRule::Nmci => trace.omega_nmci.push(omega.clone()),
+                        StudyRule::Ici => trace.omega_ici.push(omega[0]),
+                        StudyRule::Naive => {}
                     }
                 }
             }
@@ -965,12 +970,12 @@ pub struct RunState(RunBatch);
 impl RunState {
     /// Draws the truth from the common prior and starts every filter at it.
     pub fn new(model: &Model, spec: &RunSpec) -> Self {
-        Self::with_rules(model, spec, &RULES)
+        Self::with_rules(model, spec, &STUDY_RULES)
     }
 
     /// As [`RunState::new`] for the agents of `rules` only (the trace has `central` and one
     /// series per rule, in the order given).
-    pub fn with_rules(model: &Model, spec: &RunSpec, rules: &[Rule]) -> Self {
+    pub fn with_rules(model: &Model, spec: &RunSpec, rules: &[StudyRule]) -> Self {
         Self(RunBatch::new(model, spec, [spec.run], rules))
     }
 

@@ -27,10 +27,10 @@
 //! without 7 and `D(11, y) = 1 + D(7, y)`. Either way `S_7 < S_11`: agent 7 is strictly more
 //! central (closeness). A test checks it on every network the sweep enumerates.
 //!
-//! ## The families enumerated ([`Family`])
-//! The rings are fixed; the sweep chooses the links between groups. [`Family::Bridges`] keeps
+//! ## The families enumerated ([`NetworkFamily`])
+//! The rings are fixed; the sweep chooses the links between groups. [`NetworkFamily::Bridges`] keeps
 //! the three bridges read from the figure and adds up to `extra` more links between groups;
-//! [`Family::Links`] takes 7–11 and any `count − 1` further links between groups. Every
+//! [`NetworkFamily::Links`] takes 7–11 and any `count − 1` further links between groups. Every
 //! candidate is checked against the conditions; the ones that pass are evaluated.
 //!
 //! ## What is computed, and why it is exact without Monte Carlo
@@ -56,7 +56,7 @@ use thiserror::Error;
 
 use super::model::Model;
 use super::study::{exchange, fuse, BlockCovariance, Partition};
-use super::{Rule, Scenario, SimError, Storage, StudyConfig};
+use super::{Scenario, SimError, Storage, StudyConfig, StudyRule};
 
 /// The paper's steady-state CI ω of agent 7 fusing agent 11.
 pub const PAPER_OMEGA_CI: f64 = 0.87;
@@ -153,7 +153,7 @@ fn reachable(nb: &[Vec<usize>], from: usize, removed: usize) -> Vec<bool> {
 /// Which networks the sweep enumerates (rings in the 4 groups are always there).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase", tag = "family")]
-pub enum Family {
+pub enum NetworkFamily {
     /// The bridges 4–7, 7–11, 12–13 plus up to `extra` more links between groups.
     Bridges {
         /// Most links added.
@@ -166,9 +166,9 @@ pub enum Family {
     },
 }
 
-impl Default for Family {
+impl Default for NetworkFamily {
     fn default() -> Self {
-        Family::Bridges { extra: 2 }
+        NetworkFamily::Bridges { extra: 2 }
     }
 }
 
@@ -178,15 +178,15 @@ pub const FIGURE_BRIDGES: [(usize, usize); 3] = [(4, 7), (7, 11), (12, 13)];
 /// The networks of `family` that fit the text ([`check_text`]), each as its sorted list of
 /// links between groups (1-based, `a < b`), in enumeration order. `base` supplies every other
 /// scenario value.
-pub fn candidate_networks(base: &Scenario, family: Family) -> Vec<Vec<(usize, usize)>> {
+pub fn candidate_networks(base: &Scenario, family: NetworkFamily) -> Vec<Vec<(usize, usize)>> {
     let group = |a: usize| (a - 1) / 4;
     let all: Vec<(usize, usize)> = (1..=16)
         .flat_map(|a| (a + 1..=16).map(move |b| (a, b)))
         .filter(|&(a, b)| group(a) != group(b))
         .collect();
     let (fixed, sizes): (Vec<(usize, usize)>, Vec<usize>) = match family {
-        Family::Bridges { extra } => (FIGURE_BRIDGES.to_vec(), (1..=extra).collect()),
-        Family::Links { count } => (vec![(7, 11)], vec![count.saturating_sub(1)]),
+        NetworkFamily::Bridges { extra } => (FIGURE_BRIDGES.to_vec(), (1..=extra).collect()),
+        NetworkFamily::Links { count } => (vec![(7, 11)], vec![count.saturating_sub(1)]),
     };
     let pool: Vec<(usize, usize)> = all.into_iter().filter(|l| !fixed.contains(l)).collect();
     let mut out = Vec::new();
@@ -235,7 +235,7 @@ fn for_each_subset(n: usize, size: usize, f: &mut dyn FnMut(&[usize])) {
 /// decides ω and 2σ.
 pub struct CovarianceRun {
     part: Partition,
-    rule: Rule,
+    rule: StudyRule,
     neighbours: Vec<Vec<usize>>,
     agents: Vec<BlockCovariance>,
     sent: Vec<BlockCovariance>,
@@ -243,7 +243,7 @@ pub struct CovarianceRun {
 
 impl CovarianceRun {
     /// Every agent at the common prior.
-    pub fn new(model: &Model, rule: Rule) -> Self {
+    pub fn new(model: &Model, rule: StudyRule) -> Self {
         let part = Partition::new(model, Storage::Blocks);
         let agents = (0..model.scenario.agents())
             .map(|_| part.prior(model))
@@ -306,7 +306,10 @@ pub struct CovarianceSeries {
 }
 
 /// Runs [`CovarianceRun`] for `config.steps` steps.
-pub fn covariance_series(config: &StudyConfig, rule: Rule) -> Result<CovarianceSeries, SimError> {
+pub fn covariance_series(
+    config: &StudyConfig,
+    rule: StudyRule,
+) -> Result<CovarianceSeries, SimError> {
     config.validate()?;
     let model = Model::new(&config.scenario)?;
     let mut run = CovarianceRun::new(&model, rule);
@@ -353,7 +356,7 @@ pub struct SweepConfig {
     /// The study (its network is replaced by each candidate's; agent 7, watched 11).
     pub study: StudyConfig,
     /// The networks enumerated.
-    pub family: Family,
+    pub family: NetworkFamily,
     /// How many of the best covariance-only candidates get the Monte Carlo RMSE.
     pub short_list: usize,
     /// Networks evaluated in full beside the family whether or not they fit the text
@@ -371,7 +374,7 @@ impl Default for SweepConfig {
                 },
                 ..StudyConfig::default()
             },
-            family: Family::default(),
+            family: NetworkFamily::default(),
             short_list: 5,
             references: vec![FIGURE_BRIDGES.to_vec()],
         }
@@ -418,10 +421,10 @@ impl SweepConfig {
             return bad("the sweep is over the paper's 4 groups of 4 agents".into());
         }
         match self.family {
-            Family::Bridges { extra } if extra > 3 => bad(format!(
+            NetworkFamily::Bridges { extra } if extra > 3 => bad(format!(
                 "extra links: at most 3 (got {extra}; the count grows as 93^extra)"
             )),
-            Family::Links { count } if !(1..=4).contains(&count) => bad(format!(
+            NetworkFamily::Links { count } if !(1..=4).contains(&count) => bad(format!(
                 "links between groups: 1 to 4 (got {count}; the count grows as 95^(count−1))"
             )),
             _ => Ok(()),
@@ -531,7 +534,7 @@ pub fn sweep(
     let tick = || on_piece(done.fetch_add(1, Ordering::Relaxed) + 1, total);
     let series = everything
         .par_iter()
-        .flat_map(|links| [(*links, Rule::Ci), (*links, Rule::Nmci)])
+        .flat_map(|links| [(*links, StudyRule::Ci), (*links, StudyRule::Nmci)])
         .map(|(links, rule)| {
             let s = covariance_series(&config.network(links), rule);
             tick();
@@ -554,8 +557,8 @@ pub fn sweep(
         .take(short)
         .chain(references.iter_mut())
         .collect();
-    let pieces: Vec<(usize, Rule)> = (0..full.len())
-        .flat_map(|c| [(c, Rule::Ci), (c, Rule::Nmci)])
+    let pieces: Vec<(usize, StudyRule)> = (0..full.len())
+        .flat_map(|c| [(c, StudyRule::Ci), (c, StudyRule::Nmci)])
         .collect();
     let configs: Vec<StudyConfig> = full.iter().map(|c| config.network(&c.links)).collect();
     let models = configs

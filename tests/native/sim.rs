@@ -405,10 +405,12 @@ fn live_study_equals_the_batch_study_and_the_golden_file() {
 fn a_study_shared_by_two_workers_is_the_one_worker_study_bit_for_bit() {
     assert_eq!(
         WORKER_RULES.concat().len(),
-        RULES.len(),
+        STUDY_RULES.len(),
         "the two workers share every rule"
     );
-    assert!(RULES.iter().all(|r| WORKER_RULES.concat().contains(r)));
+    assert!(STUDY_RULES
+        .iter()
+        .all(|r| WORKER_RULES.concat().contains(r)));
     for (config, chunk) in [
         (tiny_config(), 5),
         (
@@ -544,7 +546,7 @@ fn the_parallel_study_split_by_rule_is_the_sequential_study_bit_for_bit() {
         pieces.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     })
     .unwrap();
-    assert_eq!(pieces.into_inner(), run_pieces(3, RULES.len()));
+    assert_eq!(pieces.into_inner(), run_pieces(3, STUDY_RULES.len()));
     for (r, trace) in parallel.iter().enumerate() {
         let sequential = simulate_run(&model, &config.run_spec(r as u64, Storage::Blocks)).unwrap();
         assert_eq!(trace, &sequential, "run {r}");
@@ -569,7 +571,7 @@ fn a_batch_of_runs_is_each_run_alone_bit_for_bit() {
         .iter()
         .map(|&r| simulate_run(&model, &config.run_spec(r, Storage::Blocks)).unwrap())
         .collect();
-    let mut batch = RunBatch::new(&model, &spec, [5u64, 0, 2], &RULES);
+    let mut batch = RunBatch::new(&model, &spec, [5u64, 0, 2], &STUDY_RULES);
     while !batch.finished() {
         batch.step(&model).unwrap();
     }
@@ -582,7 +584,7 @@ fn a_batch_of_runs_is_each_run_alone_bit_for_bit() {
     assert_ne!(alone[0].rmse, alone[1].rmse);
     // ... and so do the rules' series within a run.
     assert_ne!(alone[0].nees[1], alone[0].nees[2]);
-    for rule in RULES {
+    for rule in STUDY_RULES {
         let by_rule = simulate_runs_for_rule(&model, &spec, 1..4, rule).unwrap();
         for (k, trace) in by_rule.iter().enumerate() {
             let run = 1 + k as u64;
@@ -722,10 +724,10 @@ fn the_covariance_only_recursion_gives_the_monte_carlo_omega_and_two_sigma_bit_f
         let model = Model::new(&config.scenario).unwrap();
         for run in [0, 3] {
             let spec = config.run_spec(run, Storage::Blocks);
-            let ci_run = simulate_run_for_rule(&model, &spec, Rule::Ci).unwrap();
-            let nm_run = simulate_run_for_rule(&model, &spec, Rule::Nmci).unwrap();
-            let ci = covariance_series(&config, Rule::Ci).unwrap();
-            let nm = covariance_series(&config, Rule::Nmci).unwrap();
+            let ci_run = simulate_run_for_rule(&model, &spec, StudyRule::Ci).unwrap();
+            let nm_run = simulate_run_for_rule(&model, &spec, StudyRule::Nmci).unwrap();
+            let ci = covariance_series(&config, StudyRule::Ci).unwrap();
+            let nm = covariance_series(&config, StudyRule::Nmci).unwrap();
             assert_eq!(ci.omega.len(), 25);
             assert_eq!(
                 ci.omega.iter().map(|w| w[0]).collect::<Vec<_>>(),
@@ -829,8 +831,8 @@ fn the_text_conditions_reject_networks_that_break_them() {
 #[test]
 fn the_sweep_enumerates_every_fitting_network_and_seven_is_always_more_central() {
     let base = Scenario::default();
-    let one = candidate_networks(&base, Family::Bridges { extra: 1 });
-    let two = candidate_networks(&base, Family::Bridges { extra: 2 });
+    let one = candidate_networks(&base, NetworkFamily::Bridges { extra: 1 });
+    let two = candidate_networks(&base, NetworkFamily::Bridges { extra: 2 });
     // Counts from an independent enumeration (a Python script over the same conditions).
     assert_eq!((one.len(), two.len()), (7, 238));
     assert_eq!(&two[..7], &one[..]);
@@ -850,11 +852,11 @@ fn the_sweep_enumerates_every_fitting_network_and_seven_is_always_more_central()
         assert!(closeness_sum(&sc, 6) < closeness_sum(&sc, 10), "{links:?}");
     }
     assert_eq!(
-        candidate_networks(&base, Family::Links { count: 1 }),
+        candidate_networks(&base, NetworkFamily::Links { count: 1 }),
         Vec::<Vec<_>>::new()
     );
     // The other family: 7–11 and any two more links (connected networks only).
-    let links = candidate_networks(&base, Family::Links { count: 3 });
+    let links = candidate_networks(&base, NetworkFamily::Links { count: 3 });
     assert_eq!(links.len(), 768);
     for l in &links {
         let sc = Scenario {
@@ -873,7 +875,7 @@ fn a_small_sweep_ranks_by_distance_and_runs_the_monte_carlo_for_the_short_list()
             runs: 2,
             ..StudyConfig::default()
         },
-        family: Family::Bridges { extra: 1 },
+        family: NetworkFamily::Bridges { extra: 1 },
         short_list: 3,
         ..SweepConfig::default()
     };
@@ -898,13 +900,13 @@ fn a_small_sweep_ranks_by_distance_and_runs_the_monte_carlo_for_the_short_list()
     // Each candidate's numbers are its network's covariance-only recursion.
     for c in &report.ranked {
         let study = config.network(&c.links);
-        let ci = covariance_series(&study, Rule::Ci).unwrap();
+        let ci = covariance_series(&study, StudyRule::Ci).unwrap();
         let last_half = |v: Vec<f64>| v[4..].iter().sum::<f64>() / 4.0;
         assert_eq!(
             c.omega_ci,
             last_half(ci.omega.iter().map(|w| w[0]).collect())
         );
-        let nm = covariance_series(&study, Rule::Nmci).unwrap();
+        let nm = covariance_series(&study, StudyRule::Nmci).unwrap();
         let two_sigma = |s: &[f64]| s.iter().sum::<f64>() / 8.0;
         assert_eq!(
             c.two_sigma,
@@ -943,11 +945,11 @@ fn invalid_sweeps_are_rejected_by_name() {
     };
     for (config, message) in [
         (
-            bad(Family::Bridges { extra: 4 }),
+            bad(NetworkFamily::Bridges { extra: 4 }),
             "invalid scenario: extra links: at most 3 (got 4; the count grows as 93^extra)",
         ),
         (
-            bad(Family::Links { count: 0 }),
+            bad(NetworkFamily::Links { count: 0 }),
             "invalid scenario: links between groups: 1 to 4 (got 0; the count grows as 95^(count−1))",
         ),
     ] {
@@ -1018,8 +1020,8 @@ fn the_documented_weights_and_two_sigma_of_both_networks() {
             -0.551,
         ),
     ] {
-        let ci = covariance_series(&config, Rule::Ci).unwrap();
-        let nm = covariance_series(&config, Rule::Nmci).unwrap();
+        let ci = covariance_series(&config, StudyRule::Ci).unwrap();
+        let nm = covariance_series(&config, StudyRule::Nmci).unwrap();
         assert_eq!(nm.omega.len(), 400);
         let w_ci = steady(ci.omega.iter().map(|w| w[0]));
         assert!((w_ci - omega_ci).abs() < 1e-4, "{name}: CI ω {w_ci}");

@@ -88,7 +88,7 @@ fn exact_error_covariance_matches_monte_carlo() {
         }
     }
     // Not a vacuous match: naive fusion's error covariance is far from its own P.
-    let mut naive = ErrorPropagation::new(&model, Estimator::Decentralized(Rule::Naive));
+    let mut naive = ErrorPropagation::new(&model, Estimator::Decentralized(StudyRule::Naive));
     for _ in 0..steps {
         naive.step(&model).unwrap();
     }
@@ -166,8 +166,8 @@ fn coin_of_the_paper_study() {
         "{central:?}"
     );
     let (ci, nmci) = (
-        series(Estimator::Decentralized(Rule::Ci)),
-        series(Estimator::Decentralized(Rule::Nmci)),
+        series(Estimator::Decentralized(StudyRule::Ci)),
+        series(Estimator::Decentralized(StudyRule::Nmci)),
     );
     for (name, s) in [("ci", &ci), ("nmci", &nmci)] {
         assert!(s.iter().all(|c| *c <= 1.0 + 1e-9), "{name}: {s:?}");
@@ -179,10 +179,10 @@ fn coin_of_the_paper_study() {
     let mean = |s: &[f64]| s.iter().sum::<f64>() / s.len() as f64;
     assert!((mean(&nmci) - 0.856).abs() < 1e-3, "nmCI {}", mean(&nmci));
     assert!((mean(&ci) - 0.972).abs() < 1e-3, "CI {}", mean(&ci));
-    let naive = series(Estimator::Decentralized(Rule::Naive));
+    let naive = series(Estimator::Decentralized(StudyRule::Naive));
     assert!(naive.iter().all(|c| *c > 1.0 + 1e-6), "{naive:?}");
     // ICI: computed, finite and positive (its conservativeness here is a finding, not a theorem).
-    let ici = series(Estimator::Decentralized(Rule::Ici));
+    let ici = series(Estimator::Decentralized(StudyRule::Ici));
     assert!(ici.iter().all(|c| c.is_finite() && *c > 0.0));
 }
 
@@ -235,7 +235,16 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
         bridges: vec![(1, 3)],
         ..Scenario::default()
     };
-    brute_force_check(&chained, 6, &[Rule::Ci, Rule::Nmci, Rule::Naive, Rule::Ici]);
+    brute_force_check(
+        &chained,
+        6,
+        &[
+            StudyRule::Ci,
+            StudyRule::Nmci,
+            StudyRule::Naive,
+            StudyRule::Ici,
+        ],
+    );
     let two_groups = Scenario {
         groups: 2,
         agents_per_group: 3,
@@ -244,7 +253,7 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
         ..Scenario::default()
     };
     assert!(
-        brute_force_check(&two_groups, 6, &[Rule::Nmci]) > 0,
+        brute_force_check(&two_groups, 6, &[StudyRule::Nmci]) > 0,
         "no kept or taken nmCI block"
     );
 }
@@ -253,7 +262,7 @@ fn exact_error_covariance_matches_a_brute_force_dense_propagation() {
 /// `steps` steps with each of `rules`; returns how many nmCI block weights were exactly 0 or
 /// 1 (kept or taken blocks).
 #[allow(non_snake_case)]
-fn brute_force_check(scenario: &Scenario, steps: usize, rules: &[Rule]) -> usize {
+fn brute_force_check(scenario: &Scenario, steps: usize, rules: &[StudyRule]) -> usize {
     use nmci::{
         rules::{covariance_intersection, inverse_covariance_intersection, non_monolithic_ci},
         Criterion, FusionProblem,
@@ -319,13 +328,13 @@ fn brute_force_check(scenario: &Scenario, steps: usize, rules: &[Rule]) -> usize
                         model.cross_pattern.clone(),
                     );
                     let (K_a, K_b, fused) = match rule {
-                        Rule::Ci => {
+                        StudyRule::Ci => {
                             let ci = covariance_intersection(&problem, Criterion::Trace).unwrap();
                             let w = ci.omega;
                             let F = ci.fused.P;
                             (&F * inv(&P[a]) * w, &F * inv(&sent[b]) * (1.0 - w), F)
                         }
-                        Rule::Nmci => {
+                        StudyRule::Nmci => {
                             let nm = non_monolithic_ci(&problem, Criterion::Trace).unwrap();
                             // ω of each state's block (the estimates are block-diagonal).
                             let mut w = DVector::zeros(n);
@@ -343,7 +352,7 @@ fn brute_force_check(scenario: &Scenario, steps: usize, rules: &[Rule]) -> usize
                                 F,
                             )
                         }
-                        Rule::Ici => {
+                        StudyRule::Ici => {
                             let ici = inverse_covariance_intersection(&problem, Criterion::Trace)
                                 .unwrap();
                             let w = ici.omega;
@@ -355,7 +364,7 @@ fn brute_force_check(scenario: &Scenario, steps: usize, rules: &[Rule]) -> usize
                                 F,
                             )
                         }
-                        Rule::Naive => {
+                        StudyRule::Naive => {
                             let F = inv(&(inv(&P[a]) + inv(&sent[b])));
                             (&F * inv(&P[a]), &F * inv(&sent[b]), F)
                         }
