@@ -2,8 +2,7 @@
 //!
 //! ## Wider vectors, the same numbers
 //! The kernels that carry the dense work — the triangular solves, the Cholesky factorizations
-//! (this module's and the verified test's in `fusion::verify`) and the symmetric eigensolver of
-//! CI's pencil (`eigen`) — are compiled twice on x86-64 by [`wide!`]: for the
+//! (this module's and the verified test's in `fusion::verify`) — are compiled twice on x86-64 by [`wide!`]: for the
 //! portable baseline (SSE2) and with AVX2 enabled, the copy picked at run time when the CPU
 //! has AVX2. Rust compiles floating point strictly: no fused multiply-add contraction and no
 //! reassociation, so wider vectors can only be used for operations that are already
@@ -11,7 +10,7 @@
 //! therefore perform the same IEEE operations in the same order and give bitwise identical
 //! results (tested), as the wasm32 build (SIMD128) does.
 
-use nalgebra::{Cholesky, DMatrix, Dyn};
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 
 /// `wide! { /// docs  fn name(args) -> ret = kernel; }` defines `name`, which calls the
 /// `#[inline(always)]` function `kernel` compiled twice on x86-64 — inlined into the baseline
@@ -40,8 +39,20 @@ macro_rules! wide {
     };
 }
 
-mod eigen;
-pub(crate) use eigen::symmetric_eigen;
+/// `(λ, V)` with `A = V diag(λ) Vᵀ` for a symmetric `A` (only its lower triangle is read):
+/// nalgebra's `SymmetricEigen::try_new(a, eps, 0)` — Householder reduction to tridiagonal form,
+/// then the implicit symmetric QR iteration with Wilkinson's shift (Golub and Van Loan,
+/// *Matrix Computations*, 4th ed., §§ 8.3.1, 8.3.5). No iteration limit, as that call has
+/// none: the iteration converges globally (Parlett, *The Symmetric Eigenvalue Problem*,
+/// § 8.10). `None` for an empty, non-square or non-finite `a`, where nalgebra would panic (a
+/// 2 × 2 block without real eigenvalues) or not end.
+pub(crate) fn symmetric_eigen(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>, DMatrix<f64>)> {
+    if a.is_empty() || !a.is_square() || a.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let e = nalgebra::SymmetricEigen::try_new(a, eps, 0)?;
+    Some((e.eigenvalues, e.eigenvectors))
+}
 
 #[cfg(test)]
 thread_local! {
@@ -339,6 +350,25 @@ pub(crate) fn test_spd(n: usize, seed: &mut u64, shift: f64) -> DMatrix<f64> {
 #[allow(non_snake_case)]
 mod tests {
     use super::*;
+
+    /// The eigensolver refuses what nalgebra's would panic or loop on, and decomposes the rest:
+    /// `V diag(λ) Vᵀ` gives back the matrix.
+    #[test]
+    fn symmetric_eigen_refuses_bad_input_and_decomposes_the_rest() {
+        assert!(symmetric_eigen(DMatrix::zeros(0, 0), f64::EPSILON).is_none());
+        assert!(symmetric_eigen(DMatrix::zeros(2, 3), f64::EPSILON).is_none());
+        for bad in [f64::NAN, f64::INFINITY] {
+            let m = DMatrix::from_row_slice(2, 2, &[1.0, bad, bad, 2.0]);
+            assert!(symmetric_eigen(m, f64::EPSILON).is_none());
+        }
+        let mut seed = 3;
+        for n in [1, 2, 5, 14] {
+            let a = test_spd(n, &mut seed, 0.1);
+            let (values, vectors) = symmetric_eigen(a.clone(), f64::EPSILON).unwrap();
+            let back = &vectors * DMatrix::from_diagonal(&values) * vectors.transpose();
+            assert!((back - &a).amax() <= 1e-13 * a.amax(), "n = {n}");
+        }
+    }
 
     /// The closed forms against nalgebra's QR iteration with eigenvectors (another
     /// algorithm) at sizes 1–3, over scales 1e−150…1e150 (no overflow in `hypot`), with
