@@ -97,10 +97,12 @@ def rust():
             continue
         if line and not line.startswith(" ") and "time:" not in line and not line.startswith(("Benchmarking", "Found", "Warning", "change", "Performance", "No change", "  ")):
             pending = line.strip()
-    table = ["| bench | what | time (criterion: low, estimate, high) |", "|---|---|---|"]
+    table = ["| bench | what | time (criterion's estimate, its interval) |", "|---|---|---|"]
     for name, times in rows:
         what = next((w for f, w in RUST_BENCHES if re.search(f, name)), "")
-        table.append(f"| `{name}` | {what} | {times} |")
+        v = times.split()
+        shown = f"**{v[2]} {v[3]}** ({v[0]} {v[1]} – {v[4]} {v[5]})" if len(v) == 6 else times
+        table.append(f"| `{name}` | {what} | {shown} |")
     return cmd, "\n".join(table)
 
 

@@ -48,7 +48,7 @@ case "${1:-}" in
     for t in $(setting test test_files); do tests+=(--test "$t"); done
     WASM_BINDGEN_TEST_TIMEOUT=$(setting test timeout_seconds) \
       wasm-pack test --mode no-install "${headless[@]}" "--$browser" \
-      "$(profile_flag "$(setting test profile)")" -- "${tests[@]}" \
+      "$(profile_flag "$(setting test profile)")" -- -p nmci "${tests[@]}" \
       --features "$(setting test features | tr ' ' ,)"
     ;;
   *)
