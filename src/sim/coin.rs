@@ -34,7 +34,7 @@
 //!   and ICI choose ω from covariances only, so every `C` above is deterministic and
 //!   `Σ ← C Σ Cᵀ` is exact. (A rule whose weights depended on the means would break this.)
 //! - **Pre-exchange copies.** Agents fuse the copies their neighbours sent before the
-//!   exchange began; the schedule is [`super::study::exchange`], the one the Monte Carlo runs
+//!   exchange began; the schedule is [`super::partition::exchange`], the one the Monte Carlo runs
 //!   use, so the two cannot drift apart.
 //!
 //! The agent's COIN is then `λ_max(L⁻¹ E L⁻ᵀ)` with `P = L Lᵀ` its covariance and `E` its
@@ -47,7 +47,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::model::Model;
-use super::study::{exchange, fuse, BlockCovariance, Partition};
+use super::partition::{exchange, fuse, BlockCovariance, Partition};
 use super::{Estimator, SimError, Storage, StudyRule};
 use crate::error::InputError;
 use crate::fusion::check::coin_of;

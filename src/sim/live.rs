@@ -14,7 +14,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::study::assemble_traces;
+use super::trace::assemble_traces;
 use super::{
     estimators, summarize, ErrorPropagation, Estimator, Model, RunBatch, RunTrace, SimError,
     Storage, StudyConfig, StudyReport, StudyRule, StudySummary, STUDY_RULES,

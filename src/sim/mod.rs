@@ -14,21 +14,26 @@
 //! [`write_study`] writes a study's files. [`sweep`] searches the networks
 //! the paper's text allows for the one its numbers fit (its figure is not in the source).
 
+mod batch;
 mod charts;
 mod coin;
 mod draw;
+mod estimators;
 mod live;
 mod model;
+mod partition;
 #[cfg(all(feature = "files", not(target_arch = "wasm32")))]
 mod report;
 mod scenario;
 mod shard;
-mod study;
 mod sweep;
+mod trace;
 
+pub use batch::{simulate_run, simulate_run_for_rule, simulate_runs_for_rule, RunBatch, RunState};
 pub use charts::{coin_chart, study_charts};
 pub use coin::{coin_series, ErrorPropagation};
 pub use draw::network_svg;
+pub use estimators::{Estimator, Storage, StudyRule, STUDY_RULES};
 pub use live::{
     CoinReport, CoinTail, CoinView, LiveCoin, LiveCoinPart, LiveRules, LiveStudy, StudyView,
     TraceTail, COIN_WORKER_ESTIMATORS, WORKER_RULES,
@@ -40,10 +45,6 @@ pub use scenario::{ScalarMeasurement, Scenario};
 #[cfg(not(target_arch = "wasm32"))]
 pub use shard::shard_files;
 pub use shard::{carries_coin, merge_shards, MergeError, Study, StudyShard, SHARD_FORMAT};
-pub use study::{
-    merge_rule_traces, nees_bounds, simulate_run, simulate_run_for_rule, simulate_runs_for_rule,
-    Estimator, RunBatch, RunSpec, RunState, RunTrace, Storage, StudyRule, STUDY_RULES,
-};
 #[cfg(not(target_arch = "wasm32"))]
 pub use sweep::sweep;
 pub use sweep::{
@@ -51,6 +52,7 @@ pub use sweep::{
     NetworkFamily, SweepConfig, SweepReport, TextMismatch, FIGURE_BRIDGES, PAPER_OMEGA_CI,
     PAPER_OMEGA_NMCI_FAR, PAPER_RMSE_REDUCTION, PAPER_TWO_SIGMA_REDUCTION,
 };
+pub use trace::{merge_rule_traces, nees_bounds, RunSpec, RunTrace};
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;

@@ -38,7 +38,7 @@
 //! covariances only; so ω of every fusion and every agent's covariance — hence the mean 2σ —
 //! are deterministic. [`CovarianceRun`] runs the study's recursion on covariances alone (the
 //! same [`Partition`] prediction and Joseph update, the same exchange schedule
-//! [`super::study::exchange`], the same fusion code): its ω and 2σ are bit for bit those of
+//! [`super::partition::exchange`], the same fusion code): its ω and 2σ are bit for bit those of
 //! every Monte Carlo run of the same network (tested). The RMSE does depend on the data; it is
 //! estimated by the study's Monte Carlo runs for the short list only.
 //!
@@ -55,7 +55,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::model::Model;
-use super::study::{exchange, fuse, BlockCovariance, Partition};
+use super::partition::{exchange, fuse, BlockCovariance, Partition};
 use super::{Scenario, SimError, Storage, StudyConfig, StudyRule};
 
 /// The paper's steady-state CI ω of agent 7 fusing agent 11.
