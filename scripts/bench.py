@@ -171,18 +171,7 @@ SECTIONS = {
 }
 
 
-def main():
-    wanted = sys.argv[1:] or list(SECTIONS)
-    unknown = [w for w in wanted if w not in SECTIONS]
-    if unknown:
-        sys.exit(f"unknown section(s) {unknown}; sections: {', '.join(SECTIONS)}")
-    state = json.loads(STATE.read_text()) if STATE.exists() else {}
-    rev, when, where = commit(), datetime.date.today().isoformat(), machine()
-    for key in wanted:
-        title, run = SECTIONS[key]
-        cmd, body = run()
-        state[key] = {"command": cmd, "body": body, "commit": rev, "date": when, "machine": where}
-        STATE.write_text(json.dumps(state, indent=1, ensure_ascii=False) + "\n")
+def write_report(state):
     lines = [
         "# Benchmarks",
         "",
@@ -203,8 +192,29 @@ def main():
             s["body"],
             "",
         ]
+    missing = [key for key in SECTIONS if key not in state]
+    if missing:
+        lines += [
+            f"Not in this report yet: {', '.join(missing)} (`scripts/bench.sh {' '.join(missing)}`).",
+            "",
+        ]
     REPORT.write_text("\n".join(lines))
-    print(f"wrote {REPORT.relative_to(ROOT)}")
+    print(f"wrote {REPORT.relative_to(ROOT)}", file=sys.stderr)
+
+
+def main():
+    wanted = sys.argv[1:] or list(SECTIONS)
+    unknown = [w for w in wanted if w not in SECTIONS]
+    if unknown:
+        sys.exit(f"unknown section(s) {unknown}; sections: {', '.join(SECTIONS)}")
+    state = json.loads(STATE.read_text()) if STATE.exists() else {}
+    rev, when, where = commit(), datetime.date.today().isoformat(), machine()
+    for key in wanted:
+        title, run = SECTIONS[key]
+        cmd, body = run()
+        state[key] = {"command": cmd, "body": body, "commit": rev, "date": when, "machine": where}
+        STATE.write_text(json.dumps(state, indent=1, ensure_ascii=False) + "\n")
+        write_report(state)  # after each section: a stopped run leaves the sections it finished
 
 
 if __name__ == "__main__":
