@@ -18,7 +18,7 @@ command -v cargo-mutants >/dev/null || { echo "cargo-mutants is missing: cargo i
 # row name | file | test filters (native test binary and the crate's unit tests)
 table=(
   "structure|src/structure.rs|nmci_rule:: ci:: properties:: validation::"
-  "ci|src/fusion/ci.rs|ci:: nmci_rule::"
+  "ci|src/fusion/ci/*.rs|ci:: nmci_rule::"
   "nmci|src/fusion/nmci.rs|nmci_rule:: ci::"
   "known|src/fusion/known.rs|known rules:: fig2:: explore::known_correlation"
   "check|src/fusion/check.rs|check rules:: sample:: nmci_rule:: ci::"

@@ -1,4 +1,4 @@
-// The study's and fig. 2's charts: drawn by the wasm module (`draw_chart`, src/chart.rs)
+// The study's and fig. 2's charts: drawn by the wasm module (`draw_chart`, src/chart/)
 // onto canvases through web-sys — the code that writes the SVG files of `nmci track` and
 // `nmci fig2`. This module only sizes the canvas and keeps the last chart for a redraw when
 // the window is resized.

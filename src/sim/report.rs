@@ -86,7 +86,7 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
     }
     write("omega.csv", csv)?;
 
-    // Figures (SVG): the charts the page draws (src/chart.rs).
+    // Figures (SVG): the charts the page draws (src/chart/).
     for (name, chart) in super::study_charts(cfg, summary, cfg.runs) {
         let path = out.join(format!("{name}.svg"));
         crate::chart::write_svg(&path, &[&chart], (900, 480))?;

@@ -677,7 +677,7 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
   assert.match(await text("#study-omega"), /nmCI vs CI: RMSE -\d+%/);
   const ci = await page.evaluate(async () => (await import("./pkg/nmci.js")).study_estimators().find((e) => e.name === "ci"));
   const CI_RGB = hexRgb(ci.colour);
-  // Four charts drawn by the wasm module on canvases (src/chart.rs, the code of `nmci track`'s
+  // Four charts drawn by the wasm module on canvases (src/chart/, the code of `nmci track`'s
   // SVG files): every line over the whole run, and CI's colour on the canvas.
   for (const id of ["#study-nees", "#study-rmse", "#study-omega-plot", "#study-coin-plot"]) {
     const lengths = (await page.getAttribute(id, "data-points")).split(",").map(Number);

@@ -1,4 +1,4 @@
-//! The charts (src/chart.rs): they describe exactly the numbers of the study and of fig. 2,
+//! The charts (src/chart/): they describe exactly the numbers of the study and of fig. 2,
 //! they are drawn point for point (a non-finite value breaks a line), and the CLI's SVG files
 //! are this code's drawing — the page draws the same `Chart` objects on a canvas (checked by
 //! the page's end-to-end test).
