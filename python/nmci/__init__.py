@@ -54,7 +54,7 @@ from ._errors import (
     StudyError,
     TimeLimitError,
 )
-from ._nmci import Shard
+from ._nmci import Fused, Shard
 
 __version__: str = _nmci.__version__
 
@@ -91,95 +91,6 @@ __all__ = [
 
 # ---------------------------------------------------------------------------------------------
 # Fusion
-
-
-class Fused:
-    """A fused estimate: the contract's response (docs/contract.md) with numpy arrays.
-
-    Every field of the response is an attribute (``None`` when the method does not report it);
-    ``P``, ``Ka`` and ``Kb`` are the contract's ``p``, ``ka`` and ``kb``. ``r["field"]`` reads
-    the response by its contract name, ``r.to_dict()`` gives it with lists, as ``nmci fuse``
-    prints it.
-    """
-
-    __slots__ = ("_r",)
-
-    method: str
-    criterion: str
-    x: np.ndarray
-    P: np.ndarray
-    Ka: Optional[np.ndarray]
-    Kb: Optional[np.ndarray]
-    gains: Optional[np.ndarray]
-    weights: Optional[np.ndarray]
-    trace: float
-    det: float
-    omega: Optional[np.ndarray]
-    blocks: Optional[List[List[int]]]
-    samples: Optional[int]
-    status: Optional[str]
-    iterations: Optional[int]
-    acceptance_rate: Optional[float]
-    sampler_choice: Optional[Dict[str, Any]]
-    lmis: Optional[int]
-    worst_sample_margin: Optional[float]
-    lower_bound: Optional[float]
-    upper_bound: Optional[float]
-    upper_bound_rule: Optional[str]
-    gap: Optional[float]
-    gap_relative: Optional[float]
-    repair: Optional[float]
-    gain_certified_trace: Optional[float]
-    levels: Optional[List[int]]
-    sectors: Optional[List[int]]
-    stop: Optional[str]
-    violation: Optional[float]
-    converged: Optional[bool]
-    gap_closed: Optional[bool]
-    guarantee: str
-    structure: Optional[Dict[str, Any]]
-
-    _ALIASES = {"P": "p", "Ka": "ka", "Kb": "kb"}
-
-    def __init__(self, response: Dict[str, Any]) -> None:
-        object.__setattr__(self, "_r", response)
-
-    def __getattr__(self, name: str) -> Any:
-        if name in Fused.__annotations__:
-            return self._r.get(Fused._ALIASES.get(name, name))
-        raise AttributeError(f"Fused has no attribute {name!r}")
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        raise AttributeError("Fused is read-only")
-
-    @property
-    def structure_note(self) -> Optional[str]:
-        """How the blocks were found, when that is worth saying (near-zero couplings absorbed,
-        declared blocks, a weak coupling keeping blocks merged): ``structure["note"]``. Also
-        issued as a :class:`StructureWarning` when the response is made."""
-        return (self._r.get("structure") or {}).get("note")
-
-    def __getitem__(self, key: str) -> Any:
-        return self._r[key]
-
-    def __contains__(self, key: str) -> bool:
-        return key in self._r
-
-    def keys(self) -> List[str]:
-        """The contract's fields present in this response."""
-        return list(self._r)
-
-    def to_dict(self) -> Dict[str, Any]:
-        """The response with lists instead of arrays (the JSON ``nmci fuse`` prints)."""
-        return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in self._r.items()}
-
-    def __repr__(self) -> str:
-        shown = ", ".join(
-            f"{k}={self._r[k]!r}"
-            for k in ("method", "trace", "lower_bound", "upper_bound", "gap_closed")
-            if k in self._r
-        )
-        return f"Fused({shown})"
 
 
 def _jsonable(value: Any) -> Any:
@@ -249,42 +160,6 @@ def _pattern(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
     return np.ascontiguousarray(m)
 
 
-def _option(name: str, value: Any) -> Any:
-    """An option's value, or a ``RequestError`` naming it: a number that JSON cannot carry
-    (NaN, infinity) or an integer of 2⁶⁴ or more (JSON would carry it, but as a float)."""
-    if isinstance(value, (bool, np.bool_, str)):
-        return value
-    if isinstance(value, (int, np.integer)) and int(value) >= 2**64:
-        raise RequestError(f"invalid request: `{name}` must be below 2^64 (got {value})", name)
-    if isinstance(value, (float, np.floating)) and not math.isfinite(value):
-        raise RequestError(f"invalid request: `{name}` must be a finite number (got {value})", name)
-    return value
-
-
-def _integer(name: str, value: Any) -> int:
-    """``value`` as an int when it is one (a float only when integral), else a ``RequestError``."""
-    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
-        return int(value)
-    if isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
-        return int(value)
-    raise RequestError(f"invalid request: `{name}` must be an integer (got {value!r})", name)
-
-
-def _unsigned(name: str, value: Any) -> int:
-    """``value`` as an int from 0 to 2⁶⁴ − 1 (a count, a seed), else a ``RequestError``."""
-    v = _integer(name, value)
-    if not 0 <= v < 2**64:
-        raise RequestError(f"invalid request: `{name}` must be from 0 to 2^64 - 1 (got {v})", name)
-    return v
-
-
-def _options(method: str, **options: Any) -> str:
-    return json.dumps(
-        {"method": method, **{k: _option(k, v) for k, v in options.items() if v is not None}},
-        default=_jsonable,
-    )
-
-
 def _non_finite(value: Any, path: str) -> Optional[str]:
     """The path of the first NaN or infinity in a request (``pa[0][1]``), if any."""
     if isinstance(value, Mapping):
@@ -301,22 +176,8 @@ def _non_finite(value: Any, path: str) -> Optional[str]:
     return None
 
 
-def _blocks(blocks: Optional[Sequence[Sequence[int]]]) -> Optional[List[List[int]]]:
-    """A declared partition as lists of state indices, or a ``RequestError`` naming ``blocks``
-    (whether it is a partition of the states is the library's check)."""
-    if blocks is None:
-        return None
-    try:
-        return [[_unsigned("blocks", i) for i in block] for block in blocks]
-    except TypeError:
-        raise RequestError(
-            f"invalid request: `blocks` must be a list of lists of state indices (got {blocks!r})", "blocks"
-        ) from None
-
-
-def _fused(response: Dict[str, Any]) -> Fused:
-    """The response as :class:`Fused`; its structure note, if any, as a :class:`StructureWarning`."""
-    fused = Fused(response)
+def _fused(fused: Fused) -> Fused:
+    """``fused``, its structure note, if any, issued as a :class:`StructureWarning`."""
     note = fused.structure_note
     if note is not None:
         warnings.warn(note, StructureWarning, stacklevel=4)
@@ -332,16 +193,15 @@ def _two(
     pab_unknown: Optional[ArrayLike],
     **options: Any,
 ) -> Fused:
-    if "blocks" in options:
-        options["blocks"] = _blocks(options["blocks"])
     return _fused(
         _nmci.fuse_arrays(
-            _options(method, **options),
+            method,
             _matrix("P_a", Pa),
             _matrix("P_b", Pb),
             _vector("x_a", xa),
             _vector("x_b", xb),
             _pattern("pab_unknown", pab_unknown),
+            **options,
         )
     )
 
@@ -581,8 +441,11 @@ def _nway(
         for entry in entries:
             (i, j), mask = entry if isinstance(patterns, Mapping) else ((entry[0], entry[1]), entry[2])
             pairs.append((int(i), int(j), _pattern(f"pattern ({i}, {j})", mask)))
-    options = _options(method, criterion=criterion, blocks=_blocks(blocks), coupling_tol=coupling_tol)
-    return _fused(_nmci.fuse_arrays(options, estimates=items, patterns=pairs))
+    return _fused(
+        _nmci.fuse_arrays(
+            method, estimates=items, patterns=pairs, criterion=criterion, blocks=blocks, coupling_tol=coupling_tol
+        )
+    )
 
 
 def ci_nway(
@@ -636,10 +499,10 @@ def sample_cross_covariances(
         _matrix("P_a", Pa),
         _matrix("P_b", Pb),
         _pattern("pab_unknown", pab_unknown),
-        _unsigned("count", count),
-        None if seed is None else _unsigned("seed", seed),
-        sampler,
-        None if max_trials is None else _unsigned("max_trials", max_trials),
+        count,
+        seed=seed,
+        sampler=sampler,
+        max_trials=max_trials,
     )
     return stack
 
@@ -656,8 +519,8 @@ class Study:
 
     def __init__(self, inner: "_nmci.Study") -> None:
         self._inner = inner
-        self.config: Dict[str, Any] = json.loads(inner.config_json())
-        self.summary: Dict[str, Any] = json.loads(inner.report_json())
+        self.config: Dict[str, Any] = inner.config()
+        self.summary: Dict[str, Any] = inner.report()
         self.estimators: List[str] = inner.estimators()
         self.nees: np.ndarray = inner.series2("nees")
         self.rmse: np.ndarray = inner.series2("rmse")
@@ -687,12 +550,12 @@ def rules() -> List[Dict[str, Any]]:
     ``criteria``, ``options`` (the method-specific request fields it takes), ``nway``,
     ``explorer`` and ``limits`` (``max_dim``, ``max_block``: the largest problem the contract
     accepts for it)."""
-    return json.loads(_nmci.rules_json())
+    return _nmci.rules()
 
 
 def default_config() -> Dict[str, Any]:
     """The default study configuration (``configs/paper.toml``) as a dict."""
-    return json.loads(_nmci.default_config())
+    return _nmci.default_config()
 
 
 def _config(config: Union[None, Mapping[str, Any], PathLike]) -> Dict[str, Any]:
@@ -706,7 +569,7 @@ def _config(config: Union[None, Mapping[str, Any], PathLike]) -> Dict[str, Any]:
             text = f.read()
     except OSError as e:
         raise StudyError(f"cannot read {path}: {e.strerror}") from None
-    return json.loads(_nmci.config_from_toml(text))
+    return _nmci.config_from_toml(text)
 
 
 def track(
@@ -730,10 +593,9 @@ def track(
     for key, value in (("runs", runs), ("steps", steps), ("seed", seed), ("coin", coin)):
         if value is not None:
             cfg[key] = value
-    text = json.dumps(cfg, default=_jsonable)
     if first_run is not None:
-        return _nmci.run_shard(text, int(first_run))
-    return Study(_nmci.run_study(text))
+        return _nmci.run_shard(cfg, int(first_run))
+    return Study(_nmci.run_study(cfg))
 
 
 def load_shard(path: PathLike) -> Shard:
@@ -773,7 +635,7 @@ class Fig2:
 
     def __init__(self, inner: "_nmci.Fig2Rows", runs: int) -> None:
         self._inner = inner
-        rows: List[Dict[str, Any]] = json.loads(inner.json())
+        rows: List[Dict[str, Any]] = inner.rows()
         self.rows = rows
         self.runs = runs
         self.samples: np.ndarray = np.array([r["samples"] for r in rows])

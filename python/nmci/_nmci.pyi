@@ -1,54 +1,113 @@
-"""Type stubs of the extension module ``nmci._nmci`` (python/src/lib.rs); use the functions of
-``nmci`` instead, which wrap these with defaults, checks and result classes."""
+"""Type stubs of the extension module ``nmci._nmci`` (python/src/); use the functions of
+``nmci`` instead, which wrap these with documented signatures."""
 
-from typing import List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 import numpy.typing as npt
 
 __version__: str
 
+Array = npt.NDArray[np.float64]
+
+class Fused:
+    """A fused estimate: the contract's response (docs/contract.md), written by serde from the
+    Rust response, with numpy arrays for the estimate, the bound, the gains and the weights.
+
+    Every field of the contract is an attribute, ``None`` where the method does not report it;
+    ``P``, ``Ka`` and ``Kb`` are the contract's ``p``, ``ka`` and ``kb``. ``r["field"]`` reads the
+    response by its contract name, ``r.to_dict()`` gives it with lists, as ``nmci fuse`` prints
+    it. Read-only; picklable."""
+
+    FIELDS: List[str]
+    """The contract's fields a response can carry (``nmci::contract::response_fields``)."""
+    ALIASES: Dict[str, str]
+    """``{"P": "p", "Ka": "ka", "Kb": "kb"}``."""
+
+    method: str
+    criterion: str
+    x: Array
+    P: Array
+    Ka: Optional[Array]
+    Kb: Optional[Array]
+    gains: Optional[Array]
+    weights: Optional[Array]
+    trace: float
+    det: float
+    omega: Optional[Array]
+    blocks: Optional[List[List[int]]]
+    samples: Optional[int]
+    status: Optional[str]
+    iterations: Optional[int]
+    acceptance_rate: Optional[float]
+    sampler_choice: Optional[Dict[str, Any]]
+    lmis: Optional[int]
+    worst_sample_margin: Optional[float]
+    lower_bound: Optional[float]
+    upper_bound: Optional[float]
+    upper_bound_rule: Optional[str]
+    gap: Optional[float]
+    gap_relative: Optional[float]
+    repair: Optional[float]
+    gain_certified_trace: Optional[float]
+    levels: Optional[List[int]]
+    sectors: Optional[List[int]]
+    stop: Optional[str]
+    violation: Optional[float]
+    converged: Optional[bool]
+    gap_closed: Optional[bool]
+    guarantee: str
+    structure: Optional[Dict[str, Any]]
+
+    def __init__(self, fields: Dict[str, Any]) -> None: ...
+    @property
+    def structure_note(self) -> Optional[str]:
+        """How the blocks were found, when that is worth saying (near-zero couplings absorbed,
+        declared blocks, a weak coupling keeping blocks merged): ``structure["note"]``. Also
+        issued as a ``StructureWarning`` when the response is made."""
+    def __getitem__(self, key: str) -> Any: ...
+    def __contains__(self, key: str) -> bool: ...
+    def keys(self) -> List[str]:
+        """The contract's fields present in this response."""
+    def to_dict(self) -> Dict[str, Any]:
+        """The response with lists instead of arrays (the JSON ``nmci fuse`` prints)."""
+
 def fuse_json(request: str) -> str: ...
 def fuse_arrays(
-    options: str,
-    pa: Optional[npt.NDArray[np.float64]] = None,
-    pb: Optional[npt.NDArray[np.float64]] = None,
+    method: str,
+    pa: Optional[Array] = None,
+    pb: Optional[Array] = None,
     xa: Optional[npt.NDArray[np.float64]] = None,
     xb: Optional[npt.NDArray[np.float64]] = None,
     pab_unknown: Optional[npt.NDArray[np.bool_]] = None,
-    estimates: Optional[
-        Sequence[Tuple[Optional[npt.NDArray[np.float64]], npt.NDArray[np.float64]]]
-    ] = None,
+    estimates: Optional[Sequence[Tuple[Optional[Array], Array]]] = None,
     patterns: Optional[Sequence[Tuple[int, int, npt.NDArray[np.bool_]]]] = None,
-) -> dict: ...
-def conservativeness_index(
-    P: npt.NDArray[np.float64], E: npt.NDArray[np.float64]
-) -> float: ...
+    **options: Any,
+) -> Fused: ...
+def conservativeness_index(P: Array, E: Array) -> float: ...
 def sample_cross_covariances(
-    pa: npt.NDArray[np.float64],
-    pb: npt.NDArray[np.float64],
+    pa: Array,
+    pb: Array,
     pab_unknown: Optional[npt.NDArray[np.bool_]],
     count: int,
-    seed: Optional[int],
-    sampler: Optional[str],
-    max_trials: Optional[int],
-) -> Tuple[npt.NDArray[np.float64], int]: ...
-def config_from_toml(text: str) -> str: ...
-def default_config() -> str: ...
-def rules_json() -> str: ...
+    **options: Any,
+) -> Tuple[Array, int]: ...
+def config_from_toml(text: str) -> Dict[str, Any]: ...
+def default_config() -> Dict[str, Any]: ...
+def rules() -> List[Dict[str, Any]]: ...
 def request_field(name: str) -> str: ...
-def run_study(config: str) -> Study: ...
-def run_shard(config: str, first_run: int) -> Shard: ...
+def run_study(config: Dict[str, Any]) -> Study: ...
+def run_shard(config: Dict[str, Any], first_run: int) -> Shard: ...
 def merge(shards: List[Shard]) -> Study: ...
 def shard_files(dir: str) -> List[str]: ...
 def fig2(runs: int, sizes: List[int], seed: int) -> Fig2Rows: ...
 
 class Study:
-    def config_json(self) -> str: ...
-    def report_json(self) -> str: ...
+    def config(self) -> Dict[str, Any]: ...
+    def report(self) -> Dict[str, Any]: ...
     def estimators(self) -> List[str]: ...
-    def series2(self, name: str) -> npt.NDArray[np.float64]: ...
-    def series1(self, name: str) -> npt.NDArray[np.float64]: ...
+    def series2(self, name: str) -> Array: ...
+    def series1(self, name: str) -> Array: ...
     def nees_bounds(self) -> Tuple[float, float]: ...
     def write(self, out: str) -> List[str]: ...
 
@@ -69,5 +128,5 @@ class Shard:
     def has_coin(self) -> bool: ...
 
 class Fig2Rows:
-    def json(self) -> str: ...
+    def rows(self) -> List[Dict[str, Any]]: ...
     def write(self, out: str) -> List[str]: ...

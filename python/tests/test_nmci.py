@@ -6,6 +6,7 @@ GIL is released, a panic becomes an exception, and the examples run.
 Run by scripts/test.sh (scripts/python.sh test) against the wheel it builds; NMCI_CLI names the
 `nmci` binary to compare with."""
 
+import ast
 import concurrent.futures
 import doctest
 import json
@@ -165,8 +166,13 @@ def test_every_response_field_is_a_typed_attribute_of_fused():
     a, b = spd(rng, 2), spd(rng, 2)
     keys |= set(nmci.fuse({"pa": a, "pb": b, "method": "ci"}))
     keys |= set(nmci.fuse({"pa": [[3, 1e-13], [1e-13, 1]], "pb": [[1, 0], [0, 4]], "blocks": [[0], [1]], "method": "nmci"}))
-    declared = {nmci.Fused._ALIASES.get(k, k) for k in nmci.Fused.__annotations__}
-    # The attributes are exactly the fields these requests make the contract emit.
+    # The attributes are the fields the Rust response can carry (read from serde), exactly the
+    # fields these requests make the contract emit, and exactly those the type stubs declare.
+    assert keys == set(nmci.Fused.FIELDS), (keys ^ set(nmci.Fused.FIELDS))
+    stub = ast.parse((Path(nmci.__file__).parent / "_nmci.pyi").read_text())
+    fused = next(n for n in stub.body if isinstance(n, ast.ClassDef) and n.name == "Fused")
+    attributes = {n.target.id for n in fused.body if isinstance(n, ast.AnnAssign)} - {"FIELDS", "ALIASES"}
+    declared = {nmci.Fused.ALIASES.get(a, a) for a in attributes}
     assert keys == declared, (keys - declared, declared - keys)
     r = nmci.nmci(PAPER["pa"], PAPER["pb"], pab_unknown=np.eye(2, dtype=bool))
     assert r.lower_bound is None and r.blocks == [[0], [1]]
@@ -174,6 +180,26 @@ def test_every_response_field_is_a_typed_attribute_of_fused():
         r.no_such_field  # noqa: B018
     with pytest.raises(AttributeError):
         r.trace = 1.0
+
+
+def test_options_cross_as_python_objects_and_results_pickle():
+    # Options are read by serde from the Python objects: numpy scalars are numbers like any
+    # other, and a call with them equals the call with plain ints and floats.
+    a, b = np.diag([3.0, 1.0]), np.diag([1.0, 4.0])
+    plain = nmci.optimal(a, b, samples=30, seed=4, time_limit=60.0)
+    scalars = nmci.optimal(a, b, samples=np.int64(30), seed=np.uint8(4), time_limit=np.float32(60.0))
+    assert plain.to_dict() == scalars.to_dict()
+    blocks = nmci.nmci(a, b, blocks=[(np.int64(0),), [1]], coupling_tol=np.float64(0.0))
+    assert blocks.blocks == [[0], [1]]
+    # A result is an object of the extension, read-only and picklable (process pools).
+    copy = pickle.loads(pickle.dumps(plain))
+    assert isinstance(copy, nmci.Fused) and copy.to_dict() == plain.to_dict()
+    assert np.array_equal(copy.P, plain.P) and copy.lower_bound == plain.lower_bound
+    assert "lower_bound" in plain and "omega" not in plain and plain.omega is None
+    with pytest.raises(KeyError):
+        plain["omega"]
+    with pytest.raises(AttributeError):
+        plain.p  # noqa: B018 (the contract's `p` is the attribute `P`)
 
 
 def ci_reference(a, b):
@@ -346,7 +372,7 @@ BAD_CALLS = [
     (lambda: nmci.conservativeness_index(-np.eye(2), np.eye(2)), nmci.InputError, "P is not positive definite"),
     (lambda: nmci.conservativeness_index(np.eye(2), np.full((2, 2), np.inf)), nmci.InputError, "E has a non-finite entry at (0, 0)"),
     (lambda: nmci.conservativeness_index(np.eye(2), np.array([[1.0, 2.0], [3.0, 1.0]])), nmci.InputError, "E is not symmetric"),
-    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), sampler="x"), nmci.RequestError, "sampler: unknown variant `x`, expected one of `rejection`, `hit_and_run`, `auto`"),
+    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), sampler="x"), nmci.RequestError, "`sampler`: unknown variant `x`, expected one of `rejection`, `hit_and_run`, `auto`"),
     (lambda: nmci.track({"runs": 0}), nmci.StudyError, "runs at least 1"),
     (lambda: nmci.track({"scenario": {"groups": 10**12}}), nmci.StudyError, "agents, above the limit of 64"),
     (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=10**9), nmci.RequestError, "above the limit of 1000000 samples per call"),
@@ -359,13 +385,17 @@ BAD_CALLS = [
     (lambda: nmci.ci(np.eye(2) * (1 + 1j), np.eye(2)), nmci.InputError, "P_a is complex"),
     (lambda: nmci.ci(np.eye(2) * 1e308, np.eye(2)), nmci.InputError, "P_a is out of the range nmci computes in"),
     (lambda: nmci.ci(np.eye(2) * 5e-324, np.eye(2)), nmci.InputError, "P_a is out of the range nmci computes in"),
-    (lambda: nmci.optimal(np.eye(2), np.eye(2), time_limit=float("nan")), nmci.RequestError, "`time_limit` must be a finite number (got nan)"),
-    (lambda: nmci.optimal(np.eye(2), np.eye(2), seed=-1), nmci.RequestError, "`seed`: invalid value: integer `-1`, expected u64"),
-    (lambda: nmci.optimal(np.eye(2), np.eye(2), samples=2.5), nmci.RequestError, "`samples`: invalid type: floating point `2.5`, expected usize"),
-    (lambda: nmci.optimal(np.eye(2), np.eye(2), seed=2**70), nmci.RequestError, "`seed` must be below 2^64"),
-    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=-3), nmci.RequestError, "`count` must be from 0 to 2^64 - 1 (got -3)"),
-    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=2.5), nmci.RequestError, "`count` must be an integer (got 2.5)"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), time_limit=float("nan")), nmci.RequestError, "`time_limit` must be a positive number of seconds (got NaN)"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), seed=-1), nmci.RequestError, "`seed`: OverflowError: can't convert negative int to unsigned"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), samples=2.5), nmci.RequestError, "`samples`: TypeError: 'float' object cannot be interpreted as an integer"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), seed=2**70), nmci.RequestError, "`seed`: OverflowError: int too big to convert"),
+    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=-3), nmci.RequestError, "`count`: OverflowError: can't convert negative int to unsigned"),
+    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=2.5), nmci.RequestError, "`count`: TypeError: 'float' object cannot be interpreted as an integer"),
     (lambda: nmci.fuse({"pa": [[float("nan")]], "pb": [[1.0]], "method": "ci"}), nmci.RequestError, "`pa[0][0]` is NaN or infinite"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), samples=True), nmci.RequestError, "`samples`: a boolean is not a value of this field"),
+    (lambda: nmci.nmci(np.eye(2), np.eye(2), blocks=[[0], "x"]), nmci.RequestError, "`blocks[1][0]`: TypeError"),
+    (lambda: nmci._nmci.fuse_arrays("ci", np.eye(2), np.eye(2), colour=1), nmci.RequestError, "unknown field `colour`, expected one of criterion, samples"),
+    (lambda: nmci._nmci.fuse_arrays("volume", np.eye(2), np.eye(2)), nmci.RequestError, "`method`: unknown variant `volume`"),
 ]
 
 
@@ -537,6 +567,11 @@ FIELD_CALLS = [
     (lambda: nmci.nmci(np.eye(2), np.eye(2), blocks=[[0], [1]], pab_unknown=np.ones((2, 2), bool)), "pab_unknown"),
     (lambda: nmci.certified(np.eye(2), np.eye(2), coupling_tol=2.0), "coupling_tol"),
     (lambda: nmci.nmci_nway([np.eye(2), np.eye(2)], blocks=[[0, 1, 2]]), "blocks"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), seed=2**70), "seed"),
+    (lambda: nmci.optimal(np.eye(2), np.eye(2), samples=True), "samples"),
+    (lambda: nmci._nmci.fuse_arrays("ci", np.eye(2), np.eye(2), colour=1), "colour"),
+    (lambda: nmci._nmci.fuse_arrays("volume", np.eye(2), np.eye(2)), "method"),
+    (lambda: nmci.sample_cross_covariances(np.eye(2), np.eye(2), count=-3), "count"),
 ]
 
 

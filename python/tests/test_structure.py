@@ -76,7 +76,7 @@ def test_n_way_nmci_takes_declared_blocks():
         ({"blocks": [[0]]}, "blocks", "state 1 is in no block"),
         ({"blocks": [[0], [1]], "pab_unknown": np.ones((2, 2), bool)}, "pab_unknown", "pab_unknown[0][1]"),
         ({"coupling_tol": -1.0}, "coupling_tol", "coupling_tol must be in [0, 1]"),
-        ({"coupling_tol": float("nan")}, "coupling_tol", "finite"),
+        ({"coupling_tol": float("nan")}, "coupling_tol", "coupling_tol must be in [0, 1] (got NaN)"),
     ],
 )
 def test_refusals_name_their_field(kwargs, field, needle):

@@ -7,6 +7,7 @@
 //! fused estimate, the bound, the gains and the method's own details. Unknown fields are
 //! rejected.
 
+mod fields;
 mod request;
 mod response;
 mod structure;
@@ -35,6 +36,7 @@ use crate::fusion::{Criterion, Estimate, Fused, FusionProblem};
 use crate::linalg::matrix_to_rows;
 use crate::structure::{CrossPattern, StructureSettings};
 
+pub use fields::{field_names, response_fields};
 pub(crate) use request::{check_blocks, check_count, matrix, unknown_field};
 pub use request::{FuseRequest, NwayEstimate, NwayPair, Options, PairInput, Plan};
 pub use response::{

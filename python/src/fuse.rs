@@ -1,0 +1,359 @@
+//! Fusion: the contract's rules with numpy arrays ([`fuse_arrays`]) and its JSON text
+//! ([`fuse_json`]), the result type [`Fused`], and the tools (conservativeness index, sampled
+//! cross-covariances).
+
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::{PyAttributeError, PyKeyError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyString};
+
+use nmci::contract::{
+    field_names, response_fields, Details, FuseRequest, FuseResponse, Gains, NwayEstimate,
+    NwayPair, Options, PairInput,
+};
+use nmci::rules::Method;
+use nmci::RequestError;
+
+use crate::{contract_value, detached, error, error_at, request_error, to_python};
+
+fn rows(a: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
+    a.as_array().outer_iter().map(|r| r.to_vec()).collect()
+}
+
+fn bool_rows(a: &PyReadonlyArray2<'_, bool>) -> Vec<Vec<bool>> {
+    a.as_array().outer_iter().map(|r| r.to_vec()).collect()
+}
+
+fn matrix(a: &PyReadonlyArray2<'_, f64>) -> nalgebra::DMatrix<f64> {
+    let v = a.as_array();
+    nalgebra::DMatrix::from_fn(v.nrows(), v.ncols(), |i, j| v[(i, j)])
+}
+
+/// `n × m` nested rows as a 2-D numpy array.
+pub(crate) fn array2<'py>(
+    py: Python<'py>,
+    rows: &[Vec<f64>],
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    PyArray2::from_vec2(py, rows).map_err(|e| error(py, "InternalError", e.to_string()))
+}
+
+/// The options of a call, its keyword arguments: fields of [`Options`] (`criterion`,
+/// `samples`, …) and of [`PairInput`] other than the matrices (`blocks`, `coupling_tol`).
+/// `None` means absent (the plan's default); a name neither type has is refused, as the
+/// contract refuses an unknown field.
+fn options(py: Python<'_>, kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<(Options, PairInput)> {
+    let option_fields = field_names::<Options>().unwrap_or_default();
+    let pair_fields = field_names::<PairInput>().unwrap_or_default();
+    let given = PyDict::new(py);
+    for (key, value) in kwargs.into_iter().flat_map(|d| d.iter()) {
+        let name: String = key.extract()?;
+        if value.is_none() {
+            continue;
+        }
+        if !option_fields.contains(&name.as_str()) && !pair_fields.contains(&name.as_str()) {
+            let known: Vec<&str> = option_fields.iter().chain(pair_fields).copied().collect();
+            let message = format!(
+                "unknown field `{name}`, expected one of {}",
+                known.join(", ")
+            );
+            return Err(request_error(py, RequestError::invalid(&name, message)));
+        }
+        given.set_item(name, value)?;
+    }
+    // Each type takes its own fields and leaves the other's.
+    let options: Options = contract_value(py, &given, None)?;
+    let pair: PairInput = contract_value(py, &given, None)?;
+    Ok((options, pair))
+}
+
+/// One estimate of an N-way request: `(x or None, P)`.
+type NumpyEstimate<'py> = (
+    Option<PyReadonlyArray1<'py, f64>>,
+    PyReadonlyArray2<'py, f64>,
+);
+
+/// The JSON contract as text: exactly `nmci fuse`.
+#[pyfunction]
+fn fuse_json(py: Python<'_>, request: String) -> PyResult<String> {
+    detached(py, move || nmci::contract::fuse_json(&request))?.map_err(|e| request_error(py, e))
+}
+
+/// A request of the contract with its matrices as numpy arrays and its options as keyword
+/// arguments ([`options`]); the response as [`Fused`].
+#[pyfunction]
+#[pyo3(signature = (method, pa=None, pb=None, xa=None, xb=None, pab_unknown=None, estimates=None, patterns=None, **options))]
+#[allow(clippy::too_many_arguments)]
+fn fuse_arrays<'py>(
+    py: Python<'py>,
+    method: &Bound<'py, PyString>,
+    pa: Option<PyReadonlyArray2<'py, f64>>,
+    pb: Option<PyReadonlyArray2<'py, f64>>,
+    xa: Option<PyReadonlyArray1<'py, f64>>,
+    xb: Option<PyReadonlyArray1<'py, f64>>,
+    pab_unknown: Option<PyReadonlyArray2<'py, bool>>,
+    estimates: Option<Vec<NumpyEstimate<'py>>>,
+    patterns: Option<Vec<(usize, usize, PyReadonlyArray2<'py, bool>)>>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Fused> {
+    let method: Method = contract_value(py, method, Some("method"))?;
+    let (options, structure) = self::options(py, options)?;
+    let pair = PairInput {
+        pa: pa.as_ref().map(rows).unwrap_or_default(),
+        pb: pb.as_ref().map(rows).unwrap_or_default(),
+        xa: xa.map(|v| v.as_array().to_vec()),
+        xb: xb.map(|v| v.as_array().to_vec()),
+        pab_unknown: pab_unknown.as_ref().map(bool_rows),
+        ..structure
+    };
+    let request = FuseRequest {
+        pair,
+        method,
+        options,
+        estimates: estimates.map(|list| {
+            list.iter()
+                .map(|(x, p)| NwayEstimate {
+                    x: x.as_ref().map(|v| v.as_array().to_vec()),
+                    p: rows(p),
+                })
+                .collect()
+        }),
+        patterns: patterns.map(|list| {
+            list.iter()
+                .map(|(i, j, m)| NwayPair {
+                    i: *i,
+                    j: *j,
+                    pab_unknown: bool_rows(m),
+                })
+                .collect()
+        }),
+    };
+    let response =
+        detached(py, move || nmci::contract::fuse(&request))?.map_err(|e| request_error(py, e))?;
+    Fused::new_from(py, response)
+}
+
+/// A fused estimate: the contract's response (docs/contract.md), written by serde from the
+/// Rust [`FuseResponse`], with numpy arrays for the estimate, the bound, the gains and the
+/// weights.
+///
+/// Its attributes are the contract's fields ([`response_fields`]), `None` where the method
+/// does not report one; `p`, `ka` and `kb` are named `P`, `Ka` and `Kb`. `r["field"]` reads
+/// a field by its contract name.
+#[pyclass(module = "nmci._nmci", frozen)]
+pub struct Fused {
+    fields: Py<PyDict>,
+}
+
+/// The attributes named as in the paper rather than as in the contract.
+const ALIASES: [(&str, &str); 3] = [("P", "p"), ("Ka", "ka"), ("Kb", "kb")];
+
+impl Fused {
+    fn new_from(py: Python<'_>, mut r: FuseResponse) -> PyResult<Self> {
+        // The bulk arrays go to numpy from the typed response; serde writes the rest.
+        let x = std::mem::take(&mut r.x);
+        let p = std::mem::take(&mut r.p);
+        let gains = std::mem::replace(&mut r.gains, Gains::Nway(Vec::new()));
+        let omega = r.omega();
+        let weights = match &mut r.details {
+            Details::Nway { weights, .. } => Some(std::mem::take(weights)),
+            _ => None,
+        };
+        let fields = to_python(py, &r)?.cast_into::<PyDict>()?;
+        fields.set_item("x", PyArray1::from_vec(py, x))?;
+        fields.set_item("p", array2(py, &p)?)?;
+        match gains {
+            Gains::Pair { ka, kb } => {
+                fields.del_item("gains").ok();
+                fields.set_item("ka", array2(py, &ka)?)?;
+                fields.set_item("kb", array2(py, &kb)?)?;
+            }
+            Gains::Nway(stack) => {
+                let stack = PyArray3::from_vec3(py, &stack)
+                    .map_err(|e| error(py, "InternalError", e.to_string()))?;
+                fields.set_item("gains", stack)?;
+            }
+        }
+        if let Some(omega) = omega {
+            fields.set_item("omega", PyArray1::from_vec(py, omega))?;
+        }
+        if let Some(weights) = weights {
+            fields.set_item("weights", array2(py, &weights)?)?;
+        }
+        Ok(Self {
+            fields: fields.unbind(),
+        })
+    }
+}
+
+#[pymethods]
+impl Fused {
+    /// A response from its fields (what pickling stores).
+    #[new]
+    fn new(fields: Bound<'_, PyDict>) -> Self {
+        Self {
+            fields: fields.unbind(),
+        }
+    }
+
+    fn __getnewargs__(&self, py: Python<'_>) -> (Py<PyDict>,) {
+        (self.fields.clone_ref(py),)
+    }
+
+    /// The contract's fields a response can carry ([`response_fields`]).
+    #[classattr]
+    #[pyo3(name = "FIELDS")]
+    fn fields_list() -> Vec<&'static str> {
+        response_fields().to_vec()
+    }
+
+    /// The attributes named as in the paper: `{"P": "p", "Ka": "ka", "Kb": "kb"}`.
+    #[classattr]
+    #[pyo3(name = "ALIASES")]
+    fn aliases() -> std::collections::BTreeMap<&'static str, &'static str> {
+        ALIASES.into_iter().collect()
+    }
+
+    fn __getattr__(&self, py: Python<'_>, name: &str) -> PyResult<Py<PyAny>> {
+        let field = ALIASES
+            .iter()
+            .find(|(alias, _)| *alias == name)
+            .map_or(name, |(_, field)| field);
+        let renamed = ALIASES.iter().any(|(_, field)| *field == name);
+        if renamed || !response_fields().contains(&field) {
+            return Err(PyAttributeError::new_err(format!(
+                "Fused has no attribute {name:?}"
+            )));
+        }
+        Ok(match self.fields.bind(py).get_item(field)? {
+            Some(value) => value.unbind(),
+            None => py.None(),
+        })
+    }
+
+    fn __getitem__(&self, py: Python<'_>, key: &str) -> PyResult<Py<PyAny>> {
+        match self.fields.bind(py).get_item(key)? {
+            Some(value) => Ok(value.unbind()),
+            None => Err(PyKeyError::new_err(key.to_owned())),
+        }
+    }
+
+    fn __contains__(&self, py: Python<'_>, key: &str) -> PyResult<bool> {
+        self.fields.bind(py).contains(key)
+    }
+
+    /// The contract's fields present in this response.
+    fn keys(&self, py: Python<'_>) -> Vec<String> {
+        self.fields
+            .bind(py)
+            .keys()
+            .iter()
+            .filter_map(|k| k.extract().ok())
+            .collect()
+    }
+
+    /// The response with lists instead of arrays (the JSON `nmci fuse` prints).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for (key, value) in self.fields.bind(py).iter() {
+            let value = if value.hasattr("tolist")? {
+                value.call_method0("tolist")?
+            } else {
+                value
+            };
+            out.set_item(key, value)?;
+        }
+        Ok(out)
+    }
+
+    /// How the blocks were found, when that is worth saying (near-zero couplings absorbed,
+    /// declared blocks, a weak coupling keeping blocks merged): `structure["note"]`.
+    #[getter]
+    fn structure_note(&self, py: Python<'_>) -> PyResult<Option<String>> {
+        let Some(structure) = self.fields.bind(py).get_item("structure")? else {
+            return Ok(None);
+        };
+        match structure.get_item("note") {
+            Ok(note) => note.extract(),
+            Err(_) => Ok(None),
+        }
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let fields = self.fields.bind(py);
+        let mut shown = Vec::new();
+        for key in [
+            "method",
+            "trace",
+            "lower_bound",
+            "upper_bound",
+            "gap_closed",
+        ] {
+            if let Some(value) = fields.get_item(key)? {
+                shown.push(format!("{key}={}", value.repr()?));
+            }
+        }
+        Ok(format!("Fused({})", shown.join(", ")))
+    }
+}
+
+/// `λ_max(P^{-1/2} E P^{-1/2})`.
+#[pyfunction]
+#[allow(non_snake_case)]
+fn conservativeness_index(
+    py: Python<'_>,
+    P: PyReadonlyArray2<'_, f64>,
+    E: PyReadonlyArray2<'_, f64>,
+) -> PyResult<f64> {
+    // P a covariance; E of its size, finite and symmetric (checked by the Rust API).
+    let (P, E) = (matrix(&P), matrix(&E));
+    detached(py, move || nmci::check::conservativeness_index(&P, &E))?
+        .map_err(|e| error_at(py, "InputError", e.to_string(), e.request_field()))
+}
+
+/// Admissible cross-covariances `P_ab'` (a `count × n × n` array) and the trials used; the
+/// sampler's options (`seed`, `sampler`, `max_trials`) as keyword arguments, read as a
+/// request's.
+#[pyfunction]
+#[pyo3(signature = (pa, pb, pab_unknown, count, **options))]
+fn sample_cross_covariances<'py>(
+    py: Python<'py>,
+    pa: PyReadonlyArray2<'py, f64>,
+    pb: PyReadonlyArray2<'py, f64>,
+    pab_unknown: Option<PyReadonlyArray2<'py, bool>>,
+    count: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<(Bound<'py, PyArray3<f64>>, u64)> {
+    let count: usize = contract_value(py, count, Some("count"))?;
+    let (options, _) = self::options(py, options)?;
+    // The request's problem builder and plan: the same checks, defaults and messages as `fuse`.
+    let pair = PairInput {
+        pab_unknown: pab_unknown.as_ref().map(bool_rows),
+        ..PairInput::new(rows(&pa), rows(&pb))
+    };
+    let problem = pair
+        .problem()
+        .map_err(|e| request_error(py, RequestError::Input(e)))?;
+    let sdp = options.plan().map_err(|e| request_error(py, e))?.sdp;
+    let (seed, settings) = (sdp.seed, sdp.sampler);
+    let samples = detached(py, move || {
+        nmci::sample::sample_cross_covariances(&problem, count, seed, settings)
+    })?
+    .map_err(|e| request_error(py, RequestError::Sample(e)))?;
+    let n = pa.as_array().nrows();
+    let flat: Vec<f64> = samples
+        .cross
+        .iter()
+        .flat_map(|m| m.transpose().iter().copied().collect::<Vec<_>>())
+        .collect();
+    let array = PyArray1::from_vec(py, flat).reshape([samples.cross.len(), n, n])?;
+    Ok((array, samples.trials))
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(fuse_json, m)?)?;
+    m.add_function(wrap_pyfunction!(fuse_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(conservativeness_index, m)?)?;
+    m.add_function(wrap_pyfunction!(sample_cross_covariances, m)?)?;
+    m.add_class::<Fused>()?;
+    Ok(())
+}
