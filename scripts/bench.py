@@ -149,7 +149,8 @@ def study():
 def python():
     cmd = "scripts/python.sh bench"
     out = sh(f"bash {cmd}")
-    return cmd, out.strip()
+    # The script's own progress lines (`[python] …`) are not results.
+    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
 
 
 def browser():

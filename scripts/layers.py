@@ -122,8 +122,8 @@ def graph():
             if not reexport:
                 continue
             src, rest = walk(m, path, modules)
-            last = path.split("::")[-1]
-            alias = re.search(r"\bas(\w+)$", path)
+            # `pub use a::b as c` re-exports `b` under the name `c`.
+            last = path.split("::")[-1].split(" as ")[-1].strip()
             if src is not None and rest:
                 reexports.setdefault(m, {})[last] = src
     edges: dict[tuple, dict[tuple, list[str]]] = {}
@@ -141,9 +141,7 @@ def graph():
                 continue
             if t[: len(m)] == m and (reexport or m == ()):
                 continue  # a parent's facade over its children (and lib.rs's, over all)
-            if m[: len(t)] == t:
-                # A child using its parent: an edge to the parent module's own items.
-                pass
+            # A child using its parent is an edge to the parent module's own items.
             edges.setdefault(m, {}).setdefault(t, []).append(f"{f.relative_to(ROOT)}:{line}: {path}")
     return modules, edges
 

@@ -13,10 +13,10 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use super::estimators::*;
+use super::estimators::{StudyRule, STUDY_RULES};
 use super::model::Model;
-use super::partition::*;
-use super::trace::*;
+use super::partition::{exchange, fuse, BlockCovariance, BlockMeans, Partition};
+use super::trace::{RunSpec, RunTrace};
 use super::SimError;
 use crate::linalg::cholesky;
 

@@ -3,7 +3,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::estimators::*;
+use super::estimators::{Storage, StudyRule};
 use super::model::Model;
 use super::SimError;
 use crate::fusion::ci::{ci_in_place, covariance_intersection, nmci_in_place};

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::estimators::*;
+use super::estimators::Storage;
 
 /// Per-step results of one run for the headline agent (and the centralized filter).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

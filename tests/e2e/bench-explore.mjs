@@ -36,7 +36,7 @@ try {
   }, calls);
   console.log(`explore/twoblock (headless Chromium, wasm, main thread), ms per call in order: ${times.map((x) => x.toFixed(0)).join(", ")}`);
   const later = times.slice(10).sort((a, b) => a - b);
-  if (later.length) console.log(`calls 11…${calls}: min ${later[0].toFixed(1)} ms, median ${later[Math.floor(later.length / 2)].toFixed(1)} ms`);
+  if (later.length) console.log(`explore/twoblock (n = 4, the page's request; headless Chromium, wasm, main thread), calls 11…${calls}: min ${later[0].toFixed(1)} ms, median ${later[Math.floor(later.length / 2)].toFixed(1)} ms`);
 } finally {
   await chromium.close();
   server.close();

@@ -10,9 +10,9 @@ use crate::fusion::scale::Pow2;
 use crate::fusion::upper::{trace_upper_bound, young_bound, young_omega};
 use crate::fusion::{Criterion, FusionProblem};
 
-use super::repair::*;
-use super::settings::*;
-use super::sos::*;
+use super::repair::repair_failed;
+use super::settings::{CertifySettings, RETRY_REPAIR_RTOL};
+use super::sos::{certify_block, BlockCertificate};
 
 /// What [`certify`] finds for one block: its gain and proven bound, and how they were found.
 #[allow(non_snake_case)]

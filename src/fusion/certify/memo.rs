@@ -6,8 +6,8 @@ use nalgebra::DMatrix;
 use crate::error::SolveError;
 use crate::fusion::FusionProblem;
 
-use super::block::*;
-use super::settings::*;
+use super::block::{certify_one_block, BlockOutcome};
+use super::settings::CertifySettings;
 
 /// How many certified blocks a [`CertificateMemo`] keeps.
 pub const MEMO_BLOCKS: usize = 8;

@@ -7,7 +7,7 @@ use crate::error::SolveError;
 use crate::fusion::verify::{is_psd, psd_shift, up, Ball, BallMatrix, Dot, U};
 use crate::fusion::FusionProblem;
 
-use super::layout::*;
+use super::layout::Layout;
 
 /// Whether floats sum to exactly zero, decided exactly: Shewchuk's GROW-EXPANSION (Discrete
 /// Comput. Geom. 18, 1997, Thm. 10) keeps the running sum as a nonoverlapping expansion,

@@ -10,9 +10,9 @@ use crate::fusion::scale::largest_variance;
 use crate::fusion::{per_block, Fused, FusionProblem};
 use crate::structure::independent_blocks;
 
-use super::block::*;
-use super::memo::*;
-use super::settings::*;
+use super::block::certify_one_block;
+use super::memo::CertificateMemo;
+use super::settings::CertifySettings;
 
 /// The certified rule's certificate on each independent block.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

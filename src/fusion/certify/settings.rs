@@ -4,8 +4,8 @@
 use crate::error::SolveError;
 use crate::fusion::program::check_time_limit;
 
-use super::geometry::*;
-use super::layout::*;
+use super::geometry::{cone_generators, MAX_SECTORS};
+use super::layout::binomial;
 
 /// The default of [`CertifySettings::max_block_dim`], and the certified rule's block limit in
 /// the request contract ([`crate::rules::RULES`]).

@@ -11,10 +11,10 @@ use crate::error::SolveError;
 use crate::fusion::program::{solve_program, svec_index, Deadline, Kkt, SdpStatus};
 use crate::fusion::FusionProblem;
 
-use super::geometry::*;
-use super::layout::*;
-use super::repair::*;
-use super::settings::*;
+use super::geometry::cone_multipliers;
+use super::layout::Layout;
+use super::repair::{exact_zero_sum, repair, repair_failed, sums_to_zero, MultiplierPart};
+use super::settings::{CertifySettings, Family};
 
 #[allow(non_snake_case)]
 pub(super) struct BlockCertificate {

@@ -3,7 +3,7 @@
 
 use crate::fusion::Criterion;
 
-use super::pencil::*;
+use super::pencil::Pencil;
 
 /// Relative size below which a derivative at an endpoint counts as zero (a tie): then the
 /// endpoint is optimal to within rounding, and taking it exactly keeps `ω` reproducible

@@ -8,8 +8,8 @@ use crate::fusion::{
     covariance_twins, scatter_block, BlockMean, Criterion, Fused, FusionProblem, MeanPlan,
 };
 
-use super::omega::*;
-use super::pencil::*;
+use super::omega::{optimal_omega, ENDPOINT_TIE};
+use super::pencil::{HalfPencil, Pencil};
 
 /// CI result: the fused estimate and the optimal weight `ω` on estimate `a`.
 #[derive(Debug, Clone, PartialEq)]
