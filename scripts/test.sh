@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Every test: install what is missing, then native (cargo test), wasm in headless Chromium
-# (wasm-pack test), the page end-to-end in headless Chromium, and the Python package (pytest).
+# (wasm-pack test), the page end-to-end in headless Chromium, the npm package, and the Python
+# package (pytest).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="$HOME/.cargo/bin:$PATH"
@@ -15,8 +16,8 @@ cargo test --workspace --exclude nmci-python --all-features
 echo "== wasm: wasm-pack test in headless Chromium"
 scripts/wasm.sh test
 
-echo "== page: build the package and drive the explorer in headless Chromium"
-scripts/wasm.sh build
+echo "== page and npm package: build and pack the wasm, drive the explorer in headless Chromium, install the package and run its example"
+scripts/wasm.sh pack
 node --test tests/e2e/
 
 echo "== python: build the wheel (maturin) into target/py and run pytest"

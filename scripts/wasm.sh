@@ -2,6 +2,8 @@
 # Build or test the wasm package with the settings in wasm-pack.toml.
 #   scripts/wasm.sh build   -> wasm-pack build into [build].out_dir, then the "env" import guard
 #   scripts/wasm.sh test    -> wasm-pack test in the headless browser of [test]
+#   scripts/wasm.sh pack    -> the npm package: the build's files and npm/ in target/npm/nmci,
+#                              packed by `npm pack` into target/npm/nmci-VERSION.tgz
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -51,8 +53,21 @@ case "${1:-}" in
       "$(profile_flag "$(setting test profile)")" -- -p nmci "${tests[@]}" \
       --features "$(setting test features | tr ' ' ,)"
     ;;
+  pack)
+    out_dir=$(setting build out_dir)
+    "$0" build
+    version=$(cargo metadata --no-deps --format-version 1 |
+      python3 -c 'import json, sys; print(next(p["version"] for p in json.load(sys.stdin)["packages"] if p["name"] == "nmci"))')
+    pkg=target/npm/nmci
+    rm -rf target/npm && mkdir -p "$pkg"
+    cp "$out_dir"/nmci.js "$out_dir"/nmci.d.ts "$out_dir"/nmci_bg.wasm "$out_dir"/nmci_bg.wasm.d.ts "$pkg"/
+    cp npm/node.js npm/index.d.ts npm/contract.d.ts npm/README.md "$pkg"/
+    sed "s/@VERSION@/$version/" npm/package.json > "$pkg/package.json"
+    (cd target/npm && npm pack --silent ./nmci >/dev/null)
+    echo "target/npm/nmci-$version.tgz"
+    ;;
   *)
-    echo "usage: scripts/wasm.sh build|test" >&2
+    echo "usage: scripts/wasm.sh build|test|pack" >&2
     exit 2
     ;;
 esac

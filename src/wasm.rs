@@ -83,6 +83,21 @@ pub fn panic_for_test(message: &str) {
     panic!("{message}");
 }
 
+/// The contract's field names, `{ request, response }` ([`crate::contract::request_fields`],
+/// [`crate::contract::response_fields`]): what the npm package's TypeScript types declare.
+#[wasm_bindgen]
+pub fn contract_fields() -> Result<JsValue, JsError> {
+    #[derive(Serialize)]
+    struct Fields {
+        request: Vec<String>,
+        response: &'static [&'static str],
+    }
+    to_js(&Fields {
+        request: crate::api::request_fields(),
+        response: crate::api::response_fields(),
+    })
+}
+
 /// Every fusion rule ([`crate::rules::RULES`]): name, label, legend, guarantee, colour, criteria,
 /// options, whether it fuses N estimates and whether the explorer computes it.
 #[wasm_bindgen]

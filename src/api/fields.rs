@@ -35,6 +35,22 @@ pub fn response_fields() -> &'static [&'static str] {
     field_names::<super::FuseResponse>().expect("a response is a struct")
 }
 
+/// The fields a fusion request ([`super::FuseRequest`]) takes, two-estimate and N-way, in the
+/// order of the JSON object a request serialises to: read from a request with every field set
+/// (the list the contract's "unknown field" error gives).
+///
+/// ```
+/// let fields = nmci::contract::request_fields();
+/// assert!(fields.iter().any(|f| f == "method") && fields.iter().any(|f| f == "coupling_tol"));
+/// assert!(fields.iter().any(|f| f == "estimates") && fields.iter().any(|f| f == "samples"));
+/// ```
+pub fn request_fields() -> Vec<String> {
+    match serde_json::to_value(super::FuseRequest::every_field()) {
+        Ok(serde_json::Value::Object(map)) => map.keys().cloned().collect(),
+        _ => Vec::new(),
+    }
+}
+
 /// A deserializer that keeps the field names a struct passes it, then fails.
 struct Names<'a>(&'a mut Option<&'static [&'static str]>);
 
@@ -104,6 +120,14 @@ mod tests {
         // A struct with flattened parts deserialises as a map: no list to read.
         assert_eq!(field_names::<FuseRequest>(), None);
         assert_eq!(field_names::<u32>(), None);
+        // A request's fields are its parts' and its own, none twice.
+        let request = request_fields();
+        let mut expected: Vec<String> = pair.iter().chain(options).map(|s| s.to_string()).collect();
+        expected.extend(["method", "estimates", "patterns"].map(String::from));
+        let mut sorted = request.clone();
+        sorted.sort();
+        expected.sort();
+        assert_eq!(sorted, expected);
     }
 
     #[test]

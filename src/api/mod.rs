@@ -36,7 +36,7 @@ use crate::fusion::{Criterion, Estimate, Fused, FusionProblem};
 use crate::linalg::matrix_to_rows;
 use crate::structure::{CrossPattern, StructureSettings};
 
-pub use fields::{field_names, response_fields};
+pub use fields::{field_names, request_fields, response_fields};
 pub(crate) use request::{check_blocks, check_count, matrix, unknown_field};
 pub use request::{FuseRequest, NwayEstimate, NwayPair, Options, PairInput, Plan};
 pub use response::{

@@ -553,7 +553,7 @@ impl FuseRequest {
     }
 
     /// A request with every field set (the names in an unknown-field error).
-    fn every_field() -> Self {
+    pub(crate) fn every_field() -> Self {
         Self {
             pair: PairInput::every_field(),
             method: Method::Ci,

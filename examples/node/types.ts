@@ -1,0 +1,20 @@
+// Compiled (not run) by the package test with `tsc --noEmit --strict`: the package's types
+// describe the contract, so a misspelt method or a field of the wrong type does not compile.
+import { fuse, rules, type FuseRequest, type FuseResponse } from "nmci";
+
+const request: FuseRequest = {
+  pa: [[3, 0], [0, 1]],
+  pb: [[1, 0], [0, 4]],
+  pab_unknown: [[true, false], [false, true]],
+  method: "nmci",
+};
+const response: FuseResponse = fuse(request);
+const trace: number = response.trace;
+const omega: number[] | undefined = response.omega;
+const closed: boolean | undefined = fuse({ ...request, method: "sdp_cuts" }).gap_closed;
+console.log(trace, omega, closed, rules());
+
+// @ts-expect-error: not a rule of the contract
+fuse({ pa: [[1]], pb: [[1]], method: "volume" });
+// @ts-expect-error: `samples` is a number
+fuse({ pa: [[1]], pb: [[1]], method: "sdp", samples: "many" });

@@ -1,0 +1,63 @@
+// The npm package (`scripts/wasm.sh pack`) as a user gets it: the tarball installed into an
+// empty folder, the Node example run from there, its TypeScript types compiled against a typed
+// example, and the types' field lists compared with the Rust crate's.
+import { test } from "node:test";
+import assert from "node:assert/strict";
+import { execFileSync } from "node:child_process";
+import { copyFileSync, mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { dirname, join } from "node:path";
+import { fileURLToPath } from "node:url";
+
+const root = join(dirname(fileURLToPath(import.meta.url)), "..", "..");
+const packed = join(root, "target", "npm");
+
+function install() {
+  const tarballs = readdirSync(packed).filter((f) => /^nmci-.*\.tgz$/.test(f));
+  assert.equal(tarballs.length, 1, "run `scripts/wasm.sh pack` first (scripts/test.sh does)");
+  const dir = mkdtempSync(join(tmpdir(), "nmci-npm-"));
+  writeFileSync(join(dir, "package.json"), JSON.stringify({ name: "user", private: true, type: "module" }));
+  // A local tarball with no dependencies: nothing is fetched.
+  execFileSync("npm", ["install", "--offline", "--no-audit", "--no-fund", "--loglevel=error", join(packed, tarballs[0])], { cwd: dir });
+  return dir;
+}
+
+const dir = install();
+process.on("exit", () => rmSync(dir, { recursive: true, force: true }));
+const node = (args) => execFileSync(process.execPath, args, { cwd: dir, encoding: "utf8" });
+
+test("the Node example runs from the installed package with the README's numbers", () => {
+  copyFileSync(join(root, "examples", "node", "paper_example.mjs"), join(dir, "paper_example.mjs"));
+  const out = node(["paper_example.mjs"]);
+  assert.match(out, /^CI: tr P = 3\.088 \(ω = 0\.556\), conservative$/m);
+  assert.match(out, /^nmCI: tr P = 2\.000 \(ω = \[/m);
+  assert.match(out, /^certified, one known zero: tr P = 2\.0000000933, conservative$/m);
+  assert.match(out, /^refused \(field pb\): /m);
+});
+
+/** The property names of `interface name { … }` in a declaration file. */
+function declared(text, name) {
+  const body = text.match(new RegExp(`export interface ${name} \\{([\\s\\S]*?)\\n\\}`))[1];
+  return [...body.matchAll(/^  (\w+)\??:/gm)].map((m) => m[1]).sort();
+}
+
+test("the types declare exactly the contract's fields, as the Rust crate lists them", () => {
+  const fields = JSON.parse(node(["--input-type=module", "-e", 'import { contract_fields } from "nmci"; console.log(JSON.stringify(contract_fields()))']));
+  const types = readFileSync(join(dir, "node_modules", "nmci", "contract.d.ts"), "utf8");
+  assert.deepEqual(declared(types, "FuseRequest"), [...fields.request].sort());
+  assert.deepEqual(declared(types, "FuseResponse"), [...fields.response].sort());
+});
+
+test("the types compile against a typed example, and reject a wrong method and a wrong type", () => {
+  copyFileSync(join(root, "examples", "node", "types.ts"), join(dir, "types.ts"));
+  const tsc = join(root, "tests", "e2e", "node_modules", "typescript", "bin", "tsc");
+  // `@ts-expect-error` lines fail the compile if the error they expect is not there, so
+  // types loose enough to take any request would fail this test too.
+  // `esnext`: wasm-bindgen's declarations use `Symbol.dispose` (the package README says so).
+  const args = [tsc, "--noEmit", "--strict", "--target", "esnext", "--module", "nodenext", "--moduleResolution", "nodenext", "types.ts"];
+  try {
+    execFileSync(process.execPath, args, { cwd: dir, encoding: "utf8" });
+  } catch (e) {
+    assert.fail(`tsc: ${e.stdout}${e.stderr}`);
+  }
+});
