@@ -150,7 +150,9 @@ def python():
     cmd = "scripts/python.sh bench"
     out = sh(f"bash {cmd}")
     # The script's own progress lines (`[python] …`) are not results.
-    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
+    lines = [l for l in out.strip().splitlines() if not l.startswith("[python] ")]
+    # A blank line between the versions and the table (a table does not interrupt a paragraph).
+    return cmd, "\n".join(l + ("\n" if l.startswith("numpy ") else "") for l in lines)
 
 
 def browser():
