@@ -325,6 +325,14 @@ pub enum RequestError {
     /// Sampling admissible cross-covariances failed.
     #[error(transparent)]
     Sample(#[from] SampleError),
+    /// One pair of a stack ([`crate::contract::fuse_stack`]) failed: its index and its error.
+    #[error("pair {index}: {source}")]
+    InStack {
+        /// The pair's index in the stack.
+        index: usize,
+        /// What went wrong with it.
+        source: Box<RequestError>,
+    },
 }
 
 impl RequestError {
@@ -354,6 +362,13 @@ impl RequestError {
             RequestError::Solve(_) | RequestError::Sample(_) | RequestError::TooLarge { .. } => {
                 None
             }
+            // A stacked field indexed by the pair (`pa[17]`); a shared one (`blocks`) as it is.
+            RequestError::InStack { index, source } => source.field().map(|field| {
+                match ["pa", "pb", "xa", "xb", "pab_unknown"].contains(&field.as_str()) {
+                    true => format!("{field}[{index}]"),
+                    false => field,
+                }
+            }),
         }
     }
 }

@@ -19,6 +19,12 @@ array([0., 1.])
 >>> round(nmci.ci(Pa, Pb).trace, 4)  # CI ignores the known zeros
 3.0882
 
+**Stacks.** :func:`ci`, :func:`nmci`, :func:`ici`, :func:`ei` and :func:`naive` also take ``k``
+pairs at once: ``Pa``, ``Pb`` of shape ``(k, n, n)``, means ``(k, n)``, ``pab_unknown`` of shape
+``(n, n)`` (every pair's) or ``(k, n, n)``. They return a :class:`FusedStack` of arrays stacked
+along the first axis (``x``, ``P``, ``Ka``, ``Kb``, ``trace``, ``det``, ``omega`` per state), each
+pair's numbers those of the single call; an error names the pair (``pa[17]``).
+
 Rules: :func:`ci`, :func:`nmci`, :func:`optimal` (the paper's sampled SDP), :func:`sdp_cuts`
 (cutting planes with a proven bracket), :func:`certified` (a bound proven by a sum-of-squares
 certificate), :func:`ici`, :func:`ei`, :func:`naive`, and N-way :func:`ci_nway`,
@@ -54,7 +60,7 @@ from ._errors import (
     StudyError,
     TimeLimitError,
 )
-from ._nmci import Fused, Shard
+from ._nmci import Fused, FusedStack, Shard
 
 __version__: str = _nmci.__version__
 
@@ -63,6 +69,7 @@ PathLike = Union[str, "os.PathLike[str]"]
 
 __all__ = [
     "Fused",
+    "FusedStack",
     "Study",
     "Shard",
     "Fig2",
@@ -125,16 +132,19 @@ def _field(name: str) -> str:
     return _nmci.request_field(name)
 
 
-def _array(name: str, a: ArrayLike, ndim: int) -> np.ndarray:
-    """``a`` as a contiguous float64 array of ``ndim`` dimensions, or an ``InputError``."""
+def _array(name: str, a: ArrayLike, ndim: Union[int, Tuple[int, ...]]) -> np.ndarray:
+    """``a`` as a contiguous float64 array of ``ndim`` dimensions (one of them, given a tuple),
+    or an ``InputError``."""
+    dims = (ndim,) if isinstance(ndim, int) else ndim
     if np.iscomplexobj(a):
         raise InputError(f"{name} is complex: covariances and means are real", _field(name))
     try:
         m = np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as e:
         raise InputError(f"{name} is not a numeric array: {e}", _field(name)) from None
-    if m.ndim != ndim:
-        raise InputError(f"{name} must be a {ndim}-D array (got {m.ndim}-D)", _field(name))
+    if m.ndim not in dims:
+        want = " or ".join(f"{d}-D" for d in dims)
+        raise InputError(f"{name} must be a {want} array (got {m.ndim}-D)", _field(name))
     return np.ascontiguousarray(m)
 
 
@@ -142,11 +152,11 @@ def _matrix(name: str, a: ArrayLike) -> np.ndarray:
     return _array(name, a, 2)
 
 
-def _vector(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
-    return None if a is None else _array(name, a, 1)
+def _vector(name: str, a: Optional[ArrayLike], ndim: int = 1) -> Optional[np.ndarray]:
+    return None if a is None else _array(name, a, ndim)
 
 
-def _pattern(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
+def _pattern(name: str, a: Optional[ArrayLike], ndim: Tuple[int, ...] = (2,)) -> Optional[np.ndarray]:
     if a is None:
         return None
     m = np.asarray(a)
@@ -155,8 +165,9 @@ def _pattern(name: str, a: Optional[ArrayLike]) -> Optional[np.ndarray]:
             f"{name} must be an array of booleans (True = may be non-zero, False = known zero), got dtype {m.dtype}",
             _field(name),
         )
-    if m.ndim != 2:
-        raise InputError(f"{name} must be a 2-D array (got {m.ndim}-D)", _field(name))
+    if m.ndim not in ndim:
+        want = " or ".join(f"{d}-D" for d in ndim)
+        raise InputError(f"{name} must be a {want} array (got {m.ndim}-D)", _field(name))
     return np.ascontiguousarray(m)
 
 
@@ -192,11 +203,25 @@ def _two(
     xb: Optional[ArrayLike],
     pab_unknown: Optional[ArrayLike],
     **options: Any,
-) -> Fused:
+) -> Union[Fused, FusedStack]:
+    pa = _array("P_a", Pa, (2, 3))
+    if pa.ndim == 3:
+        # A stack of pairs: `(k, n, n)` covariances, `(k, n)` means, one pattern or one each.
+        return _stack(
+            _nmci.fuse_stack(
+                method,
+                pa,
+                _array("P_b", Pb, 3),
+                _vector("x_a", xa, 2),
+                _vector("x_b", xb, 2),
+                _pattern("pab_unknown", pab_unknown, (2, 3)),
+                **options,
+            )
+        )
     return _fused(
         _nmci.fuse_arrays(
             method,
-            _matrix("P_a", Pa),
+            pa,
             _matrix("P_b", Pb),
             _vector("x_a", xa),
             _vector("x_b", xb),
@@ -204,6 +229,15 @@ def _two(
             **options,
         )
     )
+
+
+def _stack(stack: FusedStack) -> FusedStack:
+    """``stack``, its pairs' structure notes, if any, issued as one :class:`StructureWarning`."""
+    notes = [(i, n) for i, n in enumerate(stack.structure_notes) if n is not None]
+    if notes:
+        first, note = notes[0]
+        warnings.warn(f"{len(notes)} of {len(stack)} pairs (the first, pair {first}): {note}", StructureWarning, stacklevel=4)
+    return stack
 
 
 def ci(
@@ -214,9 +248,12 @@ def ci(
     *,
     pab_unknown: Optional[ArrayLike] = None,
     criterion: Optional[str] = None,
-) -> Fused:
+) -> Union[Fused, FusedStack]:
     """Covariance intersection with the exactly optimal ``ω`` (``criterion`` "trace" or
-    "logdet"): conservative for every cross-covariance. ``omega`` is ``[ω]``."""
+    "logdet"): conservative for every cross-covariance. ``omega`` is ``[ω]``.
+
+    Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
+    """
     return _two("ci", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
 
 
@@ -230,7 +267,7 @@ def nmci(
     blocks: Optional[Sequence[Sequence[int]]] = None,
     coupling_tol: Optional[float] = None,
     criterion: Optional[str] = None,
-) -> Fused:
+) -> Union[Fused, FusedStack]:
     """Non-monolithic CI: one ``ω`` per independent block of the known-zero pattern
     (``blocks``, ``omega``); conservative for every admissible cross-covariance.
 
@@ -238,6 +275,7 @@ def nmci(
     implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up
     to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are absorbed into a
     proven block-diagonal bound, reported in ``structure``.
+    Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
     """
     return _two("nmci", Pa, Pb, xa, xb, pab_unknown, criterion=criterion, blocks=blocks, coupling_tol=coupling_tol)
 
@@ -382,9 +420,12 @@ def ici(
     *,
     pab_unknown: Optional[ArrayLike] = None,
     criterion: Optional[str] = None,
-) -> Fused:
+) -> Union[Fused, FusedStack]:
     """Inverse covariance intersection: conservative for common-information correlation only
-    (``guarantee``: ``"common_information"``)."""
+    (``guarantee``: ``"common_information"``).
+
+    Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
+    """
     return _two("ici", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
 
 
@@ -395,8 +436,11 @@ def ei(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
-) -> Fused:
-    """Ellipsoidal intersection: not guaranteed conservative."""
+) -> Union[Fused, FusedStack]:
+    """Ellipsoidal intersection: not guaranteed conservative.
+
+    Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
+    """
     return _two("ei", Pa, Pb, xa, xb, pab_unknown)
 
 
@@ -407,9 +451,12 @@ def naive(
     xb: Optional[ArrayLike] = None,
     *,
     pab_unknown: Optional[ArrayLike] = None,
-) -> Fused:
+) -> Union[Fused, FusedStack]:
     """Naive fusion (as if the estimates were independent): not conservative when they are
-    correlated."""
+    correlated.
+
+    Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
+    """
     return _two("naive", Pa, Pb, xa, xb, pab_unknown)
 
 

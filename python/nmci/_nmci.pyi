@@ -72,6 +72,37 @@ class Fused:
     def to_dict(self) -> Dict[str, Any]:
         """The response with lists instead of arrays (the JSON ``nmci fuse`` prints)."""
 
+class FusedStack:
+    """``k`` pairs fused by one closed-form rule (``ci``, ``nmci``, ``ici``, ``ei``, ``naive``),
+    each pair's numbers those of the single call: arrays stacked along the first axis."""
+
+    method: str
+    x: Array
+    """Fused estimates, ``(k, n)``."""
+    P: Array
+    """Bounds, ``(k, n, n)``."""
+    Ka: Array
+    Kb: Array
+    trace: Array
+    """``tr P`` of each pair, ``(k,)``."""
+    det: Array
+    omega: Optional[Array]
+    """The weight of each state, ``(k, n)``: CI's and ICI's ``ω`` on every state, nmCI's ``ω`` of
+    the state's block; ``None`` for EI and naive fusion."""
+    blocks: Optional[List[List[List[int]]]]
+    """nmCI: the blocks of each pair."""
+    structure_notes: List[Optional[str]]
+    def __len__(self) -> int: ...
+
+def fuse_stack(
+    method: str,
+    pa: npt.NDArray[np.float64],
+    pb: npt.NDArray[np.float64],
+    xa: Optional[Array] = None,
+    xb: Optional[Array] = None,
+    pab_unknown: Optional[npt.NDArray[np.bool_]] = None,
+    **options: Any,
+) -> FusedStack: ...
 def fuse_json(request: str) -> str: ...
 def fuse_arrays(
     method: str,

@@ -2,14 +2,17 @@
 //! ([`fuse_json`]), the result type [`Fused`], and the tools (conservativeness index, sampled
 //! cross-covariances).
 
-use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{
+    PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
+    PyReadonlyArray3, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::{PyAttributeError, PyKeyError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
 use nmci::contract::{
-    field_names, response_fields, Details, FuseRequest, FuseResponse, Gains, NwayEstimate,
-    NwayPair, Options, PairInput,
+    field_names, fuse_stack as stack, response_fields, Details, FuseRequest, FuseResponse, Gains,
+    NwayEstimate, NwayPair, Options, PairInput, StackRequest,
 };
 use nmci::rules::Method;
 use nmci::RequestError;
@@ -130,6 +133,151 @@ fn fuse_arrays<'py>(
     let response =
         detached(py, move || nmci::contract::fuse(&request))?.map_err(|e| request_error(py, e))?;
     Fused::new_from(py, response)
+}
+
+/// `k` pairs fused by one closed-form rule ([`nmci::contract::fuse_stack`]): `pa`, `pb`
+/// `(k, n, n)`, `xa`, `xb` `(k, n)`, `pab_unknown` `(n, n)` or `(k, n, n)`; options as keyword
+/// arguments, as [`fuse_arrays`] reads them.
+#[pyfunction]
+#[pyo3(signature = (method, pa, pb, xa=None, xb=None, pab_unknown=None, **options))]
+#[allow(clippy::too_many_arguments)]
+fn fuse_stack<'py>(
+    py: Python<'py>,
+    method: &Bound<'py, PyString>,
+    pa: PyReadonlyArray3<'py, f64>,
+    pb: PyReadonlyArray3<'py, f64>,
+    xa: Option<PyReadonlyArray2<'py, f64>>,
+    xb: Option<PyReadonlyArray2<'py, f64>>,
+    pab_unknown: Option<Bound<'py, PyAny>>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<FusedStack> {
+    let method: Method = contract_value(py, method, Some("method"))?;
+    let (options, structure) = self::options(py, options)?;
+    let n = pa.shape()[1];
+    if pa.shape()[2] != n {
+        let message = format!(
+            "`pa` must be a stack of square matrices (got shape {:?})",
+            pa.shape()
+        );
+        return Err(request_error(py, RequestError::invalid("pa", message)));
+    }
+    let pattern: Option<Vec<bool>> = match &pab_unknown {
+        None => None,
+        Some(m) => {
+            let m: numpy::PyReadonlyArrayDyn<'py, bool> = m.extract()?;
+            Some(m.as_array().iter().copied().collect())
+        }
+    };
+    // Contiguous copies (numpy's arrays may be strided); then the stack runs without the GIL.
+    let (pa, pb) = (
+        pa.as_array().iter().copied().collect::<Vec<_>>(),
+        pb.as_array().iter().copied().collect::<Vec<_>>(),
+    );
+    let xa = xa.map(|v| v.as_array().iter().copied().collect::<Vec<_>>());
+    let xb = xb.map(|v| v.as_array().iter().copied().collect::<Vec<_>>());
+    let response = detached(py, || {
+        stack(&StackRequest {
+            method,
+            options,
+            n,
+            pa: &pa,
+            pb: &pb,
+            xa: xa.as_deref(),
+            xb: xb.as_deref(),
+            pab_unknown: pattern.as_deref(),
+            blocks: structure.blocks,
+            coupling_tol: structure.coupling_tol,
+        })
+    })?
+    .map_err(|e| request_error(py, e))?;
+    FusedStack::new_from(py, method, response)
+}
+
+/// `k` fused estimates ([`fuse_stack`]): numpy arrays stacked along the first axis.
+#[pyclass(module = "nmci._nmci", frozen, get_all)]
+pub struct FusedStack {
+    /// The rule.
+    method: String,
+    /// Fused estimates, `(k, n)`.
+    x: Py<PyAny>,
+    /// Bounds, `(k, n, n)`.
+    #[pyo3(name = "P")]
+    p: Py<PyAny>,
+    /// `K_a`, `(k, n, n)`.
+    #[pyo3(name = "Ka")]
+    ka: Py<PyAny>,
+    /// `K_b`, `(k, n, n)`.
+    #[pyo3(name = "Kb")]
+    kb: Py<PyAny>,
+    /// `tr P` of each pair, `(k,)`.
+    trace: Py<PyAny>,
+    /// `det P` of each pair, `(k,)`.
+    det: Py<PyAny>,
+    /// The weight of each state, `(k, n)` (CI, ICI: one ω on every state; nmCI: the ω of the
+    /// state's block); `None` for EI and naive fusion.
+    omega: Py<PyAny>,
+    /// nmCI: the blocks of each pair; `None` for the other rules.
+    blocks: Py<PyAny>,
+    /// Each pair's structure note, or `None`.
+    structure_notes: Vec<Option<String>>,
+}
+
+impl FusedStack {
+    fn new_from(
+        py: Python<'_>,
+        method: Method,
+        r: nmci::contract::StackResponse,
+    ) -> PyResult<Self> {
+        let (k, n) = (r.count, r.n);
+        let cube = |v: Vec<f64>| -> PyResult<Py<PyAny>> {
+            Ok(PyArray1::from_vec(py, v)
+                .reshape([k, n, n])?
+                .into_any()
+                .unbind())
+        };
+        let omega = match r.omega.is_empty() {
+            true => py.None(),
+            false => PyArray1::from_vec(py, r.omega)
+                .reshape([k, n])?
+                .into_any()
+                .unbind(),
+        };
+        let blocks = match method {
+            Method::Nmci => to_python(py, &r.blocks)?.unbind(),
+            _ => py.None(),
+        };
+        Ok(Self {
+            method: method.name().to_owned(),
+            x: PyArray1::from_vec(py, r.x)
+                .reshape([k, n])?
+                .into_any()
+                .unbind(),
+            p: cube(r.p)?,
+            ka: cube(r.ka)?,
+            kb: cube(r.kb)?,
+            trace: PyArray1::from_vec(py, r.trace).into_any().unbind(),
+            det: PyArray1::from_vec(py, r.det).into_any().unbind(),
+            omega,
+            blocks,
+            structure_notes: r.notes,
+        })
+    }
+}
+
+#[pymethods]
+impl FusedStack {
+    fn __len__(&self, py: Python<'_>) -> PyResult<usize> {
+        self.trace.bind(py).len()
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        Ok(format!(
+            "FusedStack(method={:?}, pairs={}, n={})",
+            self.method,
+            self.__len__(py)?,
+            self.x.bind(py).getattr("shape")?.get_item(1)?
+        ))
+    }
 }
 
 /// A fused estimate: the contract's response (docs/contract.md), written by serde from the
@@ -354,6 +502,8 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fuse_arrays, m)?)?;
     m.add_function(wrap_pyfunction!(conservativeness_index, m)?)?;
     m.add_function(wrap_pyfunction!(sample_cross_covariances, m)?)?;
+    m.add_function(wrap_pyfunction!(fuse_stack, m)?)?;
     m.add_class::<Fused>()?;
+    m.add_class::<FusedStack>()?;
     Ok(())
 }

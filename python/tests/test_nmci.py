@@ -351,7 +351,7 @@ def test_n_way_rules_take_numpy_estimates_and_patterns():
 
 BAD_CALLS = [
     (lambda: nmci.ci(np.eye(2), np.eye(3)), nmci.InputError, "P_b has size 3, expected 2"),
-    (lambda: nmci.ci(np.ones(3), np.eye(3)), nmci.InputError, "P_a must be a 2-D array"),
+    (lambda: nmci.ci(np.ones(3), np.eye(3)), nmci.InputError, "P_a must be a 2-D or 3-D array (got 1-D)"),
     (lambda: nmci.ci([["a"]], np.eye(1)), nmci.InputError, "P_a is not a numeric array"),
     (lambda: nmci.ci(np.eye(2) * np.nan, np.eye(2)), nmci.InputError, "non-finite"),
     (lambda: nmci.ci(np.eye(2), np.eye(2), criterion="volume"), nmci.RequestError, "unknown variant `volume`"),

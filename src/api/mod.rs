@@ -10,6 +10,7 @@
 mod fields;
 mod request;
 mod response;
+mod stack;
 mod structure;
 
 use nalgebra::{DMatrix, DVector};
@@ -42,6 +43,7 @@ pub use request::{FuseRequest, NwayEstimate, NwayPair, Options, PairInput, Plan}
 pub use response::{
     CertifiedDetails, CutsDetails, Details, FuseResponse, Gains, Rows, SdpDetails, StructureDetails,
 };
+pub use stack::{fuse_stack, StackRequest, StackResponse};
 use structure::details_of;
 pub(crate) use structure::{structured, Structured};
 

@@ -32,7 +32,7 @@ pub fn simulate_run(model: &Model, spec: &RunSpec) -> Result<RunTrace, SimError>
 /// Simulates one run for one rule only: the truth, the measurements and the centralized
 /// filter are those of [`simulate_run`] (the random stream does not depend on the rules), and
 /// so are the rule's agents — the rules never interact. The trace has two series,
-/// `central` and the rule's; [`merge_rule_traces`] puts the rules back together, bit for bit
+/// `central` and the rule's; [`merge_rule_traces`](super::trace::merge_rule_traces) puts the rules back together, bit for bit
 /// equal to [`simulate_run`]. Lets a parallel study balance its work in smaller pieces.
 pub fn simulate_run_for_rule(
     model: &Model,

@@ -8,7 +8,7 @@ use super::estimators::Storage;
 /// Per-step results of one run for the headline agent (and the centralized filter).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunTrace {
-    /// NEES per step: `central`, then one series per rule in [`STUDY_RULES`] order.
+    /// NEES per step: `central`, then one series per rule in [`STUDY_RULES`](super::estimators::STUDY_RULES) order.
     pub nees: Vec<Vec<f64>>,
     /// Position RMSE over all targets per step, same order.
     pub rmse: Vec<Vec<f64>>,
@@ -43,7 +43,7 @@ pub struct RunSpec {
     pub storage: Storage,
 }
 
-/// Assembles the per-rule traces of one run (from [`simulate_run_for_rule`](super::simulate_run_for_rule), in [`STUDY_RULES`]
+/// Assembles the per-rule traces of one run (from [`simulate_run_for_rule`](super::simulate_run_for_rule), in [`STUDY_RULES`](super::estimators::STUDY_RULES)
 /// order) into the trace [`simulate_run`](super::simulate_run) gives.
 pub fn merge_rule_traces(parts: Vec<RunTrace>) -> RunTrace {
     assemble_traces(parts.into_iter().enumerate().map(|(k, t)| (vec![k], t)))

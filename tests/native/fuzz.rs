@@ -88,6 +88,9 @@ fn fuse_json_never_panics_and_every_error_is_typed() {
                     RequestError::Input(_) => tally.input += 1,
                     RequestError::Solve(_) => tally.solve += 1,
                     RequestError::Sample(_) => tally.sample += 1,
+                    RequestError::InStack { .. } => {
+                        panic!("case {i}: a stack's error from one request: {e}")
+                    }
                 }
             }
         }

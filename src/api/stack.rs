@@ -1,0 +1,262 @@
+//! Stacks: `k` two-estimate problems of one size, fused by one closed-form rule in one call —
+//! what a multi-target tracker holds per frame, and what numpy users hold as `(k, n, n)` arrays.
+//!
+//! Each pair is the request [`super::fuse`] would get with that pair's matrices and the stack's
+//! method and options, and its numbers are that request's, bit for bit (tested): the same
+//! checks, the same structure handling (declared `blocks`, `coupling_tol`), the same rule.
+//! A stack takes the rules whose response is the estimate, its bound, the gains and the
+//! weights — `ci`, `nmci`, `ici`, `ei`, `naive`; the SDPs and the certified rule report a
+//! bracket or a certificate per pair and are called per pair.
+//!
+//! The first pair that fails stops the stack with [`RequestError::InStack`]: its index and
+//! its error, whose field is indexed by the pair (`pa[17]`).
+
+use crate::error::RequestError;
+use crate::fusion::rules::Method;
+
+use super::{fuse, FuseRequest, Gains, Options, PairInput};
+
+/// `k` pairs of `n`-state estimates, row-major and contiguous: `pa`, `pb` hold `k · n · n`
+/// numbers (pair `i`'s matrix at `i · n · n`), `xa`, `xb` `k · n`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StackRequest<'a> {
+    /// The rule: `ci`, `nmci`, `ici`, `ei` or `naive`.
+    pub method: Method,
+    /// The options, as in a request (`criterion`; the others do not apply to these rules).
+    pub options: Options,
+    /// The states of each estimate.
+    pub n: usize,
+    /// `P_a` of every pair.
+    pub pa: &'a [f64],
+    /// `P_b` of every pair.
+    pub pb: &'a [f64],
+    /// `x_a` of every pair (default zeros).
+    pub xa: Option<&'a [f64]>,
+    /// `x_b` of every pair (default zeros).
+    pub xb: Option<&'a [f64]>,
+    /// The pattern of `P_ab`: `n · n` (every pair's) or `k · n · n` (one per pair); default
+    /// all unknown.
+    pub pab_unknown: Option<&'a [bool]>,
+    /// A declared partition of the states, every pair's ([`PairInput::blocks`]).
+    pub blocks: Option<Vec<Vec<usize>>>,
+    /// The coupling tolerance, every pair's ([`PairInput::coupling_tol`]).
+    pub coupling_tol: Option<f64>,
+}
+
+/// The fused stack, row-major and contiguous like the request: pair `i`'s `x` at `i · n`, its
+/// `P`, `K_a`, `K_b` at `i · n · n`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StackResponse {
+    /// Pairs.
+    pub count: usize,
+    /// States.
+    pub n: usize,
+    /// Fused estimates, `k · n`.
+    pub x: Vec<f64>,
+    /// Bounds, `k · n · n`.
+    pub p: Vec<f64>,
+    /// `K_a`, `k · n · n`.
+    pub ka: Vec<f64>,
+    /// `K_b`, `k · n · n`.
+    pub kb: Vec<f64>,
+    /// `tr P` of each pair.
+    pub trace: Vec<f64>,
+    /// `det P` of each pair.
+    pub det: Vec<f64>,
+    /// The weight of each state, `k · n`: CI's and ICI's one `ω` on every state, nmCI's `ω` of
+    /// the state's block; empty for EI and naive fusion (no weight).
+    pub omega: Vec<f64>,
+    /// The blocks of each pair (nmCI; empty for the other rules).
+    pub blocks: Vec<Vec<Vec<usize>>>,
+    /// Each pair's structure note, when there is one ([`super::StructureDetails::note`]).
+    pub notes: Vec<Option<String>>,
+}
+
+/// The rules a stack takes.
+const STACKED: [Method; 5] = [
+    Method::Ci,
+    Method::Nmci,
+    Method::Ici,
+    Method::Ei,
+    Method::Naive,
+];
+
+/// Fuses every pair of `request` (see the module docs).
+///
+/// ```
+/// use nmci::contract::{fuse_stack, Options, StackRequest};
+/// // Two pairs of 2-state estimates, the paper's example and its mirror.
+/// let pa = [3.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 4.0];
+/// let pb = [1.0, 0.0, 0.0, 4.0, 3.0, 0.0, 0.0, 1.0];
+/// let diagonal = [true, false, false, true];
+/// let stack = fuse_stack(&StackRequest {
+///     method: nmci::rules::Method::Nmci, options: Options::default(), n: 2,
+///     pa: &pa, pb: &pb, xa: None, xb: None, pab_unknown: Some(&diagonal),
+///     blocks: None, coupling_tol: None,
+/// }).unwrap();
+/// assert_eq!(stack.trace, [2.0, 2.0]);
+/// assert_eq!(stack.omega, [0.0, 1.0, 1.0, 0.0]);
+/// ```
+pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestError> {
+    let n = request.n;
+    if !STACKED.contains(&request.method) {
+        return Err(RequestError::invalid(
+            "method",
+            format!(
+                "a stack takes ci, nmci, ici, ei or naive; `{}` reports a bracket or a certificate per pair: fuse its pairs one by one",
+                request.method.name()
+            ),
+        ));
+    }
+    let nn = n * n;
+    if n == 0 || request.pa.len() % nn != 0 {
+        return Err(RequestError::invalid(
+            "pa",
+            format!(
+                "`pa` holds {} numbers: not a stack of {n} × {n} matrices",
+                request.pa.len()
+            ),
+        ));
+    }
+    let count = request.pa.len() / nn;
+    let sized = |field: &str, len: Option<usize>, each: usize| match len {
+        Some(len) if len != count * each => Err(RequestError::invalid(
+            field,
+            format!("`{field}` holds {len} numbers, expected {count} × {each} (the pairs of `pa`)"),
+        )),
+        _ => Ok(()),
+    };
+    sized("pb", Some(request.pb.len()), nn)?;
+    sized("xa", request.xa.map(<[f64]>::len), n)?;
+    sized("xb", request.xb.map(<[f64]>::len), n)?;
+    let shared_pattern = match request.pab_unknown.map(<[bool]>::len) {
+        None => true,
+        Some(len) if len == nn => true,
+        Some(len) if len == count * nn => false,
+        Some(len) => {
+            return Err(RequestError::invalid(
+                "pab_unknown",
+                format!("`pab_unknown` holds {len} entries, expected {nn} (every pair's) or {count} × {nn} (one per pair)"),
+            ))
+        }
+    };
+    // The options checked once, before any pair.
+    let mut template = FuseRequest {
+        pair: PairInput {
+            blocks: request.blocks.clone(),
+            coupling_tol: request.coupling_tol,
+            ..PairInput::default()
+        },
+        method: request.method,
+        options: request.options.clone(),
+        estimates: None,
+        patterns: None,
+    };
+    template.options.plan()?;
+
+    let rows = |s: &[f64]| s.chunks(n).map(<[f64]>::to_vec).collect::<Vec<_>>();
+    let mut out = StackResponse {
+        count,
+        n,
+        x: Vec::with_capacity(count * n),
+        p: Vec::with_capacity(count * nn),
+        ka: Vec::with_capacity(count * nn),
+        kb: Vec::with_capacity(count * nn),
+        trace: Vec::with_capacity(count),
+        det: Vec::with_capacity(count),
+        omega: Vec::new(),
+        blocks: Vec::new(),
+        notes: Vec::with_capacity(count),
+    };
+    for i in 0..count {
+        let at = i * nn..(i + 1) * nn;
+        template.pair.pa = rows(&request.pa[at.clone()]);
+        template.pair.pb = rows(&request.pb[at.clone()]);
+        template.pair.xa = request.xa.map(|v| v[i * n..(i + 1) * n].to_vec());
+        template.pair.xb = request.xb.map(|v| v[i * n..(i + 1) * n].to_vec());
+        template.pair.pab_unknown = request.pab_unknown.map(|m| {
+            let m = if shared_pattern { m } else { &m[at.clone()] };
+            m.chunks(n).map(<[bool]>::to_vec).collect()
+        });
+        let r = fuse(&template).map_err(|e| RequestError::InStack {
+            index: i,
+            source: Box::new(e),
+        })?;
+        out.x.extend(&r.x);
+        out.p.extend(r.p.iter().flatten());
+        if let Gains::Pair { ka, kb } = &r.gains {
+            out.ka.extend(ka.iter().flatten());
+            out.kb.extend(kb.iter().flatten());
+        }
+        out.trace.push(r.trace);
+        out.det.push(r.det);
+        if let Some(omega) = r.omega() {
+            let mut per_state = vec![omega[0]; n];
+            if let Some(blocks) = r.blocks() {
+                for (block, w) in blocks.iter().zip(&omega) {
+                    block.iter().for_each(|&s| per_state[s] = *w);
+                }
+                out.blocks.push(blocks.clone());
+            }
+            out.omega.extend(per_state);
+        }
+        out.notes.push(r.structure.and_then(|s| s.note));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn request<'a>(method: Method, pa: &'a [f64], pb: &'a [f64]) -> StackRequest<'a> {
+        StackRequest {
+            method,
+            options: Options::default(),
+            n: 2,
+            pa,
+            pb,
+            xa: None,
+            xb: None,
+            pab_unknown: None,
+            blocks: None,
+            coupling_tol: None,
+        }
+    }
+
+    #[test]
+    fn a_pair_of_the_stack_is_the_single_request() {
+        let pa = [3.0, 0.5, 0.5, 1.0, 2.0, -0.3, -0.3, 1.5];
+        let pb = [1.0, 0.2, 0.2, 4.0, 1.0, 0.0, 0.0, 1.0];
+        for method in STACKED {
+            let stack = fuse_stack(&request(method, &pa, &pb)).unwrap();
+            for i in 0..2 {
+                let rows = |s: &[f64]| s.chunks(2).map(<[f64]>::to_vec).collect::<Vec<_>>();
+                let one = fuse(&FuseRequest::new(
+                    method,
+                    rows(&pa[4 * i..4 * i + 4]),
+                    rows(&pb[4 * i..4 * i + 4]),
+                ))
+                .unwrap();
+                assert_eq!(
+                    &stack.p[4 * i..4 * i + 4],
+                    one.p.concat().as_slice(),
+                    "{method:?}"
+                );
+                assert_eq!(stack.trace[i], one.trace);
+            }
+        }
+    }
+
+    #[test]
+    fn a_failing_pair_is_named_with_its_field() {
+        let pa = [3.0, 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 1.0];
+        let pb = [1.0, 0.0, 0.0, 4.0, 1.0, 0.0, 0.0, 1.0];
+        let e = fuse_stack(&request(Method::Ci, &pa, &pb)).unwrap_err();
+        assert!(matches!(e, RequestError::InStack { index: 1, .. }), "{e}");
+        assert_eq!(e.field().as_deref(), Some("pa[1]"));
+        assert!(e.to_string().starts_with("pair 1: P_a"), "{e}");
+        let e = fuse_stack(&request(Method::Sdp, &pa, &pb)).unwrap_err();
+        assert_eq!(e.field().as_deref(), Some("method"));
+    }
+}
