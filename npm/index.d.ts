@@ -11,6 +11,8 @@ export type * from "./contract.js";
  * problem and, in `field`, the request field at fault.
  */
 export function fuse(request: FuseRequest): FuseResponse;
+/** A list of requests: the list of their responses; the first that fails throws, naming its index. */
+export function fuse(requests: FuseRequest[]): FuseResponse[];
 
 /** The contract's field names, from the Rust crate. */
 export function contract_fields(): { request: string[]; response: string[] };

@@ -333,6 +333,14 @@ pub enum RequestError {
         /// What went wrong with it.
         source: Box<RequestError>,
     },
+    /// One request of a list ([`crate::contract::fuse_list`]) failed: its index and its error.
+    #[error("request {index}: {source}")]
+    InList {
+        /// The request's index in the list.
+        index: usize,
+        /// What went wrong with it.
+        source: Box<RequestError>,
+    },
 }
 
 impl RequestError {
@@ -369,6 +377,10 @@ impl RequestError {
                     false => field,
                 }
             }),
+            // The field of the list's element: `[2].pa`.
+            RequestError::InList { index, source } => {
+                source.field().map(|field| format!("[{index}].{field}"))
+            }
         }
     }
 }

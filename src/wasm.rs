@@ -52,8 +52,16 @@ fn to_js<T: Serialize>(value: &T) -> Result<JsValue, JsError> {
 /// Runs a fusion request (the same object as `nmci fuse` reads) and returns the response
 /// object; throws an `Error` carrying the message of any invalid input and, in `field`, the
 /// request field at fault.
+/// An array of requests gives the array of their responses ([`crate::contract::fuse_list`]);
+/// the first that fails throws, naming its index.
 #[wasm_bindgen]
 pub fn fuse(request: JsValue) -> Result<JsValue, JsValue> {
+    if js_sys::Array::is_array(&request) {
+        let values: Vec<serde_json::Value> = parse(request).map_err(thrown)?;
+        let requests = crate::api::requests_from(values).map_err(thrown)?;
+        let responses = crate::api::fuse_list(&requests).map_err(thrown)?;
+        return Ok(to_js(&responses)?);
+    }
     let request: FuseRequest = parse(request).map_err(thrown)?;
     let response = crate::api::fuse(&request).map_err(thrown)?;
     Ok(to_js(&response)?)

@@ -12,7 +12,8 @@ const response: FuseResponse = fuse(request);
 const trace: number = response.trace;
 const omega: number[] | undefined = response.omega;
 const closed: boolean | undefined = fuse({ ...request, method: "sdp_cuts" }).gap_closed;
-console.log(trace, omega, closed, rules());
+const both: FuseResponse[] = fuse([request, { ...request, method: "ci" }]);
+console.log(trace, omega, closed, both.length, rules());
 
 // @ts-expect-error: not a rule of the contract
 fuse({ pa: [[1]], pb: [[1]], method: "volume" });

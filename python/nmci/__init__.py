@@ -108,12 +108,15 @@ def _jsonable(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
-def fuse(request: Mapping[str, Any]) -> Dict[str, Any]:
+def fuse(
+    request: Union[Mapping[str, Any], Sequence[Mapping[str, Any]]]
+) -> Union[Dict[str, Any], List[Dict[str, Any]]]:
     """Runs a request of the JSON contract and returns its response, exactly as ``nmci fuse``.
 
     ``request`` is the contract's object (numpy arrays may stand for nested lists); the
-    response is a plain dict with lists. Errors raise the exceptions of this package with the
-    CLI's messages.
+    response is a plain dict with lists. A list of requests gives the list of their responses
+    (the first that fails raises, its field ``[i].field``). Errors raise the exceptions of this
+    package with the CLI's messages.
     """
     try:
         text = json.dumps(request, default=_jsonable, allow_nan=False)
@@ -121,7 +124,8 @@ def fuse(request: Mapping[str, Any]) -> Dict[str, Any]:
         # JSON has no NaN or infinity: name where the first one is (searched only then).
         at = _non_finite(request, "")
         if at is not None:
-            field = re.split(r"[.\[]", at, maxsplit=1)[0]
+            # The top field (`pa`), or in a list the element's (`[1].pa`).
+            field = re.match(r"(?:\[\d+\]\.)?[^.\[]*", at).group(0)
             raise RequestError(f"invalid request: `{at}` is NaN or infinite (JSON has no such numbers)", field) from None
         raise RequestError(f"invalid request: {e}") from None
     return json.loads(_nmci.fuse_json(text))

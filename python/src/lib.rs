@@ -57,7 +57,9 @@ fn request_error_kind(e: &RequestError) -> &'static str {
         RequestError::Input(_) => "InputError",
         RequestError::Sample(SampleError::InvalidSettings(_)) => "RequestError",
         RequestError::Sample(_) => "SampleError",
-        RequestError::InStack { source, .. } => request_error_kind(source),
+        RequestError::InStack { source, .. } | RequestError::InList { source, .. } => {
+            request_error_kind(source)
+        }
         RequestError::Solve(e) => match e {
             SolveError::TimeLimit { .. } => "TimeLimitError",
             SolveError::InvalidSettings(_) => "RequestError",

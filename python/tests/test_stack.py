@@ -90,3 +90,14 @@ def test_a_bad_pair_in_the_middle_is_named():
     with pytest.raises(nmci.InputError) as raised:
         nmci.nmci(a, b)
     assert raised.value.field == "pa[17]" and str(raised.value).startswith("pair 17: P_a")
+
+
+def test_the_contract_takes_a_list_of_requests():
+    one = {"pa": [[3.0, 0.0], [0.0, 1.0]], "pb": [[1.0, 0.0], [0.0, 4.0]], "method": "ci"}
+    assert nmci.fuse([one, one]) == [nmci.fuse(one)] * 2
+    with pytest.raises(nmci.InputError) as raised:
+        nmci.fuse([one, {**one, "pa": [[-1.0]], "pb": [[1.0]]}])
+    assert raised.value.field == "[1].pa" and str(raised.value).startswith("request 1: P_a")
+    with pytest.raises(nmci.RequestError) as raised:
+        nmci.fuse([one, {**one, "pa": [[float("nan"), 0.0], [0.0, 1.0]]}])
+    assert raised.value.field == "[1].pa" and "`[1].pa[0][0]` is NaN" in str(raised.value)

@@ -43,7 +43,8 @@ pub use request::{FuseRequest, NwayEstimate, NwayPair, Options, PairInput, Plan}
 pub use response::{
     CertifiedDetails, CutsDetails, Details, FuseResponse, Gains, Rows, SdpDetails, StructureDetails,
 };
-pub use stack::{fuse_stack, StackRequest, StackResponse};
+pub(crate) use stack::requests_from;
+pub use stack::{fuse_list, fuse_stack, StackRequest, StackResponse};
 use structure::details_of;
 pub(crate) use structure::{structured, Structured};
 
@@ -394,7 +395,8 @@ pub(crate) fn sdp_response(
     Ok((r, opt.fused))
 }
 
-/// Parses a JSON request, runs it and returns the JSON response.
+/// Parses a JSON request, runs it and returns the JSON response; an array of requests gives
+/// the array of their responses ([`fuse_list`]).
 pub fn fuse_json(request: &str) -> Result<String, RequestError> {
     if request.len() > MAX_REQUEST_BYTES {
         return Err(RequestError::TooLarge {
@@ -402,8 +404,14 @@ pub fn fuse_json(request: &str) -> Result<String, RequestError> {
             limit: MAX_REQUEST_BYTES,
         });
     }
-    let req: FuseRequest =
-        serde_json::from_str(request).map_err(|e| RequestError::Malformed(e.to_string()))?;
+    let malformed = |e: serde_json::Error| RequestError::Malformed(e.to_string());
+    if request.trim_start().starts_with('[') {
+        // A list: each element read and run as a request alone ([`fuse_list`]).
+        let values: Vec<serde_json::Value> = serde_json::from_str(request).map_err(malformed)?;
+        let responses = fuse_list(&requests_from(values)?)?;
+        return serde_json::to_string_pretty(&responses).map_err(malformed);
+    }
+    let req: FuseRequest = serde_json::from_str(request).map_err(malformed)?;
     let res = fuse(&req)?;
-    serde_json::to_string_pretty(&res).map_err(|e| RequestError::Malformed(e.to_string()))
+    serde_json::to_string_pretty(&res).map_err(malformed)
 }

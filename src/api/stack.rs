@@ -10,11 +10,14 @@
 //!
 //! The first pair that fails stops the stack with [`RequestError::InStack`]: its index and
 //! its error, whose field is indexed by the pair (`pa[17]`).
+//!
+//! A list of whole requests, of any sizes and methods, is [`fuse_list`]: in JSON, an array of
+//! requests (`nmci fuse`, the wasm `fuse`) gives the array of their responses.
 
 use crate::error::RequestError;
 use crate::fusion::rules::Method;
 
-use super::{fuse, FuseRequest, Gains, Options, PairInput};
+use super::{fuse, FuseRequest, FuseResponse, Gains, Options, PairInput};
 
 /// `k` pairs of `n`-state estimates, row-major and contiguous: `pa`, `pb` hold `k · n · n`
 /// numbers (pair `i`'s matrix at `i · n · n`), `xa`, `xb` `k · n`.
@@ -205,6 +208,53 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
     Ok(out)
 }
 
+/// Runs a list of requests, each exactly as [`fuse`] runs it alone; the responses in order. The
+/// first request that fails stops the list with [`RequestError::InList`] (its index). The JSON
+/// contract takes a list as an array of requests ([`super::fuse_json`], `nmci fuse`, the wasm
+/// `fuse`).
+///
+/// ```
+/// use nmci::contract::{fuse_list, FuseRequest};
+/// use nmci::rules::Method;
+/// let pair = || (vec![vec![3.0, 0.0], vec![0.0, 1.0]], vec![vec![1.0, 0.0], vec![0.0, 4.0]]);
+/// let (pa, pb) = pair();
+/// let ci = FuseRequest::new(Method::Ci, pa, pb);
+/// let (pa, pb) = pair();
+/// let mut nmci = FuseRequest::new(Method::Nmci, pa, pb);
+/// nmci.pair.pab_unknown = Some(vec![vec![true, false], vec![false, true]]);
+/// let both = fuse_list(&[ci, nmci]).unwrap();
+/// assert!(both[0].trace > 3.0 && both[1].trace == 2.0);
+/// ```
+pub fn fuse_list(requests: &[FuseRequest]) -> Result<Vec<FuseResponse>, RequestError> {
+    requests
+        .iter()
+        .enumerate()
+        .map(|(index, request)| {
+            fuse(request).map_err(|e| RequestError::InList {
+                index,
+                source: Box::new(e),
+            })
+        })
+        .collect()
+}
+
+/// Requests read from JSON values, each as a request alone is; the first that is not a request
+/// stops the list with [`RequestError::InList`] (its index).
+pub(crate) fn requests_from(
+    values: Vec<serde_json::Value>,
+) -> Result<Vec<FuseRequest>, RequestError> {
+    values
+        .into_iter()
+        .enumerate()
+        .map(|(index, value)| {
+            serde_json::from_value(value).map_err(|e| RequestError::InList {
+                index,
+                source: Box::new(RequestError::Malformed(e.to_string())),
+            })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -258,5 +308,24 @@ mod tests {
         assert!(e.to_string().starts_with("pair 1: P_a"), "{e}");
         let e = fuse_stack(&request(Method::Sdp, &pa, &pb)).unwrap_err();
         assert_eq!(e.field().as_deref(), Some("method"));
+    }
+
+    #[test]
+    fn a_json_list_gives_the_list_of_responses_and_names_the_failing_request() {
+        let one = r#"{"pa":[[3,0],[0,1]],"pb":[[1,0],[0,4]],"method":"ci"}"#;
+        let single: serde_json::Value =
+            serde_json::from_str(&crate::api::fuse_json(one).unwrap()).unwrap();
+        let list: serde_json::Value =
+            serde_json::from_str(&crate::api::fuse_json(&format!(" [{one}, {one}]")).unwrap())
+                .unwrap();
+        assert_eq!(list, serde_json::json!([single, single]));
+        assert_eq!(crate::api::fuse_json("[]").unwrap().trim(), "[]");
+        let bad = format!(r#"[{one}, {{"pa":[[-1]],"pb":[[1]],"method":"ci"}}]"#);
+        let e = crate::api::fuse_json(&bad).unwrap_err();
+        assert_eq!(e.field().as_deref(), Some("[1].pa"));
+        assert!(e.to_string().starts_with("request 1: P_a"), "{e}");
+        let unknown = format!(r#"[{{"pa":[[1]],"pb":[[1]],"method":"ci","colour":1}}, {one}]"#);
+        let e = crate::api::fuse_json(&unknown).unwrap_err();
+        assert_eq!(e.field().as_deref(), Some("[0].colour"));
     }
 }

@@ -35,6 +35,20 @@ test("the Node example runs from the installed package with the README's numbers
   assert.match(out, /^refused \(field pb\): /m);
 });
 
+test("a list of requests gives the list of responses, and a bad one is named", () => {
+  const script = `
+    import { fuse } from "nmci";
+    const pa = [[3, 0], [0, 1]], pb = [[1, 0], [0, 4]];
+    const [ci, nm] = fuse([{ pa, pb, method: "ci" }, { pa, pb, pab_unknown: [[true, false], [false, true]], method: "nmci" }]);
+    let field;
+    try { fuse([{ pa, pb, method: "ci" }, { pa: [[-1]], pb: [[1]], method: "ci" }]); } catch (e) { field = e.field; }
+    console.log(JSON.stringify({ ci: ci.trace, nm: nm.trace, field }));`;
+  const got = JSON.parse(node(["--input-type=module", "-e", script]));
+  assert.equal(got.nm, 2);
+  assert.ok(Math.abs(got.ci - 3.088) < 1e-3);
+  assert.equal(got.field, "[1].pa");
+});
+
 /** The property names of `interface name { … }` in a declaration file. */
 function declared(text, name) {
   const body = text.match(new RegExp(`export interface ${name} \\{([\\s\\S]*?)\\n\\}`))[1];

@@ -88,6 +88,8 @@ fn fuse_json_never_panics_and_every_error_is_typed() {
                     RequestError::Input(_) => tally.input += 1,
                     RequestError::Solve(_) => tally.solve += 1,
                     RequestError::Sample(_) => tally.sample += 1,
+                    // A text that is a JSON array is a list of requests.
+                    RequestError::InList { .. } => tally.malformed += 1,
                     RequestError::InStack { .. } => {
                         panic!("case {i}: a stack's error from one request: {e}")
                     }
