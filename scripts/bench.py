@@ -10,6 +10,7 @@ Sections (each one command, run in order on an otherwise idle machine):
   brackets  examples/certify_levels: proven brackets at 2 and 3 states, the default certificate
   study     `nmci track` (release), the paper's 16-agent study, and its headline result
   python    scripts/python.sh bench: nmci from Python against numpy, scipy and cvxpy
+  stack     scripts/python.sh bench-stack: k pairs by CI, nmci's stack against numpy, a loop, Stone Soup
   browser   tests/e2e/bench-explore.mjs and bench-study.mjs in headless Chromium
 
 `scripts/bench.sh [SECTION ...]` runs the named sections only and keeps the others' last
@@ -155,6 +156,12 @@ def python():
     return cmd, "\n".join(l + ("\n" if l.startswith("numpy ") else "") for l in lines)
 
 
+def stack():
+    cmd = "scripts/python.sh bench-stack"
+    out = sh(f"bash {cmd}")
+    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
+
+
 def browser():
     sh("bash scripts/wasm.sh build")
     cmds, lines = [], []
@@ -170,6 +177,7 @@ SECTIONS = {
     "brackets": ("Proven brackets (the certified rule against the cutting planes' lower end)", brackets),
     "study": ("The 16-agent tracking study", study),
     "python": ("From Python, beside numpy, scipy and cvxpy", python),
+    "stack": ("Stacks: k pairs by CI in one call, one thread", stack),
     "browser": ("In the browser (wasm, headless Chromium)", browser),
 }
 

@@ -5,6 +5,7 @@
 #   scripts/python.sh build   -> the wheel, installed into target/py
 #   scripts/python.sh test    -> build, then pytest python/tests against the `nmci` CLI
 #   scripts/python.sh bench   -> build, then scripts/bench_python.py (installs scipy and cvxpy)
+#   scripts/python.sh bench-stack -> build, then scripts/bench_stack.py (installs stonesoup)
 #   scripts/python.sh accuracy -> build, then scripts/accuracy.py (50-digit references)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,6 +23,7 @@ fi
 # mpmath: the 50-digit references of the accuracy tests.
 need=(maturin numpy pytest scipy distributed mpmath)
 [ "$what" = bench ] && need+=(cvxpy clarabel)
+[ "$what" = bench-stack ] && need+=(stonesoup)
 missing=()
 for p in "${need[@]}"; do
   "$py" -c "import $p" 2>/dev/null || missing+=("$p")
@@ -46,6 +48,9 @@ case "$what" in
     ;;
   bench)
     "$py" scripts/bench_python.py
+    ;;
+  bench-stack)
+    "$py" scripts/bench_stack.py
     ;;
   accuracy)
     "$py" scripts/accuracy.py
