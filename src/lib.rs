@@ -163,7 +163,7 @@ pub mod check {
 /// (docs/contract.md).
 pub mod contract {
     pub use crate::api::{
-        field_names, fuse, fuse_json, fuse_stack, request_fields, response_fields,
+        field_names, fuse, fuse_json, fuse_list, fuse_stack, request_fields, response_fields,
         CertifiedDetails, CovarianceSummary, CutsDetails, Details, FuseRequest, FuseResponse,
         Gains, NwayEstimate, NwayPair, Options, PairInput, Plan, Rows, SdpDetails, StackRequest,
         StackResponse, StructureDetails, MAX_ESTIMATES, MAX_REQUEST_BYTES, MAX_SAMPLES, MAX_TRIALS,
