@@ -381,12 +381,23 @@ mod cli {
             .join()
             .unwrap_or_else(|_| Err("the solve panicked (a bug: please report it)".into()))?;
         // How the blocks were found, when the response says (`structure.note`): on stderr, so
-        // the JSON on stdout stays the response alone.
-        if let Some(note) = serde_json::from_str::<serde_json::Value>(&out)
-            .ok()
-            .and_then(|v| Some(v.get("structure")?.get("note")?.as_str()?.to_string()))
-        {
-            eprintln!("nmci: structure: {note}");
+        // the JSON on stdout stays the response alone. A list's notes name their request.
+        let note =
+            |v: &serde_json::Value| Some(v.get("structure")?.get("note")?.as_str()?.to_owned());
+        match serde_json::from_str::<serde_json::Value>(&out) {
+            Ok(serde_json::Value::Array(responses)) => {
+                for (i, r) in responses.iter().enumerate() {
+                    if let Some(note) = note(r) {
+                        eprintln!("nmci: structure: request {i}: {note}");
+                    }
+                }
+            }
+            Ok(response) => {
+                if let Some(note) = note(&response) {
+                    eprintln!("nmci: structure: {note}");
+                }
+            }
+            Err(_) => {}
         }
         Ok(out)
     }

@@ -660,6 +660,27 @@ fn the_structure_note_goes_to_stderr_and_refusals_exit_nonzero() {
     // Exact zeros: nothing on stderr.
     let (code, _, err) = nmci(&["fuse"], PAPER);
     assert_eq!((code, err.as_str()), (0, ""));
+    // A list: the array of responses on stdout, each note naming its request.
+    let (code, out, err) = nmci(&["fuse"], &format!("[{PAPER}, {coupled}]"));
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v.as_array().map(Vec::len), Some(2), "{out}");
+    assert!(
+        v[0].get("structure").is_none() && v[1]["structure"]["blocks"].is_array(),
+        "{out}"
+    );
+    assert!(
+        err.starts_with("nmci: structure: request 1: 1 near-zero coupling"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    // A failing request of a list exits non-zero, naming it.
+    let (code, _, err) = nmci(
+        &["fuse"],
+        &format!(r#"[{PAPER}, {{"pa": [[-1]], "pb": [[1]], "method": "ci"}}]"#),
+    );
+    assert_ne!(code, 0);
+    assert!(err.contains("request 1: P_a"), "{err}");
     for (extra, needle) in [
         (
             r#""blocks": [[0], [1]], "pa": [[3, 0.5], [0.5, 1]]"#,
