@@ -375,6 +375,55 @@ fn explorer_benches(c: &mut Bench) {
     }
 }
 
+/// Issue 42: `k = 10⁴` pairs of 4-state estimates through [`fuse_stack`] by CI and by nmCI
+/// (diagonal pattern: 4 blocks), and the floor every exact CI of a pair pays, one 4 × 4
+/// symmetric eigendecomposition per pair (`eigen/symmetric/4x10000`).
+fn stack_benches(c: &mut Bench) {
+    let mut rng = ChaCha8Rng::seed_from_u64(42);
+    let (n, k) = (4usize, 10_000usize);
+    let mut pa = Vec::with_capacity(k * n * n);
+    let mut pb = Vec::with_capacity(k * n * n);
+    let mut spd = Vec::with_capacity(k);
+    for _ in 0..k {
+        let a = random_spd(n, &mut rng);
+        let b = random_spd(n, &mut rng);
+        pa.extend(a.transpose().iter());
+        pb.extend(b.transpose().iter());
+        spd.push(a);
+    }
+    let diagonal: Vec<bool> = (0..n * n).map(|i| i / n == i % n).collect();
+    for (method, pattern) in [(Method::Ci, None), (Method::Nmci, Some(&diagonal[..]))] {
+        let request = StackRequest {
+            method,
+            options: Options::default(),
+            n,
+            pa: &pa,
+            pb: &pb,
+            xa: None,
+            xb: None,
+            pab_unknown: pattern,
+            blocks: None,
+            coupling_tol: None,
+        };
+        c.bench_function(&format!("stack/{}/4x10000", method.name()), |b| {
+            b.iter(|| fuse_stack(black_box(&request)).unwrap())
+        });
+    }
+    c.bench_function("eigen/symmetric/4x10000", |b| {
+        b.iter(|| {
+            spd.iter()
+                .map(|a| SymmetricEigen::new(black_box(a.clone())).eigenvalues[0])
+                .sum::<f64>()
+        })
+    });
+}
+
+criterion_group! {
+    name = stack;
+    config = Bench::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
+    targets = stack_benches
+}
+
 criterion_group! {
     name = explorer;
     config = Bench::default().sample_size(10).measurement_time(std::time::Duration::from_secs(5));
@@ -387,4 +436,4 @@ criterion_group! {
     targets = certified_benches
 }
 
-criterion_main!(fusion, cuts, certified, explorer);
+criterion_main!(fusion, cuts, certified, explorer, stack);

@@ -9,9 +9,9 @@ use serde::de::IgnoredAny;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{
-    certificate_response, check_blocks, check_count, ci_response, ei_response, ici_response,
-    naive_response, nmci_response, sdp_response, structured, unknown_field, CovarianceSummary,
-    FuseResponse, Options, PairInput, StructureDetails, Structured, MAX_SAMPLES,
+    certificate_response, check_blocks, check_count, sdp_response, structured, unknown_field,
+    ClosedForm, CovarianceSummary, FuseResponse, Options, PairInput, StructureDetails, Structured,
+    MAX_SAMPLES,
 };
 use crate::error::RequestError;
 use crate::fusion::bracket::{
@@ -257,15 +257,15 @@ fn analyse(
     let mut computed: Vec<(Method, Outcome)> = Vec::new();
     for rule in RULES.iter().filter(|r| r.explorer) {
         let outcome = match rule.method {
-            Method::Ci => Ok(ci_response(&problem, criterion)?),
+            Method::Ci => Ok(ClosedForm::Ci.response(&problem, criterion)?),
             Method::Nmci => {
-                let (mut r, fused) = nmci_response(&absorbed, criterion)?;
+                let (mut r, fused) = ClosedForm::Nmci.response(&absorbed, criterion)?;
                 r.structure = structure.clone();
                 Ok((r, fused))
             }
-            Method::Ici => Ok(ici_response(&problem, criterion)?),
-            Method::Ei => Ok(ei_response(&problem)?),
-            Method::Naive => Ok(naive_response(&problem)),
+            Method::Ici => Ok(ClosedForm::Ici.response(&problem, criterion)?),
+            Method::Ei => Ok(ClosedForm::Ei.response(&problem, criterion)?),
+            Method::Naive => Ok(ClosedForm::Naive.response(&problem, criterion)?),
             Method::Certified => match &certificate {
                 Ok(Some(cert)) => {
                     let mut r = certificate_response(cert);

@@ -78,11 +78,18 @@ impl CovarianceSummary {
     /// `field`'s covariance `P`.
     #[allow(non_snake_case)]
     pub fn of(field: &str, P: &DMatrix<f64>) -> Self {
+        let (trace, det) = Self::trace_det(P);
         Self {
             name: field.into(),
-            trace: P.trace(),
-            det: P.determinant(),
+            trace,
+            det,
         }
+    }
+
+    /// `tr P` and `det P`, as a response reports them.
+    #[allow(non_snake_case)]
+    pub(crate) fn trace_det(P: &DMatrix<f64>) -> (f64, f64) {
+        (P.trace(), P.determinant())
     }
 }
 
@@ -158,11 +165,11 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
     )?;
     check_blocks(request.method, &problem)?;
     let mut response = match request.method {
-        Method::Ci => Ok(ci_response(&problem, plan.criterion)?.0),
-        Method::Nmci => Ok(nmci_response(&problem, plan.criterion)?.0),
-        Method::Ici => Ok(ici_response(&problem, plan.criterion)?.0),
-        Method::Ei => Ok(ei_response(&problem)?.0),
-        Method::Naive => Ok(naive_response(&problem).0),
+        Method::Ci => Ok(ClosedForm::Ci.response(&problem, plan.criterion)?.0),
+        Method::Nmci => Ok(ClosedForm::Nmci.response(&problem, plan.criterion)?.0),
+        Method::Ici => Ok(ClosedForm::Ici.response(&problem, plan.criterion)?.0),
+        Method::Ei => Ok(ClosedForm::Ei.response(&problem, plan.criterion)?.0),
+        Method::Naive => Ok(ClosedForm::Naive.response(&problem, plan.criterion)?.0),
         Method::Certified => Ok(certified_response(&problem, &plan.certify)?.0),
         Method::Sdp => Ok(sdp_response(&problem, &upper, &plan, None, true)?.0),
         Method::SdpCuts => {
@@ -286,60 +293,88 @@ pub(crate) fn certificate_response(cert: &CertifiedResult) -> FuseResponse {
     response(Method::Certified, Criterion::Trace, &cert.fused, details)
 }
 
-/// The CI response and the fused result it was made from.
-pub(crate) fn ci_response(
-    problem: &FusionProblem,
-    criterion: Criterion,
-) -> Result<(FuseResponse, Fused), InputError> {
-    let ci = covariance_intersection(problem, criterion)?;
-    let r = response(Method::Ci, criterion, &ci.fused, Details::Omega(ci.omega));
-    Ok((r, ci.fused))
+/// The two-estimate rules computed in closed form, without a solver: their result is the
+/// fused estimate, its bound, the gains and at most weights ([`fuse_stack`] takes these).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ClosedForm {
+    Ci,
+    Nmci,
+    Ici,
+    Ei,
+    Naive,
 }
 
-/// The nmCI response and the fused result it was made from.
-pub(crate) fn nmci_response(
-    problem: &FusionProblem,
-    criterion: Criterion,
-) -> Result<(FuseResponse, Fused), InputError> {
-    let nm = non_monolithic_ci(problem, criterion)?;
-    let details = Details::Blocks {
-        omega: nm.omega,
-        blocks: nm.blocks,
-    };
-    Ok((
-        response(Method::Nmci, criterion, &nm.fused, details),
-        nm.fused,
-    ))
-}
+impl ClosedForm {
+    /// The closed-form rule `method` names, if it names one.
+    pub(crate) fn of(method: Method) -> Option<Self> {
+        match method {
+            Method::Ci => Some(Self::Ci),
+            Method::Nmci => Some(Self::Nmci),
+            Method::Ici => Some(Self::Ici),
+            Method::Ei => Some(Self::Ei),
+            Method::Naive => Some(Self::Naive),
+            Method::Certified | Method::Sdp | Method::SdpCuts => None,
+        }
+    }
 
-/// The ICI response and the fused result it was made from.
-pub(crate) fn ici_response(
-    problem: &FusionProblem,
-    criterion: Criterion,
-) -> Result<(FuseResponse, Fused), InputError> {
-    let ici = inverse_covariance_intersection(problem, criterion)?;
-    let r = response(
-        Method::Ici,
-        criterion,
-        &ici.fused,
-        Details::Omega(ici.omega),
-    );
-    Ok((r, ici.fused))
-}
+    /// The method of this rule.
+    pub(crate) fn method(self) -> Method {
+        match self {
+            Self::Ci => Method::Ci,
+            Self::Nmci => Method::Nmci,
+            Self::Ici => Method::Ici,
+            Self::Ei => Method::Ei,
+            Self::Naive => Method::Naive,
+        }
+    }
 
-/// The EI response and the fused result it was made from (`criterion` reported as the
-/// default: EI has no weight to optimise).
-pub(crate) fn ei_response(problem: &FusionProblem) -> Result<(FuseResponse, Fused), InputError> {
-    let fused = ellipsoidal_intersection(problem)?;
-    let r = response(Method::Ei, Criterion::default(), &fused, Details::None);
-    Ok((r, fused))
-}
+    /// The criterion the response reports: EI and naive fusion report the default, having no
+    /// weight to optimise.
+    fn reported(self, criterion: Criterion) -> Criterion {
+        match self {
+            Self::Ei | Self::Naive => Criterion::default(),
+            _ => criterion,
+        }
+    }
 
-/// The naive-fusion response and the fused result it was made from.
-pub(crate) fn naive_response(problem: &FusionProblem) -> (FuseResponse, Fused) {
-    let fused = naive_fusion(problem);
-    let r = response(Method::Naive, Criterion::default(), &fused, Details::None);
-    (r, fused)
+    /// The fused result and the rule's details.
+    pub(crate) fn fuse(
+        self,
+        problem: &FusionProblem,
+        criterion: Criterion,
+    ) -> Result<(Fused, Details), InputError> {
+        Ok(match self {
+            Self::Ci => {
+                let ci = covariance_intersection(problem, criterion)?;
+                (ci.fused, Details::Omega(ci.omega))
+            }
+            Self::Nmci => {
+                let nm = non_monolithic_ci(problem, criterion)?;
+                let details = Details::Blocks {
+                    omega: nm.omega,
+                    blocks: nm.blocks,
+                };
+                (nm.fused, details)
+            }
+            Self::Ici => {
+                let ici = inverse_covariance_intersection(problem, criterion)?;
+                (ici.fused, Details::Omega(ici.omega))
+            }
+            Self::Ei => (ellipsoidal_intersection(problem)?, Details::None),
+            Self::Naive => (naive_fusion(problem), Details::None),
+        })
+    }
+
+    /// The response and the fused result it was made from.
+    pub(crate) fn response(
+        self,
+        problem: &FusionProblem,
+        criterion: Criterion,
+    ) -> Result<(FuseResponse, Fused), InputError> {
+        let (fused, details) = self.fuse(problem, criterion)?;
+        let r = response(self.method(), self.reported(criterion), &fused, details);
+        Ok((r, fused))
+    }
 }
 
 /// The sampled-SDP response: the relaxation of `problem` (the deflated problem when couplings

@@ -14,10 +14,17 @@
 //! A list of whole requests, of any sizes and methods, is [`fuse_list`]: in JSON, an array of
 //! requests (`nmci fuse`, the wasm `fuse`) gives the array of their responses.
 
+use nalgebra::{DMatrix, DVector};
+
 use crate::error::RequestError;
 use crate::fusion::rules::Method;
+use crate::fusion::FusionProblem;
+use crate::structure::CrossPattern;
 
-use super::{fuse, FuseRequest, FuseResponse, Gains, Options, PairInput};
+use super::{
+    check_blocks, fuse, structured, ClosedForm, CovarianceSummary, Details, FuseRequest,
+    FuseResponse, Options, PairInput, Structured,
+};
 
 /// `k` pairs of `n`-state estimates, row-major and contiguous: `pa`, `pb` hold `k · n · n`
 /// numbers (pair `i`'s matrix at `i · n · n`), `xa`, `xb` `k · n`.
@@ -75,15 +82,6 @@ pub struct StackResponse {
     pub notes: Vec<Option<String>>,
 }
 
-/// The rules a stack takes.
-const STACKED: [Method; 5] = [
-    Method::Ci,
-    Method::Nmci,
-    Method::Ici,
-    Method::Ei,
-    Method::Naive,
-];
-
 /// Fuses every pair of `request` (see the module docs).
 ///
 /// ```
@@ -102,15 +100,15 @@ const STACKED: [Method; 5] = [
 /// ```
 pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestError> {
     let n = request.n;
-    if !STACKED.contains(&request.method) {
-        return Err(RequestError::invalid(
+    let rule = ClosedForm::of(request.method).ok_or_else(|| {
+        RequestError::invalid(
             "method",
             format!(
                 "a stack takes ci, nmci, ici, ei or naive; `{}` reports a bracket or a certificate per pair: fuse its pairs one by one",
                 request.method.name()
             ),
-        ));
-    }
+        )
+    })?;
     let nn = n * n;
     if n == 0 || request.pa.len() % nn != 0 {
         return Err(RequestError::invalid(
@@ -143,21 +141,6 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
             ))
         }
     };
-    // The options checked once, before any pair.
-    let mut template = FuseRequest {
-        pair: PairInput {
-            blocks: request.blocks.clone(),
-            coupling_tol: request.coupling_tol,
-            ..PairInput::default()
-        },
-        method: request.method,
-        options: request.options.clone(),
-        estimates: None,
-        patterns: None,
-    };
-    template.options.plan()?;
-
-    let rows = |s: &[f64]| s.chunks(n).map(<[f64]>::to_vec).collect::<Vec<_>>();
     let mut out = StackResponse {
         count,
         n,
@@ -171,39 +154,102 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
         blocks: Vec::new(),
         notes: Vec::with_capacity(count),
     };
+    if count == 0 {
+        return Ok(out);
+    }
+    let in_stack = |index: usize| {
+        move |e: RequestError| RequestError::InStack {
+            index,
+            source: Box::new(e),
+        }
+    };
+    // The request's checks, which depend on the sizes and the options only: one pair's request
+    // stands for every pair's.
+    let rows = |s: &[f64]| s.chunks(n).map(<[f64]>::to_vec).collect::<Vec<_>>();
+    let first = FuseRequest {
+        pair: PairInput {
+            pa: rows(&request.pa[..nn]),
+            pb: rows(&request.pb[..nn]),
+            xa: request.xa.map(|v| v[..n].to_vec()),
+            xb: request.xb.map(|v| v[..n].to_vec()),
+            pab_unknown: request
+                .pab_unknown
+                .map(|m| m[..nn].chunks(n).map(<[bool]>::to_vec).collect()),
+            blocks: request.blocks.clone(),
+            coupling_tol: request.coupling_tol,
+        },
+        method: request.method,
+        options: request.options.clone(),
+        estimates: None,
+        patterns: None,
+    };
+    let criterion = first.plan().map_err(in_stack(0))?.criterion;
+    let settings = first.pair.structure_settings();
+    // The pattern as `PairInput::problem` builds it: the given one, else the declared blocks'.
+    let pattern = |i: usize| match (request.pab_unknown, &request.blocks) {
+        (Some(m), _) => {
+            let m = if shared_pattern {
+                m
+            } else {
+                &m[i * nn..(i + 1) * nn]
+            };
+            Ok(CrossPattern::from_fn(n, |r, c| m[r * n + c]))
+        }
+        (None, Some(blocks)) => CrossPattern::within_blocks(n, blocks),
+        (None, None) => Ok(CrossPattern::fully_unknown(n)),
+    };
+    let shared = if shared_pattern {
+        Some(pattern(0).map_err(|e| in_stack(0)(e.into()))?)
+    } else {
+        None
+    };
+    let vector = |v: Option<&[f64]>, i: usize| match v {
+        Some(v) => DVector::from_row_slice(&v[i * n..(i + 1) * n]),
+        None => DVector::zeros(n),
+    };
     for i in 0..count {
         let at = i * nn..(i + 1) * nn;
-        template.pair.pa = rows(&request.pa[at.clone()]);
-        template.pair.pb = rows(&request.pb[at.clone()]);
-        template.pair.xa = request.xa.map(|v| v[i * n..(i + 1) * n].to_vec());
-        template.pair.xb = request.xb.map(|v| v[i * n..(i + 1) * n].to_vec());
-        template.pair.pab_unknown = request.pab_unknown.map(|m| {
-            let m = if shared_pattern { m } else { &m[at.clone()] };
-            m.chunks(n).map(<[bool]>::to_vec).collect()
-        });
-        let r = fuse(&template).map_err(|e| RequestError::InStack {
-            index: i,
-            source: Box::new(e),
-        })?;
-        out.x.extend(&r.x);
-        out.p.extend(r.p.iter().flatten());
-        if let Gains::Pair { ka, kb } = &r.gains {
-            out.ka.extend(ka.iter().flatten());
-            out.kb.extend(kb.iter().flatten());
-        }
-        out.trace.push(r.trace);
-        out.det.push(r.det);
-        if let Some(omega) = r.omega() {
-            let mut per_state = vec![omega[0]; n];
-            if let Some(blocks) = r.blocks() {
+        let pair = || -> Result<_, RequestError> {
+            let pattern = match &shared {
+                Some(p) => p.clone(),
+                None => pattern(i)?,
+            };
+            let problem = FusionProblem::new(
+                vector(request.xa, i),
+                DMatrix::from_row_slice(n, n, &request.pa[at.clone()]),
+                vector(request.xb, i),
+                DMatrix::from_row_slice(n, n, &request.pb[at.clone()]),
+                pattern,
+            )?;
+            let Structured {
+                problem, details, ..
+            } = structured(problem, &settings, request.method)?;
+            check_blocks(request.method, &problem)?;
+            let (fused, rule_details) = rule.fuse(&problem, criterion)?;
+            Ok((fused, rule_details, details))
+        };
+        let (fused, details, structure) = pair().map_err(in_stack(i))?;
+        out.x.extend(fused.x.iter());
+        // Row-major, as the request: the transpose's column-major buffer.
+        out.p.extend(fused.P.transpose().iter());
+        out.ka.extend(fused.K_a.transpose().iter());
+        out.kb.extend(fused.K_b.transpose().iter());
+        let (trace, det) = CovarianceSummary::trace_det(&fused.P);
+        out.trace.push(trace);
+        out.det.push(det);
+        match details {
+            Details::Omega(omega) => out.omega.extend(std::iter::repeat_n(omega, n)),
+            Details::Blocks { omega, blocks } => {
+                let mut per_state = vec![0.0; n];
                 for (block, w) in blocks.iter().zip(&omega) {
                     block.iter().for_each(|&s| per_state[s] = *w);
                 }
-                out.blocks.push(blocks.clone());
+                out.omega.extend(per_state);
+                out.blocks.push(blocks);
             }
-            out.omega.extend(per_state);
+            _ => {}
         }
-        out.notes.push(r.structure.and_then(|s| s.note));
+        out.notes.push(structure.and_then(|s| s.note));
     }
     Ok(out)
 }
@@ -278,7 +324,13 @@ mod tests {
     fn a_pair_of_the_stack_is_the_single_request() {
         let pa = [3.0, 0.5, 0.5, 1.0, 2.0, -0.3, -0.3, 1.5];
         let pb = [1.0, 0.2, 0.2, 4.0, 1.0, 0.0, 0.0, 1.0];
-        for method in STACKED {
+        for method in [
+            Method::Ci,
+            Method::Nmci,
+            Method::Ici,
+            Method::Ei,
+            Method::Naive,
+        ] {
             let stack = fuse_stack(&request(method, &pa, &pb)).unwrap();
             for i in 0..2 {
                 let rows = |s: &[f64]| s.chunks(2).map(<[f64]>::to_vec).collect::<Vec<_>>();
