@@ -5,7 +5,7 @@
 #   scripts/python.sh build   -> the wheel, installed into target/py
 #   scripts/python.sh test    -> build, then pytest python/tests against the `nmci` CLI
 #   scripts/python.sh bench   -> build, then scripts/bench_python.py (installs scipy and cvxpy)
-#   scripts/python.sh bench-stack -> build, then scripts/bench_stack.py (installs stonesoup)
+#   scripts/python.sh bench-stack -> build, then scripts/bench_stack.py
 #   scripts/python.sh accuracy -> build, then scripts/accuracy.py (50-digit references)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,10 +20,10 @@ if [ ! -x "$py" ]; then
   python3 -m venv "$venv"
 fi
 # distributed: Dask's local cluster, which examples/python/sharded_study.py runs shards on;
-# mpmath: the 50-digit references of the accuracy tests.
-need=(maturin numpy pytest scipy distributed mpmath)
+# mpmath: the 50-digit references of the accuracy tests; stonesoup: the plugin nmci.stonesoup
+# (its tests, the stack benchmark's ChernoffUpdater peer).
+need=(maturin numpy pytest scipy distributed mpmath stonesoup)
 [ "$what" = bench ] && need+=(cvxpy clarabel)
-[ "$what" = bench-stack ] && need+=(stonesoup)
 missing=()
 for p in "${need[@]}"; do
   "$py" -c "import $p" 2>/dev/null || missing+=("$p")

@@ -1,0 +1,304 @@
+"""nmci.stonesoup, in Stone Soup's test style (pytest, parametrised). Skipped when Stone Soup is
+absent; the test command installs it."""
+
+import datetime
+
+import numpy as np
+import pytest
+
+stonesoup = pytest.importorskip("stonesoup")
+
+from scipy import integrate  # noqa: E402
+from stonesoup.models.measurement.linear import LinearGaussian  # noqa: E402
+from stonesoup.models.transition.linear import (  # noqa: E402
+    CombinedLinearGaussianTransitionModel,
+    ConstantVelocity,
+    RandomWalk,
+)
+from stonesoup.mixturereducer.gaussianmixture import CovarianceIntersection  # noqa: E402
+from stonesoup.serialise import YAML  # noqa: E402
+from stonesoup.types.detection import Detection, GaussianDetection, MissedDetection  # noqa: E402
+from stonesoup.types.hypothesis import SingleHypothesis  # noqa: E402
+from stonesoup.types.multihypothesis import MultipleHypothesis  # noqa: E402
+from stonesoup.types.prediction import (  # noqa: E402
+    GaussianStatePrediction,
+    TaggedWeightedGaussianStatePrediction,
+)
+from stonesoup.types.state import GaussianState  # noqa: E402
+from stonesoup.types.track import Track  # noqa: E402
+from stonesoup.updater.chernoff import ChernoffUpdater  # noqa: E402
+from stonesoup.updater.kalman import KalmanUpdater  # noqa: E402
+from stonesoup.updater.pointprocess import PHDUpdater  # noqa: E402
+from stonesoup.updater.wrapper import DetectionAndTrackSwitchingUpdater  # noqa: E402
+
+import nmci  # noqa: E402
+from nmci.stonesoup import (  # noqa: E402
+    NmciCovarianceIntersection,
+    NmciUpdater,
+    blocks_from_transition_model,
+    chernoff_log_normaliser,
+    fuse_tracks,
+    innovation_covariance,
+)
+
+T0 = datetime.datetime(2026, 1, 1)
+
+
+def spd(rng, n, blocks=None):
+    g = rng.standard_normal((n, n))
+    P = g @ g.T / n + 0.3 * np.eye(n)
+    if blocks is not None:
+        mask = np.zeros((n, n), dtype=bool)
+        for b in blocks:
+            mask[np.ix_(b, b)] = True
+        P = np.where(mask, P, 0.0)
+    return P
+
+
+def hypothesis(a, A, b, B, timestamp=T0):
+    n = len(a)
+    model = LinearGaussian(ndim_state=n, mapping=tuple(range(n)), noise_covar=A)
+    detection = GaussianDetection(np.reshape(a, (n, 1)), A, timestamp=timestamp, measurement_model=model)
+    prediction = GaussianStatePrediction(np.reshape(b, (n, 1)), B, timestamp=timestamp)
+    return SingleHypothesis(prediction, detection)
+
+
+def test_the_plugin_entry_point_gives_the_package():
+    from stonesoup.plugins.nmci import NmciUpdater as Plugged
+
+    assert Plugged is NmciUpdater
+
+
+@pytest.mark.parametrize("omega", [0.2, 0.5, 0.8])  # ChernoffUpdater divides by 1 - ω
+@pytest.mark.parametrize("n", [2, 4])
+def test_a_fixed_omega_is_chernoff_updaters_update(omega, n):
+    rng = np.random.default_rng(n)
+    a, b = rng.standard_normal(n), rng.standard_normal(n)
+    A, B = spd(rng, n), spd(rng, n)
+    ours = NmciUpdater(measurement_model=None, omega=omega).update(hypothesis(a, A, b, B))
+    theirs = ChernoffUpdater(measurement_model=None, omega=omega).update(hypothesis(a, A, b, B))
+    assert np.allclose(ours.covar, theirs.covar, rtol=1e-14 * 50, atol=1e-14)
+    assert np.allclose(ours.state_vector, theirs.state_vector, rtol=1e-14 * 50, atol=1e-13)
+    assert ours.fusion.omega == (omega,)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_optimal_omega_is_never_worse_than_any_omega_on_a_grid(seed):
+    rng = np.random.default_rng(seed)
+    A, B = spd(rng, 3), spd(rng, 3)
+    optimal = np.trace(NmciUpdater(measurement_model=None).update(hypothesis(np.zeros(3), A, np.zeros(3), B)).covar)
+    for omega in np.linspace(0, 1, 101):
+        fixed = NmciUpdater(measurement_model=None, omega=omega).update(hypothesis(np.zeros(3), A, np.zeros(3), B))
+        assert optimal <= np.trace(fixed.covar) * (1 + 1e-12)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_nmci_is_never_looser_than_ci(seed):
+    rng = np.random.default_rng(seed)
+    blocks = [[0, 1], [2, 3]]
+    A, B = spd(rng, 4, blocks), spd(rng, 4, blocks)
+    h = hypothesis(rng.standard_normal(4), A, rng.standard_normal(4), B)
+    ci = NmciUpdater(measurement_model=None, rule="ci").update(h)
+    nm = NmciUpdater(measurement_model=None, rule="nmci", blocks=blocks).update(h)
+    assert np.trace(nm.covar) <= np.trace(ci.covar) * (1 + 1e-12)
+    assert nm.fusion.blocks == ((0, 1), (2, 3)) and len(nm.fusion.omega) == 2
+    assert nm.fusion.guarantee == ci.fusion.guarantee == "conservative"
+
+
+@pytest.mark.parametrize("rule", ["certified", "ici", "ei", "naive", "sdp"])
+def test_every_rule_of_the_registry_updates(rule):
+    rng = np.random.default_rng(7)
+    A, B = spd(rng, 2), spd(rng, 2)
+    options = {"samples": 50} if rule == "sdp" else None
+    up = NmciUpdater(measurement_model=None, rule=rule, options=options).update(
+        hypothesis(np.ones(2), A, np.zeros(2), B))
+    expected = nmci.fuse({"method": rule, "pa": A, "pb": B, "xa": np.ones(2), "xb": np.zeros(2), **(options or {})})
+    assert np.array_equal(up.covar, np.asarray(expected["p"])) and up.fusion.rule == rule
+
+
+@pytest.mark.parametrize("omega", [0.3, 0.5, 0.8])
+def test_the_normaliser_is_the_integral_in_one_dimension(omega):
+    a, A, b, B = 0.7, 2.0, -0.4, 0.5
+    density = lambda x, m, v: np.exp(-0.5 * (x - m) ** 2 / v) / np.sqrt(2 * np.pi * v)  # noqa: E731
+    value, _ = integrate.quad(lambda x: density(x, a, A) ** omega * density(x, b, B) ** (1 - omega), -50, 50,
+                              epsabs=0, epsrel=1e-13)
+    assert chernoff_log_normaliser([a], [[A]], [b], [[B]], omega) == pytest.approx(np.log(value), abs=1e-10)
+
+
+@pytest.mark.parametrize("omega", [0.3, 0.7])
+def test_the_normaliser_is_the_integral_in_two_dimensions_and_stone_soups_matrix_is_not(omega):
+    a, b = np.array([0.5, -0.2]), np.array([-0.3, 0.4])
+    A = np.array([[1.0, 0.3], [0.3, 0.6]])
+    B = np.array([[0.4, -0.1], [-0.1, 0.9]])
+
+    def density(x, m, S):
+        d = x - m
+        return np.exp(-0.5 * d @ np.linalg.solve(S, d)) / np.sqrt(np.linalg.det(2 * np.pi * S))
+
+    value, _ = integrate.dblquad(
+        lambda y, x: density(np.array([x, y]), a, A) ** omega * density(np.array([x, y]), b, B) ** (1 - omega),
+        -12, 12, -12, 12, epsabs=1e-13, epsrel=1e-11)
+    ours = chernoff_log_normaliser(a, A, b, B, omega)
+    assert ours == pytest.approx(np.log(value), abs=1e-8)
+    # Stone Soup's innovation covariance A/(1-ω) + B/ω is V(1 - ω): its Gaussian factor, with the
+    # same κ, is not the integral at ω ≠ 0.5.
+    V_ss = A / (1 - omega) + B / omega
+    V = innovation_covariance(A, B, omega)
+    assert np.allclose(V, A / omega + B / (1 - omega))
+    gauss = lambda S: -0.5 * (np.linalg.slogdet(2 * np.pi * S)[1] + (a - b) @ np.linalg.solve(S, a - b))  # noqa: E731
+    theirs = ours - gauss(V) + gauss(V_ss)
+    assert abs(theirs - np.log(value)) > 1e-3
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_innovation_covariance_bounds_every_cross_covariance(seed):
+    rng = np.random.default_rng(seed)
+    n = 3
+    joint = spd(rng, 2 * n)
+    A, B, C = joint[:n, :n], joint[n:, n:], joint[:n, n:]
+    difference = A + B - C - C.T
+    for omega in [None, 0.05, 0.5, rng.uniform(0.01, 0.99), 0.0, 1.0]:
+        V = innovation_covariance(A, B, omega)
+        assert np.linalg.eigvalsh(V - difference).min() >= -1e-12 * np.trace(V)
+
+
+def test_predict_measurement_gives_v_at_the_weights():
+    rng = np.random.default_rng(3)
+    A, B = spd(rng, 2), spd(rng, 2)
+    h = hypothesis(np.zeros(2), A, np.zeros(2), B)
+    model = h.measurement.measurement_model
+    half = NmciUpdater(measurement_model=None, omega=0.5).predict_measurement(h.prediction, model)
+    chernoff = ChernoffUpdater(measurement_model=None, omega=0.5).predict_measurement(h.prediction, model)
+    assert np.allclose(half.covar, chernoff.covar, rtol=1e-15)
+    at = NmciUpdater(measurement_model=None, omega=0.3).predict_measurement(h.prediction, model)
+    assert np.allclose(at.covar, A / 0.3 + B / 0.7, rtol=1e-15)
+    optimal = NmciUpdater(measurement_model=None).predict_measurement(h.prediction, model)
+    w = nmci.ci(A, B).omega[0]
+    assert 0 < w < 1 and np.allclose(optimal.covar, A / w + B / (1 - w), rtol=1e-14)
+    bare = NmciUpdater(measurement_model=None).predict_measurement(h.prediction, model, measurement_noise=False)
+    assert np.array_equal(bare.covar, B)
+
+
+def test_a_yaml_round_trip_gives_the_same_updater():
+    updater = NmciUpdater(measurement_model=None, rule="nmci", blocks=[[0, 1], [2, 3]], coupling_tol=1e-8,
+                          criterion="trace", pab_unknown=np.eye(4, dtype=bool))
+    reducer = NmciCovarianceIntersection(rule="nmci", blocks=[[0], [1]])
+    certified = NmciUpdater(measurement_model=None, rule="certified", options={"level": 2})
+    for component in (updater, reducer, certified):
+        text = YAML().dumps(component)
+        assert "!nmci.stonesoup" in text
+        back = YAML().load(text)
+        assert type(back) is type(component)
+        for name in type(component).properties:
+            assert np.array_equal(np.asarray(getattr(back, name), dtype=object),
+                                  np.asarray(getattr(component, name), dtype=object)), name
+
+
+def test_inside_phd_updater():
+    rng = np.random.default_rng(5)
+    blocks = [[0, 1], [2, 3]]
+    predictions = [
+        TaggedWeightedGaussianStatePrediction(rng.standard_normal((4, 1)), spd(rng, 4, blocks), weight=0.5,
+                                              tag=str(i), timestamp=T0)
+        for i in range(2)]
+    detections = []
+    for _ in range(3):
+        A = spd(rng, 4, blocks)
+        detections.append(GaussianDetection(
+            rng.standard_normal((4, 1)), A, timestamp=T0,
+            measurement_model=LinearGaussian(ndim_state=4, mapping=(0, 1, 2, 3), noise_covar=A)))
+    hypotheses = [MultipleHypothesis([SingleHypothesis(p, d) for p in predictions]) for d in detections]
+    hypotheses.append(MultipleHypothesis([SingleHypothesis(p, MissedDetection(timestamp=T0)) for p in predictions]))
+    phd = PHDUpdater(NmciUpdater(measurement_model=None, rule="nmci", blocks=blocks),
+                     clutter_spatial_density=1e-3, prob_detection=0.9, prob_survival=0.99)
+    mixture = phd.update(hypotheses)
+    weights = [c.weight for c in mixture]
+    assert len(mixture) == 3 * 2 + 2 and all(np.isfinite(float(w)) and float(w) >= 0 for w in weights)
+
+
+def test_inside_a_detection_and_track_switching_tracker():
+    """Detections go to a Kalman updater, tracks from another node to NmciUpdater."""
+    rng = np.random.default_rng(11)
+    transition = CombinedLinearGaussianTransitionModel([ConstantVelocity(0.1), ConstantVelocity(0.1)])
+    blocks = blocks_from_transition_model(transition)
+    position = LinearGaussian(ndim_state=4, mapping=(0, 2), noise_covar=np.eye(2) * 0.5)
+    updater = DetectionAndTrackSwitchingUpdater(
+        None, KalmanUpdater(position), NmciUpdater(measurement_model=None, rule="nmci", blocks=blocks))
+    from stonesoup.predictor.kalman import KalmanPredictor
+
+    predictor = KalmanPredictor(transition)
+    state = GaussianState(np.zeros((4, 1)), np.eye(4), timestamp=T0)
+    for k in range(1, 11):
+        t = T0 + datetime.timedelta(seconds=k)
+        prediction = predictor.predict(state, timestamp=t)
+        if k % 2:
+            z = Detection(rng.standard_normal((2, 1)), timestamp=t, measurement_model=position)
+        else:
+            A = np.diag([0.4, 0.1, 0.4, 0.1])
+            z = GaussianDetection(rng.standard_normal((4, 1)), A, timestamp=t,
+                                  measurement_model=LinearGaussian(4, [0, 1, 2, 3], A))
+        h = SingleHypothesis(prediction, z, measurement_prediction=updater.predict_measurement(
+            prediction, z.measurement_model))
+        state = updater.update(h)
+        assert np.all(np.isfinite(state.covar))
+        assert (getattr(state, "fusion", None) is not None) == (k % 2 == 0)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_reducer_weights(seed):
+    rng = np.random.default_rng(seed)
+    states = [GaussianState(rng.standard_normal((3, 1)), spd(rng, 3)) for _ in range(3)]
+    optimal = NmciCovarianceIntersection().merge_components(*states)
+    equal = CovarianceIntersection.merge_components(*states)
+    assert np.trace(optimal.covar) <= np.trace(equal.covar) * (1 + 1e-12)
+    given = NmciCovarianceIntersection().merge_components(*states, weights=[1, 2, 3])
+    stone = CovarianceIntersection.merge_components(*states, weights=[1, 2, 3])
+    assert np.allclose(given.covar, stone.covar, rtol=1e-12) and np.allclose(given.state_vector, stone.state_vector)
+    assert sum(optimal.fusion.omega) == pytest.approx(1.0)
+
+
+def test_fuse_tracks_at_common_times():
+    rng = np.random.default_rng(2)
+    times = [T0 + datetime.timedelta(seconds=s) for s in range(5)]
+    one = Track([GaussianState(rng.standard_normal((2, 1)), spd(rng, 2), timestamp=t) for t in times])
+    two = Track([GaussianState(rng.standard_normal((2, 1)), spd(rng, 2), timestamp=t) for t in times[2:]])
+    fused = fuse_tracks([one, two])
+    assert [s.timestamp for s in fused] == times[2:]
+    for s, a, b in zip(fused, one.states[2:], two.states):
+        assert np.trace(s.covar) <= min(np.trace(a.covar), np.trace(b.covar)) * (1 + 1e-12)
+
+
+def test_blocks_from_transition_models():
+    cv = ConstantVelocity(0.1)
+    assert blocks_from_transition_model(CombinedLinearGaussianTransitionModel([cv, cv])) == [[0, 1], [2, 3]]
+    assert blocks_from_transition_model(CombinedLinearGaussianTransitionModel([RandomWalk(1.0), cv])) == [[0], [1, 2]]
+    assert blocks_from_transition_model(cv) == [[0, 1]]
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    ({"rule": "kalman"}, "rule"),
+    ({"rule": "nmci", "omega": 0.5}, "omega"),
+    ({"omega": 1.5}, "omega"),
+    ({"omega": True}, "omega"),
+])
+def test_bad_properties_are_refused_with_their_field(kwargs, field):
+    with pytest.raises(nmci.RequestError) as e:
+        NmciUpdater(measurement_model=None, **kwargs)
+    assert e.value.field == field
+
+
+def test_bad_input_is_refused_with_its_field():
+    h = hypothesis(np.zeros(2), np.eye(2), np.zeros(2), np.eye(2))
+    partial = LinearGaussian(ndim_state=2, mapping=(0,), noise_covar=np.eye(1))
+    with pytest.raises(nmci.InputError) as e:
+        NmciUpdater(measurement_model=None).predict_measurement(h.prediction, partial)
+    assert e.value.field == "measurement_model"
+    with pytest.raises(nmci.InputError) as e:
+        NmciUpdater(measurement_model=None).update(hypothesis(np.zeros(2), -np.eye(2), np.zeros(2), np.eye(2)))
+    assert e.value.field == "pa"
+    with pytest.raises(nmci.RequestError) as e:
+        NmciCovarianceIntersection().merge_components(GaussianState(np.zeros((1, 1)), np.eye(1)), weights=[-1])
+    assert e.value.field == "weights"
+    with pytest.raises(nmci.RequestError) as e:
+        NmciCovarianceIntersection(rule="sdp")
+    assert e.value.field == "rule"
