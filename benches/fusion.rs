@@ -20,6 +20,8 @@
 //! block's cross block (the presets' values, as `www/state.js` sets them);
 //! `explore/twoblock_one_zero/edit_one_block`: the last with a new value in block 1 at every
 //! call and block 2's certificate from the memo, as an edit in the page.
+//! Issue 42: `stack/{ci,nmci}/4x10000` ([`fuse_stack`] over 10⁴ pairs of 4-state estimates) and
+//! `eigen/symmetric/4x10000`, the floor: one 4 × 4 symmetric eigendecomposition per pair.
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};

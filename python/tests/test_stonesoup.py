@@ -302,3 +302,16 @@ def test_bad_input_is_refused_with_its_field():
     with pytest.raises(nmci.RequestError) as e:
         NmciCovarianceIntersection(rule="sdp")
     assert e.value.field == "rule"
+
+
+def test_the_readme_switch_runs():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    start = text.index("```python\nfrom nmci.stonesoup") + len("```python\n")
+    block = text[start: text.index("```", start)]
+    assert len(block.strip().splitlines()) == 3
+    namespace = {"transition_model": CombinedLinearGaussianTransitionModel([ConstantVelocity(0.1)] * 2)}
+    exec(compile(block, "README.md", "exec"), namespace)
+    assert isinstance(namespace["track_updater"], NmciUpdater)
+    assert namespace["track_updater"].blocks == [[0, 1], [2, 3]]
