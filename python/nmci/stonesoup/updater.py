@@ -52,8 +52,10 @@ own ``ω_k``, and ``V`` is block-diagonal with blocks ``V_k(ω_k)``. A block fus
 rules without a CI weight (``certified``, ``sdp``, ``sdp_cuts``, ``ei``, ``naive``, ``ici``),
 the block of ``V`` is the member of the family with the least trace,
 ``ω_k = √tr A_k / (√tr A_k + √tr B_k)``: still a bound on the innovation covariance, so gating
-keeps the guarantee above. When couplings within ``coupling_tol`` were absorbed (the rule's
-``structure``), the bound holds for the absorbed covariances the rule fuses.
+keeps the guarantee above. ``V`` is formed from the diagonal blocks of ``A`` and ``B`` as given:
+where the entries between blocks are exact zeros the bound is exact; where the rule absorbed
+couplings within ``coupling_tol`` (its ``structure``), ``Cov(a - b)`` has entries between blocks
+of that relative size that ``V`` does not hold, so there the bound holds up to them.
 """
 
 from dataclasses import dataclass
