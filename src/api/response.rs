@@ -209,8 +209,8 @@ pub struct CertifiedDetails {
 impl FuseResponse {
     /// What the bound is guaranteed for ([`Method::guarantee`]; JSON `guarantee`):
     /// `conservative` (CI, nmCI, the certified rule: every admissible `P_ab`; for CI and nmCI
-    /// the exact bound, the reported `P` within `4 ε κ` relative of it, `κ` the pencil's
-    /// condition number, on the pairs measured against 50-digit references), `relaxation` (`sdp`,
+    /// the exact bound, the reported `P` within `4 ε κ` relative of it, `κ` the larger
+    /// condition number of `P_a`, `P_b`, on the pairs measured against 50-digit references), `relaxation` (`sdp`,
     /// `sdp_cuts`: imposed for the drawn or found `P_ab` only, to the solver's tolerance; see
     /// the bracket), `common_information` (ICI) or `none` (EI, naive).
     pub fn guarantee(&self) -> Guarantee {
