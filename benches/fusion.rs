@@ -20,8 +20,9 @@
 //! block's cross block (the presets' values, as `www/state.js` sets them);
 //! `explore/twoblock_one_zero/edit_one_block`: the last with a new value in block 1 at every
 //! call and block 2's certificate from the memo, as an edit in the page.
-//! Issue 42: `stack/{ci,nmci}/4x10000` ([`fuse_stack`] over 10⁴ pairs of 4-state estimates) and
-//! `eigen/symmetric/4x10000`, the floor: one 4 × 4 symmetric eigendecomposition per pair.
+//! Issue 42: `stack/{ci,nmci}/4x10000` ([`fuse_stack`] over 10⁴ pairs of 4-state estimates, one
+//! thread), the same `/parallel` (rayon's default pool), and `eigen/symmetric/4x10000`, the
+//! floor: one 4 × 4 symmetric eigendecomposition per pair.
 #![allow(non_snake_case)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion as Bench};
@@ -407,7 +408,15 @@ fn stack_benches(c: &mut Bench) {
             blocks: None,
             coupling_tol: None,
         };
+        // One thread, as the issue's benchmark asks; then rayon's default pool (every core).
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
         c.bench_function(&format!("stack/{}/4x10000", method.name()), |b| {
+            b.iter(|| one.install(|| fuse_stack(black_box(&request)).unwrap()))
+        });
+        c.bench_function(&format!("stack/{}/4x10000/parallel", method.name()), |b| {
             b.iter(|| fuse_stack(black_box(&request)).unwrap())
         });
     }

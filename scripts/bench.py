@@ -42,7 +42,7 @@ RUST_BENCHES = [
     ("^certified/1/paper_one_zero$", "the certified rule, level 1, paper's example with one known zero"),
     ("^certified/2/random3$", "the certified rule, level 2, a random 3-state problem"),
     ("^explore/", "the explorer's analysis of a preset (every rule, bracket, margins), native"),
-    ("^stack/", "a stack of 10⁴ pairs of 4-state estimates through `fuse_stack` (nmCI: diagonal pattern)"),
+    ("^stack/", "a stack of 10⁴ pairs of 4-state estimates through `fuse_stack` (nmCI: diagonal pattern); one thread, `/parallel` on rayon's default pool"),
     ("^eigen/symmetric/4x10000$", "10⁴ nalgebra symmetric eigendecompositions of 4 × 4 matrices (the floor of a CI stack)"),
 ]
 

@@ -13,14 +13,20 @@ thread, side by side in one run. Prints a Markdown table (median of repeated run
 
 Every method's traces are compared with nmci's (the largest relative difference is printed), and
 the numpy CI must never be below nmci's optimum beyond 1e-12 relative: equal accuracy, or the
-table says otherwise. Threads: ``OMP_NUM_THREADS`` and ``OPENBLAS_NUM_THREADS`` are set to 1
-before numpy is imported; nmci's stack runs on the calling thread.
+table says otherwise. Threads: ``OMP_NUM_THREADS``, ``OPENBLAS_NUM_THREADS`` and
+``RAYON_NUM_THREADS`` (nmci's pool for stacks of 64 pairs or more) are set to 1 before numpy and
+nmci are imported.
+
+The single call: "per call" is the loop's time per pair (``nmci.ci(A, B)`` on 2-D arrays, one
+pair per call), next to numpy's ``np.linalg.eigh(A)`` called on one pair's ``A`` (a single
+eigendecomposition, the least a CI needs, through numpy's Python interface).
 """
 
 import os
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("RAYON_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
@@ -88,8 +94,8 @@ def main():
     rng = np.random.default_rng(4)
     print(f"numpy {np.__version__}, nmci {nmci.__version__}, stonesoup {soup or 'not installed'}; one thread")
     print()
-    print("| n | k | nmci stack | numpy batched CI | `eigh` alone (floor) | loop over `nmci.ci` | `ChernoffUpdater` loop (ω = 0.5) | stack vs numpy | per pair (stack) | traces |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| n | k | nmci stack | numpy batched CI | `eigh` alone (floor) | loop over `nmci.ci` | `ChernoffUpdater` loop (ω = 0.5) | stack vs numpy | per pair (stack) | per call (loop) | one `eigh` call | traces |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for n in (2, 4, 6, 14):
         for k in (1, 100, 10_000):
             Pa, Pb = stacks(rng, n, k)
@@ -98,6 +104,8 @@ def main():
             t_numpy = median_time(lambda: ci_numpy_batched(Pa, Pb), repeat)
             t_eigh = median_time(lambda: np.linalg.eigh(Pa), repeat)
             t_loop = median_time(lambda: [nmci.ci(a, b) for a, b in zip(Pa, Pb)], repeat if k < 10_000 else 3)
+            one = Pa[0]
+            t_one_eigh = median_time(lambda: [np.linalg.eigh(one) for _ in range(100)], repeat) / 100
             stack = nmci.ci(Pa, Pb)
             _, P_np = ci_numpy_batched(Pa, Pb)
             tr_np = np.trace(P_np, axis1=1, axis2=2)
@@ -112,7 +120,8 @@ def main():
                 soup_cell = "—"
             print(
                 f"| {n} | {k} | {t_stack * 1e3:.3g} ms | {t_numpy * 1e3:.3g} ms | {t_eigh * 1e3:.3g} ms | {t_loop * 1e3:.3g} ms | {soup_cell} "
-                f"| {t_numpy / t_stack:.2f}× | {t_stack / k * 1e6:.3g} µs | numpy within {rel:.1e} |"
+                f"| {t_numpy / t_stack:.2f}× | {t_stack / k * 1e6:.3g} µs | {t_loop / k * 1e6:.3g} µs | {t_one_eigh * 1e6:.3g} µs "
+                f"| numpy within {rel:.1e} |"
             )
 
 

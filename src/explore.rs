@@ -237,6 +237,7 @@ fn analyse(
         details: structure,
         ..
     } = structured(problem.clone(), &settings, Method::Nmci)?;
+    let relaxed = relaxed.unwrap_or_else(|| problem.clone());
     check_blocks(Method::Sdp, &relaxed)?;
     let plan = request.options.plan()?;
     check_count(

@@ -87,9 +87,20 @@ pub(crate) fn on_baseline<R>(f: impl FnOnce() -> R) -> R {
 /// Relative tolerance of the symmetry check on inputs.
 pub(crate) const SYMMETRY_RTOL: f64 = 1e-9;
 
-/// `(A + Aᵀ) / 2`.
+/// `(A + Aᵀ) / 2`, each entry `(a_ij + a_ji) · 0.5` (the diagonal `(a_ii + a_ii) · 0.5`, which
+/// overflows where `a_ii` is above half the largest float, as the sum does).
 pub(crate) fn symmetrize(a: &DMatrix<f64>) -> DMatrix<f64> {
-    (a + a.transpose()) * 0.5
+    let mut s = a.clone();
+    let n = s.nrows();
+    for j in 0..n {
+        s[(j, j)] = (a[(j, j)] + a[(j, j)]) * 0.5;
+        for i in j + 1..n {
+            let m = (a[(i, j)] + a[(j, i)]) * 0.5;
+            s[(i, j)] = m;
+            s[(j, i)] = m;
+        }
+    }
+    s
 }
 
 /// `P ← (P + Pᵀ) / 2` in place.

@@ -208,6 +208,15 @@ def _two(
     pab_unknown: Optional[ArrayLike],
     **options: Any,
 ) -> Union[Fused, FusedStack]:
+    if type(Pa) is np.ndarray and Pa.ndim == 2 and type(Pb) is np.ndarray:
+        # One pair of float64 arrays, the common case: straight to Rust, which reads any
+        # strides and checks every number. What it cannot take as given (another dtype, a
+        # list, a stack) it refuses with a TypeError before any work, and goes the general way
+        # below, which converts it or names what is wrong.
+        try:
+            return _fused(_nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, **options))
+        except TypeError:
+            pass
     pa = _array("P_a", Pa, (2, 3))
     if pa.ndim == 3:
         # A stack of pairs: `(k, n, n)` covariances, `(k, n)` means, one pattern or one each.

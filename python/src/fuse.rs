@@ -7,6 +7,8 @@ use numpy::{
     PyReadonlyArray3, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyAttributeError, PyKeyError};
+use std::sync::Mutex;
+
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
@@ -45,6 +47,10 @@ pub(crate) fn array2<'py>(
 /// `None` means absent (the plan's default); a name neither type has is refused, as the
 /// contract refuses an unknown field.
 fn options(py: Python<'_>, kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<(Options, PairInput)> {
+    if kwargs.is_none_or(|d| d.values().iter().all(|v| v.is_none())) {
+        // Nothing given: every field absent, as an empty dict reads.
+        return Ok((Options::default(), PairInput::default()));
+    }
     let option_fields = field_names::<Options>().unwrap_or_default();
     let pair_fields = field_names::<PairInput>().unwrap_or_default();
     let given = PyDict::new(py);
@@ -287,49 +293,127 @@ impl FusedStack {
 /// Its attributes are the contract's fields ([`response_fields`]), `None` where the method
 /// does not report one; `p`, `ka` and `kb` are named `P`, `Ka` and `Kb`. `r["field"]` reads
 /// a field by its contract name.
+///
+/// The fields are converted to Python when first read: the arrays and numbers a filter reads
+/// (`x`, `p`, `ka`, `kb`, `omega`, `trace`, `det`) one by one, the others all at once. A field
+/// read twice is the same object.
 #[pyclass(module = "nmci._nmci", frozen)]
 pub struct Fused {
+    /// The fields converted so far (all of them once `rest` is `None`), in the order of the
+    /// complete response.
     fields: Py<PyDict>,
+    /// The response, until every field is converted ([`Fused::complete`]).
+    rest: Mutex<Option<FuseResponse>>,
 }
 
 /// The attributes named as in the paper rather than as in the contract.
 const ALIASES: [(&str, &str); 3] = [("P", "p"), ("Ka", "ka"), ("Kb", "kb")];
 
+/// Every field of `r` as Python values: serde writes the response, the bulk arrays go to numpy
+/// from the typed response.
+fn response_dict(py: Python<'_>, mut r: FuseResponse) -> PyResult<Bound<'_, PyDict>> {
+    let x = std::mem::take(&mut r.x);
+    let p = std::mem::take(&mut r.p);
+    let gains = std::mem::replace(&mut r.gains, Gains::Nway(Vec::new()));
+    let omega = r.omega();
+    let weights = match &mut r.details {
+        Details::Nway { weights, .. } => Some(std::mem::take(weights)),
+        _ => None,
+    };
+    let fields = to_python(py, &r)?.cast_into::<PyDict>()?;
+    fields.set_item("x", PyArray1::from_vec(py, x))?;
+    fields.set_item("p", array2(py, &p)?)?;
+    match gains {
+        Gains::Pair { ka, kb } => {
+            fields.del_item("gains").ok();
+            fields.set_item("ka", array2(py, &ka)?)?;
+            fields.set_item("kb", array2(py, &kb)?)?;
+        }
+        Gains::Nway(stack) => {
+            let stack = PyArray3::from_vec3(py, &stack)
+                .map_err(|e| error(py, "InternalError", e.to_string()))?;
+            fields.set_item("gains", stack)?;
+        }
+    }
+    if let Some(omega) = omega {
+        fields.set_item("omega", PyArray1::from_vec(py, omega))?;
+    }
+    if let Some(weights) = weights {
+        fields.set_item("weights", array2(py, &weights)?)?;
+    }
+    Ok(fields)
+}
+
+/// The field `name` of `r` as [`response_dict`] writes it, for the fields a filter reads; `None`
+/// for the others (and for a field `r` does not carry).
+fn bulk_field<'py>(
+    py: Python<'py>,
+    r: &FuseResponse,
+    name: &str,
+) -> PyResult<Option<Bound<'py, PyAny>>> {
+    Ok(match (name, &r.gains) {
+        ("x", _) => Some(PyArray1::from_slice(py, &r.x).into_any()),
+        ("p", _) => Some(array2(py, &r.p)?.into_any()),
+        ("ka", Gains::Pair { ka, .. }) => Some(array2(py, ka)?.into_any()),
+        ("kb", Gains::Pair { kb, .. }) => Some(array2(py, kb)?.into_any()),
+        ("omega", _) => r
+            .omega()
+            .map(|omega| PyArray1::from_vec(py, omega).into_any()),
+        ("trace", _) => Some(r.trace.into_pyobject(py)?.into_any()),
+        ("det", _) => Some(r.det.into_pyobject(py)?.into_any()),
+        _ => None,
+    })
+}
+
 impl Fused {
-    fn new_from(py: Python<'_>, mut r: FuseResponse) -> PyResult<Self> {
-        // The bulk arrays go to numpy from the typed response; serde writes the rest.
-        let x = std::mem::take(&mut r.x);
-        let p = std::mem::take(&mut r.p);
-        let gains = std::mem::replace(&mut r.gains, Gains::Nway(Vec::new()));
-        let omega = r.omega();
-        let weights = match &mut r.details {
-            Details::Nway { weights, .. } => Some(std::mem::take(weights)),
-            _ => None,
-        };
-        let fields = to_python(py, &r)?.cast_into::<PyDict>()?;
-        fields.set_item("x", PyArray1::from_vec(py, x))?;
-        fields.set_item("p", array2(py, &p)?)?;
-        match gains {
-            Gains::Pair { ka, kb } => {
-                fields.del_item("gains").ok();
-                fields.set_item("ka", array2(py, &ka)?)?;
-                fields.set_item("kb", array2(py, &kb)?)?;
-            }
-            Gains::Nway(stack) => {
-                let stack = PyArray3::from_vec3(py, &stack)
-                    .map_err(|e| error(py, "InternalError", e.to_string()))?;
-                fields.set_item("gains", stack)?;
-            }
-        }
-        if let Some(omega) = omega {
-            fields.set_item("omega", PyArray1::from_vec(py, omega))?;
-        }
-        if let Some(weights) = weights {
-            fields.set_item("weights", array2(py, &weights)?)?;
-        }
+    fn new_from(py: Python<'_>, r: FuseResponse) -> PyResult<Self> {
         Ok(Self {
-            fields: fields.unbind(),
+            fields: PyDict::new(py).unbind(),
+            rest: Mutex::new(Some(r)),
         })
+    }
+
+    fn rest(&self) -> std::sync::MutexGuard<'_, Option<FuseResponse>> {
+        // A panic while the lock was held left the response as it was: still usable.
+        self.rest.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The field `name` (its contract name), converted if it was not yet; `None` when the
+    /// response does not carry it.
+    fn field<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let fields = self.fields.bind(py);
+        if let Some(value) = fields.get_item(name)? {
+            return Ok(Some(value));
+        }
+        let bulk = match self.rest().as_ref() {
+            None => return Ok(None),
+            Some(r) => bulk_field(py, r, name)?,
+        };
+        match bulk {
+            Some(value) => {
+                fields.set_item(name, &value)?;
+                Ok(Some(value))
+            }
+            None => {
+                self.complete(py)?;
+                fields.get_item(name)
+            }
+        }
+    }
+
+    /// Every field converted, those read before kept as the objects they were.
+    fn complete<'py>(&self, py: Python<'py>) -> PyResult<&Bound<'py, PyDict>> {
+        let fields = self.fields.bind(py);
+        let Some(r) = self.rest().take() else {
+            return Ok(fields);
+        };
+        let all = response_dict(py, r)?;
+        for (key, value) in fields.iter() {
+            all.set_item(key, value)?;
+        }
+        fields.clear();
+        fields.update(all.as_mapping())?;
+        Ok(fields)
     }
 }
 
@@ -340,11 +424,12 @@ impl Fused {
     fn new(fields: Bound<'_, PyDict>) -> Self {
         Self {
             fields: fields.unbind(),
+            rest: Mutex::new(None),
         }
     }
 
-    fn __getnewargs__(&self, py: Python<'_>) -> (Py<PyDict>,) {
-        (self.fields.clone_ref(py),)
+    fn __getnewargs__(&self, py: Python<'_>) -> PyResult<(Py<PyDict>,)> {
+        Ok((self.complete(py)?.clone().unbind(),))
     }
 
     /// The contract's fields a response can carry ([`response_fields`]).
@@ -372,37 +457,85 @@ impl Fused {
                 "Fused has no attribute {name:?}"
             )));
         }
-        Ok(match self.fields.bind(py).get_item(field)? {
+        Ok(match self.field(py, field)? {
             Some(value) => value.unbind(),
             None => py.None(),
         })
     }
 
+    // The fields a filter reads, as getters: found on the type, not through `__getattr__`
+    // (which Python calls only after a failed lookup).
+
+    /// The fused estimate `x`.
+    #[getter]
+    fn x(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.__getattr__(py, "x")
+    }
+
+    /// The bound `P` (field `p`).
+    #[getter(P)]
+    #[allow(non_snake_case)]
+    fn P(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.__getattr__(py, "P")
+    }
+
+    /// The gain `K_a` on `x_a` (field `ka`).
+    #[getter(Ka)]
+    #[allow(non_snake_case)]
+    fn Ka(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.__getattr__(py, "Ka")
+    }
+
+    /// The gain `K_b` on `x_b` (field `kb`).
+    #[getter(Kb)]
+    #[allow(non_snake_case)]
+    fn Kb(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.__getattr__(py, "Kb")
+    }
+
+    /// The weights `ω` (`None` for rules without).
+    #[getter]
+    fn omega(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.__getattr__(py, "omega")
+    }
+
+    /// `tr P`.
+    #[getter]
+    fn trace(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.__getattr__(py, "trace")
+    }
+
+    /// `det P`.
+    #[getter]
+    fn det(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.__getattr__(py, "det")
+    }
+
     fn __getitem__(&self, py: Python<'_>, key: &str) -> PyResult<Py<PyAny>> {
-        match self.fields.bind(py).get_item(key)? {
+        match self.field(py, key)? {
             Some(value) => Ok(value.unbind()),
             None => Err(PyKeyError::new_err(key.to_owned())),
         }
     }
 
     fn __contains__(&self, py: Python<'_>, key: &str) -> PyResult<bool> {
-        self.fields.bind(py).contains(key)
+        Ok(self.field(py, key)?.is_some())
     }
 
     /// The contract's fields present in this response.
-    fn keys(&self, py: Python<'_>) -> Vec<String> {
-        self.fields
-            .bind(py)
+    fn keys(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        Ok(self
+            .complete(py)?
             .keys()
             .iter()
             .filter_map(|k| k.extract().ok())
-            .collect()
+            .collect())
     }
 
     /// The response with lists instead of arrays (the JSON `nmci fuse` prints).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(py);
-        for (key, value) in self.fields.bind(py).iter() {
+        for (key, value) in self.complete(py)?.iter() {
             let value = if value.hasattr("tolist")? {
                 value.call_method0("tolist")?
             } else {
@@ -417,6 +550,9 @@ impl Fused {
     /// declared blocks, a weak coupling keeping blocks merged): `structure["note"]`.
     #[getter]
     fn structure_note(&self, py: Python<'_>) -> PyResult<Option<String>> {
+        if let Some(r) = self.rest().as_ref() {
+            return Ok(r.structure.as_ref().and_then(|s| s.note.clone()));
+        }
         let Some(structure) = self.fields.bind(py).get_item("structure")? else {
             return Ok(None);
         };
@@ -427,7 +563,7 @@ impl Fused {
     }
 
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        let fields = self.fields.bind(py);
+        let fields = self.complete(py)?;
         let mut shown = Vec::new();
         for key in [
             "method",

@@ -139,6 +139,39 @@ def test_the_array_functions_return_the_contract_s_response():
         assert got.method == method
 
 
+@pytest.mark.parametrize("rule", ["ci", "nmci", "ici", "ei", "naive", "certified"])
+def test_any_array_like_gives_the_response_of_float64_arrays(rule):
+    # float64 arrays go straight to Rust, which reads any strides; lists, integer arrays and
+    # the like are converted first. Both ways give one response.
+    rng = np.random.default_rng(21)
+    a, b, m = spd(rng, 3), spd(rng, 3), random_pattern(rng, 3)
+    fuse = getattr(nmci, rule)
+    want = fuse(a.tolist(), b.tolist(), [1.0, 2.0, 3.0], [0, 0, 0], pab_unknown=m.tolist()).to_dict()
+    xa, xb = np.array([1.0, 2.0, 3.0]), np.zeros(3)
+    assert fuse(a, b, xa, xb, pab_unknown=m).to_dict() == want
+    wide = np.zeros((3, 6))
+    wide[:, ::2] = a  # a view with strides (48, 16)
+    assert fuse(wide[:, ::2], np.asfortranarray(b), xa, xb, pab_unknown=m).to_dict() == want
+    whole = fuse(2 * np.eye(3, dtype=np.int64), np.eye(3, dtype=np.int32), pab_unknown=m).to_dict()
+    assert whole == fuse(2 * np.eye(3), np.eye(3), pab_unknown=m).to_dict()
+
+
+def test_a_response_read_field_by_field_is_the_whole_response():
+    # A response converts the fields a filter reads one by one: reading them first changes
+    # neither the fields, nor their order, nor the objects read.
+    a, b = np.diag([3.0, 1.0]), np.diag([1.0, 4.0])
+    whole = nmci.ci(a, b)
+    keys, full = whole.keys(), whole.to_dict()
+    piecewise = nmci.ci(a, b)
+    P, x, omega, trace = piecewise.P, piecewise.x, piecewise.omega, piecewise.trace
+    assert piecewise.P is P and piecewise.x is x and piecewise.omega is omega
+    assert piecewise.structure_note is None and piecewise.det > 0
+    assert piecewise.keys() == keys and piecewise.to_dict() == full
+    assert piecewise.P is P and trace == full["trace"] and np.array_equal(P, full["p"])
+    copy = pickle.loads(pickle.dumps(nmci.ci(a, b)))
+    assert copy.keys() == keys and copy.to_dict() == full
+
+
 def test_the_defaults_are_the_library_s_not_python_s():
     # Absent keyword arguments are left out of the request: the Rust plan fills in the one set
     # of defaults, so a call without options equals the bare contract request.

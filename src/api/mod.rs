@@ -171,7 +171,10 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
         Method::Ei => Ok(ClosedForm::Ei.response(&problem, plan.criterion)?.0),
         Method::Naive => Ok(ClosedForm::Naive.response(&problem, plan.criterion)?.0),
         Method::Certified => Ok(certified_response(&problem, &plan.certify)?.0),
-        Method::Sdp => Ok(sdp_response(&problem, &upper, &plan, None, true)?.0),
+        Method::Sdp => {
+            let upper = upper.as_ref().unwrap_or(&problem);
+            Ok(sdp_response(&problem, upper, &plan, None, true)?.0)
+        }
         Method::SdpCuts => {
             let cuts = optimal_fusion_cuts(&problem, &plan.cuts)?;
             // Past the time limit the own-gain certificate is left out, not an error (the loop

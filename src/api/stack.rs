@@ -8,8 +8,13 @@
 //! weights — `ci`, `nmci`, `ici`, `ei`, `naive`; the SDPs and the certified rule report a
 //! bracket or a certificate per pair and are called per pair.
 //!
-//! The first pair that fails stops the stack with [`RequestError::InStack`]: its index and
+//! A stack that fails is [`RequestError::InStack`] of its first failing pair: its index and
 //! its error, whose field is indexed by the pair (`pa[17]`).
+//!
+//! Natively, a stack of 64 pairs or more runs its pairs on rayon's thread pool when the pool
+//! has more than one thread (`RAYON_NUM_THREADS` sets its size; one thread runs them in
+//! order). Each pair is computed alone, by the same code, so the numbers do not depend on the
+//! threads (tested); an error is still the first failing pair's, every pair having run.
 //!
 //! A list of whole requests, of any sizes and methods, is [`fuse_list`]: in JSON, an array of
 //! requests (`nmci fuse`, the wasm `fuse`) gives the array of their responses.
@@ -18,7 +23,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::error::RequestError;
 use crate::fusion::rules::Method;
-use crate::fusion::FusionProblem;
+use crate::fusion::{Fused, FusionProblem};
 use crate::structure::CrossPattern;
 
 use super::{
@@ -80,6 +85,48 @@ pub struct StackResponse {
     pub blocks: Vec<Vec<Vec<usize>>>,
     /// Each pair's structure note, when there is one ([`super::StructureDetails::note`]).
     pub notes: Vec<Option<String>>,
+}
+
+/// One pair's result: the fused estimate, the rule's details, the structure note.
+type Pair = (Fused, Details, Option<String>);
+
+/// From this many pairs on, a native stack runs its pairs on rayon's thread pool (when it has
+/// more than one thread): a pair takes microseconds, a parallel split tens of them.
+#[cfg(not(target_arch = "wasm32"))]
+const PARALLEL_FROM: usize = 64;
+
+impl StackResponse {
+    /// Appends one pair's result.
+    fn push(&mut self, (fused, details, note): Pair) {
+        let n = self.n;
+        self.x.extend(fused.x.iter());
+        // Row-major, as the request.
+        for (to, m) in [
+            (&mut self.p, &fused.P),
+            (&mut self.ka, &fused.K_a),
+            (&mut self.kb, &fused.K_b),
+        ] {
+            for r in 0..n {
+                to.extend(m.row(r).iter());
+            }
+        }
+        let (trace, det) = CovarianceSummary::trace_det(&fused.P);
+        self.trace.push(trace);
+        self.det.push(det);
+        match details {
+            Details::Omega(omega) => self.omega.extend(std::iter::repeat_n(omega, n)),
+            Details::Blocks { omega, blocks } => {
+                let mut per_state = vec![0.0; n];
+                for (block, w) in blocks.iter().zip(&omega) {
+                    block.iter().for_each(|&s| per_state[s] = *w);
+                }
+                self.omega.extend(per_state);
+                self.blocks.push(blocks);
+            }
+            _ => {}
+        }
+        self.notes.push(note);
+    }
 }
 
 /// Fuses every pair of `request` (see the module docs).
@@ -207,7 +254,7 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
         Some(v) => DVector::from_row_slice(&v[i * n..(i + 1) * n]),
         None => DVector::zeros(n),
     };
-    for i in 0..count {
+    let one = |i: usize| -> Result<Pair, RequestError> {
         let at = i * nn..(i + 1) * nn;
         let pair = || -> Result<_, RequestError> {
             let pattern = match &shared {
@@ -216,9 +263,9 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
             };
             let problem = FusionProblem::new(
                 vector(request.xa, i),
-                DMatrix::from_row_slice(n, n, &request.pa[at.clone()]),
+                row_major(n, &request.pa[at.clone()]),
                 vector(request.xb, i),
-                DMatrix::from_row_slice(n, n, &request.pb[at.clone()]),
+                row_major(n, &request.pb[at.clone()]),
                 pattern,
             )?;
             let Structured {
@@ -226,32 +273,28 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
             } = structured(problem, &settings, request.method)?;
             check_blocks(request.method, &problem)?;
             let (fused, rule_details) = rule.fuse(&problem, criterion)?;
-            Ok((fused, rule_details, details))
+            Ok((fused, rule_details, details.and_then(|s| s.note)))
         };
-        let (fused, details, structure) = pair().map_err(in_stack(i))?;
-        out.x.extend(fused.x.iter());
-        // Row-major, as the request: the transpose's column-major buffer.
-        out.p.extend(fused.P.transpose().iter());
-        out.ka.extend(fused.K_a.transpose().iter());
-        out.kb.extend(fused.K_b.transpose().iter());
-        let (trace, det) = CovarianceSummary::trace_det(&fused.P);
-        out.trace.push(trace);
-        out.det.push(det);
-        match details {
-            Details::Omega(omega) => out.omega.extend(std::iter::repeat_n(omega, n)),
-            Details::Blocks { omega, blocks } => {
-                let mut per_state = vec![0.0; n];
-                for (block, w) in blocks.iter().zip(&omega) {
-                    block.iter().for_each(|&s| per_state[s] = *w);
-                }
-                out.omega.extend(per_state);
-                out.blocks.push(blocks);
-            }
-            _ => {}
+        pair().map_err(in_stack(i))
+    };
+    #[cfg(not(target_arch = "wasm32"))]
+    if count >= PARALLEL_FROM && rayon::current_num_threads() > 1 {
+        use rayon::prelude::*;
+        let pairs: Vec<Result<Pair, RequestError>> = (0..count).into_par_iter().map(one).collect();
+        for pair in pairs {
+            out.push(pair?);
         }
-        out.notes.push(structure.and_then(|s| s.note));
+        return Ok(out);
+    }
+    for i in 0..count {
+        out.push(one(i)?);
     }
     Ok(out)
+}
+
+/// The `n × n` matrix whose rows are the consecutive `n`-number pieces of `s`.
+fn row_major(n: usize, s: &[f64]) -> DMatrix<f64> {
+    DMatrix::from_fn(n, n, |r, c| s[r * n + c])
 }
 
 /// Runs a list of requests, each exactly as [`fuse`] runs it alone; the responses in order. The
@@ -360,6 +403,71 @@ mod tests {
         assert!(e.to_string().starts_with("pair 1: P_a"), "{e}");
         let e = fuse_stack(&request(Method::Sdp, &pa, &pb)).unwrap_err();
         assert_eq!(e.field().as_deref(), Some("method"));
+    }
+
+    /// `k` pairs of random 3-state covariances, row-major ([`crate::linalg::test_spd`]).
+    #[cfg(not(target_arch = "wasm32"))]
+    fn random_stack(k: usize) -> (Vec<f64>, Vec<f64>) {
+        let mut seed = 7;
+        let mut stack = || -> Vec<f64> {
+            (0..k)
+                .flat_map(|_| {
+                    crate::linalg::test_spd(3, &mut seed, 0.1)
+                        .transpose()
+                        .iter()
+                        .copied()
+                        .collect::<Vec<_>>()
+                })
+                .collect()
+        };
+        let pa = stack();
+        (pa, stack())
+    }
+
+    #[cfg(not(target_arch = "wasm32"))]
+    #[test]
+    fn a_parallel_stack_is_the_one_thread_stack_and_names_the_first_failing_pair() {
+        let k = 3 * PARALLEL_FROM;
+        let (mut pa, pb) = random_stack(k);
+        let on = |threads: usize, pa: &[f64], method: Method| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                fuse_stack(&StackRequest {
+                    n: 3,
+                    ..request(method, pa, &pb)
+                })
+            })
+        };
+        for method in [Method::Ci, Method::Nmci, Method::Ici] {
+            let parallel = on(2, &pa, method).unwrap();
+            assert_eq!(parallel, on(1, &pa, method).unwrap(), "{method:?}");
+            // And pair by pair, the single request's numbers.
+            let rows = |s: &[f64]| s.chunks(3).map(<[f64]>::to_vec).collect::<Vec<_>>();
+            for i in [0, PARALLEL_FROM, k - 1] {
+                let at = 9 * i..9 * i + 9;
+                let one = fuse(&FuseRequest::new(
+                    method,
+                    rows(&pa[at.clone()]),
+                    rows(&pb[at.clone()]),
+                ))
+                .unwrap();
+                assert_eq!(
+                    &parallel.p[at],
+                    one.p.concat().as_slice(),
+                    "{method:?} pair {i}"
+                );
+            }
+        }
+        // Two bad pairs: the error is the first's, whichever thread met it first.
+        pa[9 * 150] = -1.0;
+        pa[9 * 100] = -1.0;
+        for threads in [1, 2] {
+            let e = on(threads, &pa, Method::Ci).unwrap_err();
+            assert!(matches!(e, RequestError::InStack { index: 100, .. }), "{e}");
+        }
     }
 
     #[test]

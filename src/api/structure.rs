@@ -18,11 +18,11 @@ pub(crate) struct Structured {
     /// there is one), the given one otherwise.
     pub problem: FusionProblem,
     /// The problem whose proven upper ends hold for the given one: the absorbed problem (the
-    /// given one itself when nothing was absorbed).
-    pub upper: FusionProblem,
+    /// given one itself when nothing was absorbed); `None` for the CI family, which has none.
+    pub upper: Option<FusionProblem>,
     /// The problem the sampled SDP solves: the deflated one when there is one, the given one
-    /// otherwise (`structure::absorb`, "A lower end").
-    pub relaxed: FusionProblem,
+    /// otherwise (`structure::absorb`, "A lower end"); `None` for the CI family.
+    pub relaxed: Option<FusionProblem>,
     /// The response's `structure`.
     pub details: Option<StructureDetails>,
 }
@@ -34,6 +34,18 @@ pub(crate) fn structured(
     settings: &StructureSettings,
     method: Method,
 ) -> Result<Structured, InputError> {
+    if method.block_use() == BlockUse::None && settings.blocks.is_none() {
+        // The CI family (CI, ICI, EI, naive) fuses the given covariances whatever their
+        // structure, says nothing of it, and has no upper end to prove on an absorbed problem:
+        // with no declared partition to check, the settings are all there is to validate.
+        settings.validate(problem.dim())?;
+        return Ok(Structured {
+            problem,
+            upper: None,
+            relaxed: None,
+            details: None,
+        });
+    }
     let absorbed = absorb_couplings(&problem, settings)?;
     let said = absorbed.structure.worth_saying(settings.blocks.is_some());
     let tol = settings.coupling_tol;
@@ -67,8 +79,8 @@ pub(crate) fn structured(
     };
     Ok(Structured {
         problem: solved,
-        upper: absorbed.problem,
-        relaxed,
+        upper: Some(absorbed.problem),
+        relaxed: Some(relaxed),
         details,
     })
 }

@@ -125,6 +125,14 @@ pub(crate) fn validate_symmetric(name: &str, m: &DMatrix<f64>) -> Result<(), Inp
 /// `vᵀ P v ≤ 0` is proven (`verify::is_not_positive_definite`, on it or its equilibrated form),
 /// and singular to working precision otherwise: nmci's floating-point checks cannot decide it.
 pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputError> {
+    symmetric_covariance(name, m).map(drop)
+}
+
+/// [`validate_covariance`]'s checks, and on success `(m + mᵀ)/2`, the matrix the rules use.
+pub(crate) fn symmetric_covariance(
+    name: &str,
+    m: &DMatrix<f64>,
+) -> Result<DMatrix<f64>, InputError> {
     validate_symmetric(name, m)?;
     let scale = m.amax();
     let sym = symmetrize(m);
@@ -133,7 +141,7 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
     // that proof is judged as always: a floating-point Cholesky factorization and a positive
     // computed smallest eigenvalue, which also names the eigenvalue in the error.
     if verify::is_positive_definite(&sym) {
-        return Ok(());
+        return Ok(sym);
     }
     let lambda_min = min_eigenvalue(&sym);
     // An eigenvalue computation that overflowed (or a symmetrisation that did, above half the
@@ -148,7 +156,7 @@ pub fn validate_covariance(name: &str, m: &DMatrix<f64>) -> Result<(), InputErro
     if cholesky_of(sym.clone()).is_none() || lambda_min <= 0.0 {
         return Err(refusal(name, &sym, lambda_min));
     }
-    Ok(())
+    Ok(sym)
 }
 
 /// Why the symmetric `sym` (smallest eigenvalue `lambda_min` as computed), not proven positive
@@ -257,7 +265,7 @@ impl FusionProblem {
         P_b: DMatrix<f64>,
         cross_pattern: CrossPattern,
     ) -> Result<Self, InputError> {
-        validate_covariance("P_a", &P_a)?;
+        let P_a = symmetric_covariance("P_a", &P_a)?;
         let n = P_a.nrows();
         if P_b.nrows() != n || P_b.ncols() != n {
             return Err(InputError::SizeMismatch {
@@ -266,7 +274,7 @@ impl FusionProblem {
                 expected: n,
             });
         }
-        validate_covariance("P_b", &P_b)?;
+        let P_b = symmetric_covariance("P_b", &P_b)?;
         validate_vector("x_a", &x_a, n)?;
         validate_vector("x_b", &x_b, n)?;
         if cross_pattern.dim() != n {
@@ -278,9 +286,9 @@ impl FusionProblem {
         }
         Ok(Self {
             x_a,
-            P_a: symmetrize(&P_a),
+            P_a,
             x_b,
-            P_b: symmetrize(&P_b),
+            P_b,
             cross_pattern,
         })
     }
@@ -366,12 +374,9 @@ impl Estimate {
     /// Validates `P` (square, finite, symmetric, positive definite) and `x` (its size, finite);
     /// `name` labels errors (e.g. `estimates[2]`).
     pub fn new(name: &str, x: DVector<f64>, P: DMatrix<f64>) -> Result<Self, InputError> {
-        validate_covariance(&format!("{name}.p"), &P)?;
+        let P = symmetric_covariance(&format!("{name}.p"), &P)?;
         validate_vector(&format!("{name}.x"), &x, P.nrows())?;
-        Ok(Self {
-            x,
-            P: symmetrize(&P),
-        })
+        Ok(Self { x, P })
     }
 }
 

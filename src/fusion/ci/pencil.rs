@@ -7,8 +7,8 @@ use crate::error::InputError;
 use crate::fusion::scale::two_to;
 use crate::fusion::{definiteness_error, BlockMean, Criterion};
 use crate::linalg::{
-    cholesky, solve_lower_in_place, solve_lower_rows, solve_lower_transposed_rows, symmetric_eigen,
-    symmetrize, symmetrize_in_place,
+    cholesky, cholesky_of, solve_lower_in_place, solve_lower_rows, solve_lower_transposed_rows,
+    symmetric_eigen, symmetrize, symmetrize_in_place,
 };
 
 /// `P_a + t P_b` (positive definite in exact arithmetic for accepted `P_a`, `P_b`) or the
@@ -172,8 +172,8 @@ impl Pencil {
         let t = balance(P_a, P_b);
         // t P_b is exact (a power of two) unless an entry leaves the normal range; S rounds
         // once per entry.
-        let S = P_a + P_b * t;
-        let L = cholesky(&S)
+        let S = P_a.zip_map(P_b, |a, b| a + b * t);
+        let L = cholesky_of(S)
             .ok_or_else(|| unfactored("P_a + t P_b"))?
             .unpack();
         let M = congruence(&L, &left_solve(&L, P_a));

@@ -35,11 +35,24 @@ pub(super) fn fuse_at(
         (P_a.clone(), DMatrix::identity(n, n))
     } else {
         let P = pencil.covariance(omega);
-        let K_a = DMatrix::identity(n, n) - pencil.gain_b(omega);
+        let mut K_a = pencil.gain_b(omega);
+        from_identity(&mut K_a);
         (P, K_a)
     };
-    let K_b = DMatrix::identity(n, n) - &K_a;
+    let mut K_b = K_a.clone();
+    from_identity(&mut K_b);
     (P, K_a, K_b)
+}
+
+/// `K ← I − K`, entry by entry as `DMatrix::identity(n, n) − K` computes it (`1 − k` on the
+/// diagonal, `0 − k` off it), without the two temporaries.
+#[allow(non_snake_case)]
+fn from_identity(K: &mut DMatrix<f64>) {
+    for (j, mut col) in K.column_iter_mut().enumerate() {
+        for (i, k) in col.iter_mut().enumerate() {
+            *k = if i == j { 1.0 } else { 0.0 } - *k;
+        }
+    }
 }
 
 /// The CI covariance `P(ω) = (ω P_a⁻¹ + (1−ω) P_b⁻¹)⁻¹` for a given weight `ω ∈ [0, 1]`
