@@ -6,9 +6,9 @@ use numpy::{
     PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
     PyReadonlyArray3, PyUntypedArrayMethods,
 };
-use pyo3::exceptions::{PyAttributeError, PyKeyError};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
+use pyo3::exceptions::{PyAttributeError, PyKeyError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
@@ -302,8 +302,9 @@ pub struct Fused {
     /// The fields converted so far (all of them once `rest` is `None`), in the order of the
     /// complete response.
     fields: Py<PyDict>,
-    /// The response, until every field is converted ([`Fused::complete`]).
-    rest: Mutex<Option<FuseResponse>>,
+    /// The response, until every field is converted ([`Fused::complete`]). The lock is held
+    /// only to read or take it, never while Python runs (a conversion may run Python code).
+    rest: Mutex<Option<Arc<FuseResponse>>>,
 }
 
 /// The attributes named as in the paper rather than as in the contract.
@@ -369,13 +370,14 @@ impl Fused {
     fn new_from(py: Python<'_>, r: FuseResponse) -> PyResult<Self> {
         Ok(Self {
             fields: PyDict::new(py).unbind(),
-            rest: Mutex::new(Some(r)),
+            rest: Mutex::new(Some(Arc::new(r))),
         })
     }
 
-    fn rest(&self) -> std::sync::MutexGuard<'_, Option<FuseResponse>> {
+    /// The response not yet converted, if any (a new reference to it).
+    fn rest(&self) -> Option<Arc<FuseResponse>> {
         // A panic while the lock was held left the response as it was: still usable.
-        self.rest.lock().unwrap_or_else(|e| e.into_inner())
+        self.rest.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
     /// The field `name` (its contract name), converted if it was not yet; `None` when the
@@ -385,9 +387,9 @@ impl Fused {
         if let Some(value) = fields.get_item(name)? {
             return Ok(Some(value));
         }
-        let bulk = match self.rest().as_ref() {
+        let bulk = match self.rest() {
             None => return Ok(None),
-            Some(r) => bulk_field(py, r, name)?,
+            Some(r) => bulk_field(py, &r, name)?,
         };
         match bulk {
             Some(value) => {
@@ -404,10 +406,11 @@ impl Fused {
     /// Every field converted, those read before kept as the objects they were.
     fn complete<'py>(&self, py: Python<'py>) -> PyResult<&Bound<'py, PyDict>> {
         let fields = self.fields.bind(py);
-        let Some(r) = self.rest().take() else {
+        let taken = self.rest.lock().unwrap_or_else(|e| e.into_inner()).take();
+        let Some(r) = taken else {
             return Ok(fields);
         };
-        let all = response_dict(py, r)?;
+        let all = response_dict(py, Arc::unwrap_or_clone(r))?;
         for (key, value) in fields.iter() {
             all.set_item(key, value)?;
         }
@@ -550,7 +553,7 @@ impl Fused {
     /// declared blocks, a weak coupling keeping blocks merged): `structure["note"]`.
     #[getter]
     fn structure_note(&self, py: Python<'_>) -> PyResult<Option<String>> {
-        if let Some(r) = self.rest().as_ref() {
+        if let Some(r) = self.rest() {
             return Ok(r.structure.as_ref().and_then(|s| s.note.clone()));
         }
         let Some(structure) = self.fields.bind(py).get_item("structure")? else {
