@@ -55,6 +55,8 @@ export interface FuseRequest {
   sectors?: number;
   /** Three-state blocks certified on this many cones of directions (4, 16 or 64). */
   cones?: number;
+  /** Three-state blocks certified on at most this many cones, cut where the bound is tight (4–256; not with `cones`). */
+  max_cones?: number;
   /** N-way fusion: k ≥ 2 estimates. */
   estimates?: NwayEstimate[];
   /** N-way: the patterns of the pairs' cross-covariances. */

@@ -106,8 +106,8 @@ pub mod rules {
 pub mod certify {
     pub use crate::fusion::certify::{
         certified_fusion, certified_fusion_memo, certify_gain, CertificateMemo, Certificates,
-        CertifiedResult, CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_LEVEL,
-        MAX_SECTORS, MEMO_BLOCKS,
+        CertifiedResult, CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_CONES,
+        MAX_LEVEL, MAX_SECTORS, MEMO_BLOCKS,
     };
 }
 

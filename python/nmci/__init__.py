@@ -310,6 +310,7 @@ def optimal(
     level: Optional[int] = None,
     sectors: Optional[int] = None,
     cones: Optional[int] = None,
+    max_cones: Optional[int] = None,
 ) -> Fused:
     """The paper's sampled SDP (method "sdp"): the tightest bound over ``samples`` sampled
     cross-covariances — a lower bound on the robust optimum, not guaranteed conservative.
@@ -338,6 +339,7 @@ def optimal(
         level=level,
         sectors=sectors,
         cones=cones,
+        max_cones=max_cones,
     )
 
 
@@ -355,6 +357,7 @@ def sdp_cuts(
     level: Optional[int] = None,
     sectors: Optional[int] = None,
     cones: Optional[int] = None,
+    max_cones: Optional[int] = None,
 ) -> Fused:
     """The robust SDP by cutting planes: worst-case cross-covariances as constraints, with a
     proven bracket on the robust optimum (``lower_bound``, ``upper_bound``, ``gap_closed``,
@@ -379,6 +382,7 @@ def sdp_cuts(
         level=level,
         sectors=sectors,
         cones=cones,
+        max_cones=max_cones,
     )
 
 
@@ -394,13 +398,16 @@ def certified(
     level: Optional[int] = None,
     sectors: Optional[int] = None,
     cones: Optional[int] = None,
+    max_cones: Optional[int] = None,
     time_limit: Optional[float] = None,
 ) -> Fused:
     """A bound proven to dominate ``K P' Kᵀ`` for every admissible ``P'`` by a sum-of-squares
     certificate of level ``level`` (``levels`` per block), or, on blocks of two states, by a
     level-1 certificate on each of ``sectors`` sectors of directions (by default the library's
     count, chosen by measurement, unless ``level`` is set; ``sectors`` per block, 0 where none), and on blocks of three states,
-    when ``cones`` (4, 16 or 64) is given, on each of that many cones of directions; its
+    when ``cones`` (4, 16 or 64) is given, on each of that many cones of directions, or when
+    ``max_cones`` (4 to 256) is given, on at most that many cones cut where the bound is
+    tight; its
     trace never above that of CI's (nmCI's) bound made a proven matrix: within ``1e-14`` of
     their traces on well-conditioned blocks, up to 1.44 % above on near-singular ones.
 
@@ -421,6 +428,7 @@ def certified(
         level=level,
         sectors=sectors,
         cones=cones,
+        max_cones=max_cones,
         time_limit=time_limit,
     )
 

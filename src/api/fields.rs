@@ -114,7 +114,7 @@ mod tests {
         assert_eq!(pair.len(), written.len());
         assert!(pair.iter().all(|name| written.contains(name)));
         let options = field_names::<Options>().unwrap();
-        assert_eq!(options.len(), 9);
+        assert_eq!(options.len(), 10);
         // A struct with flattened parts deserialises as a map: no list to read.
         assert_eq!(field_names::<FuseRequest>(), None);
         assert_eq!(field_names::<u32>(), None);

@@ -19,7 +19,7 @@ use serde::de::IgnoredAny;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{InputError, RequestError};
-use crate::fusion::certify::{CertifySettings, MAX_LEVEL, MAX_SECTORS};
+use crate::fusion::certify::{CertifySettings, MAX_CONES, MAX_LEVEL, MAX_SECTORS};
 use crate::fusion::cuts::CutsSettings;
 use crate::fusion::rules::{methods_phrase, Criteria, Method, RequestOption};
 use crate::fusion::sample::{SamplerKind, SamplerSettings};
@@ -227,6 +227,10 @@ pub struct Options {
     /// ([`CertifySettings::cones`]; default none: one certificate of the block's level).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cones: Option<u32>,
+    /// Three-state blocks certified on cones of directions cut where the bound is tight, at
+    /// most this many, `4..=256` ([`CertifySettings::max_cones`]; default none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_cones: Option<u32>,
 }
 
 /// What a request runs: its [`Options`] validated, every default filled in.
@@ -244,7 +248,7 @@ pub struct Plan {
 
 impl Options {
     /// Whether each method-specific option is set.
-    fn set(&self) -> [(RequestOption, bool); 8] {
+    fn set(&self) -> [(RequestOption, bool); 9] {
         RequestOption::ALL.map(|o| {
             let set = match o {
                 RequestOption::Samples => self.samples.is_some(),
@@ -255,6 +259,7 @@ impl Options {
                 RequestOption::Level => self.level.is_some(),
                 RequestOption::Sectors => self.sectors.is_some(),
                 RequestOption::Cones => self.cones.is_some(),
+                RequestOption::MaxCones => self.max_cones.is_some(),
             };
             (o, set)
         })
@@ -303,6 +308,20 @@ impl Options {
                 ));
             }
         }
+        if let Some(budget) = self.max_cones {
+            if !(4..=MAX_CONES).contains(&budget) {
+                return Err(RequestError::invalid(
+                    "max_cones",
+                    format!("`max_cones` must be in 4..={MAX_CONES} (got {budget})"),
+                ));
+            }
+            if self.cones.is_some() {
+                return Err(RequestError::invalid(
+                    "max_cones",
+                    "give `cones` (that many cones, uniform) or `max_cones` (cones cut where the bound is tight), not both",
+                ));
+            }
+        }
         check_count("samples", self.samples, MAX_SAMPLES)?;
         check_count("max_trials", self.max_trials, MAX_TRIALS)?;
         let sdp_defaults = SdpSettings::default();
@@ -321,6 +340,7 @@ impl Options {
             level: self.level,
             sectors: self.sectors,
             cones: self.cones,
+            max_cones: self.max_cones,
             time_limit: self.time_limit,
             ..CertifySettings::default()
         };
@@ -577,6 +597,7 @@ impl Options {
             level: Some(1),
             sectors: Some(2),
             cones: Some(4),
+            max_cones: Some(4),
         }
     }
 }

@@ -171,11 +171,13 @@ pub enum RequestOption {
     Sectors,
     /// `cones`.
     Cones,
+    /// `max_cones`.
+    MaxCones,
 }
 
 impl RequestOption {
     /// Every option, in the order the request check reports them.
-    pub const ALL: [RequestOption; 8] = [
+    pub const ALL: [RequestOption; 9] = [
         RequestOption::Samples,
         RequestOption::MaxTrials,
         RequestOption::Sampler,
@@ -184,6 +186,7 @@ impl RequestOption {
         RequestOption::Level,
         RequestOption::Sectors,
         RequestOption::Cones,
+        RequestOption::MaxCones,
     ];
 
     /// The request field's name.
@@ -197,6 +200,7 @@ impl RequestOption {
             RequestOption::Level => "level",
             RequestOption::Sectors => "sectors",
             RequestOption::Cones => "cones",
+            RequestOption::MaxCones => "max_cones",
         }
     }
 }
@@ -342,6 +346,7 @@ pub const RULES: [RuleInfo; 8] = [
             RequestOption::Level,
             RequestOption::Sectors,
             RequestOption::Cones,
+            RequestOption::MaxCones,
         ],
         nway: false,
         explorer: true,
@@ -382,6 +387,7 @@ pub const RULES: [RuleInfo; 8] = [
             RequestOption::Level,
             RequestOption::Sectors,
             RequestOption::Cones,
+            RequestOption::MaxCones,
         ],
         nway: false,
         explorer: false,

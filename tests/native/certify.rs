@@ -287,6 +287,100 @@ fn cone_certificates_in_three_states_proven_and_never_looser_than_level_one() {
 }
 
 #[test]
+fn adaptive_cones_proven_on_three_state_blocks_of_three_and_four_state_problems() {
+    // Cones cut where the bound is tight (`max_cones`): each round's certificate is repaired
+    // like every other, so the bound is conservative against fresh samples (checked by hand,
+    // not by the crate's margin), never below the cutting planes' proven lower end, and — its
+    // first round being the 4-cone program, which contains level 1 — never looser than level 1
+    // up to the solver's tolerance. In four states a 3-state block gets the cones, the other
+    // block its own certificate. The response reports the cones used (at most the budget) or
+    // the fallback family.
+    let mut r = rng(31);
+    let budget = 8;
+    let problems = [
+        random_problem(3, CrossPattern::from_fn(3, |i, j| i + j != 2), &mut r),
+        random_problem(
+            3,
+            CrossPattern::from_fn(3, |i, j| j == i || j == i + 1),
+            &mut r,
+        ),
+        {
+            // States 0–2 coupled (a 3-state block with two known zeros), state 3 alone.
+            let mut p = random_problem(
+                4,
+                CrossPattern::from_fn(4, |i, j| (i < 3 && j < 3 && i + j != 2) || i == j),
+                &mut r,
+            );
+            for m in [&mut p.P_a, &mut p.P_b] {
+                for k in 0..3 {
+                    m[(k, 3)] = 0.0;
+                    m[(3, k)] = 0.0;
+                }
+            }
+            FusionProblem::from_covariances(p.P_a, p.P_b, p.cross_pattern).unwrap()
+        },
+    ];
+    for (case, p) in problems.iter().enumerate() {
+        let settings = |max_cones, level| CertifySettings {
+            max_cones,
+            level,
+            ..CertifySettings::default()
+        };
+        let cert = certified_fusion(p, &settings(Some(budget), None)).unwrap();
+        let level1 = certified_fusion(p, &settings(None, Some(1))).unwrap();
+        let upper = trace_upper_bound(&cert.fused.P);
+        let cuts = optimal_fusion_cuts(p, &CutsSettings::default()).unwrap();
+        assert!(cuts.lower_bound <= upper, "case {case}");
+        let margin = fresh_margin_by_hand(p, &cert.fused.K_a, &cert.fused.K_b, &cert.fused.P, 5);
+        assert!(margin >= -1e-12 * upper, "case {case}: margin {margin}");
+        assert!(
+            cert.fused.trace() <= level1.fused.trace() * (1.0 + 1e-7),
+            "case {case}: {} vs level 1 {}",
+            cert.fused.trace(),
+            level1.fused.trace()
+        );
+        let three = cert
+            .blocks
+            .iter()
+            .position(|b| b.len() == 3)
+            .expect("a 3-state block");
+        let (level, cones) = (cert.levels[three], cert.sectors[three]);
+        assert!(
+            (level == 1 && (4..=budget).contains(&cones))
+                || (level == CertifySettings::auto_level(3) && cones == 0),
+            "case {case}: level {level}, {cones} cones"
+        );
+    }
+    // Through the contract: `max_cones` reaches the certificate; with `cones`, or outside
+    // 4..=256, it is refused naming the field.
+    let request = |extra: &str| {
+        format!(
+            r#"{{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]],
+                "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]],
+                "method": "certified"{extra}}}"#
+        )
+    };
+    let response: serde_json::Value =
+        serde_json::from_str(&fuse_json(&request(r#", "max_cones": 8"#)).unwrap()).unwrap();
+    let cones = response["sectors"][0].as_u64().unwrap();
+    assert!(
+        (4..=8).contains(&cones) || response["levels"][0] == 2,
+        "{response}"
+    );
+    for (extra, says) in [
+        (
+            r#", "max_cones": 3"#,
+            "`max_cones` must be in 4..=256 (got 3)",
+        ),
+        (r#", "max_cones": 8, "cones": 16"#, "not both"),
+    ] {
+        let err = fuse_json(&request(extra)).unwrap_err();
+        assert_eq!(err.field().as_deref(), Some("max_cones"), "{err}");
+        assert!(err.to_string().contains(says), "{err}");
+    }
+}
+
+#[test]
 fn the_sampled_sdp_gain_certified() {
     // For the SDP's own gain, the tightest certified bound lies above the SDP's (relaxed)
     // trace and is conservative.

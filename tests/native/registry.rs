@@ -80,6 +80,7 @@ fn the_options_a_rule_lists_are_the_ones_a_request_may_set() {
         RequestOption::Level => json!(1),
         RequestOption::Sectors => json!(8),
         RequestOption::Cones => json!(4),
+        RequestOption::MaxCones => json!(8),
     };
     for rule in &RULES {
         for option in RequestOption::ALL {

@@ -10,9 +10,12 @@ use crate::fusion::scale::Pow2;
 use crate::fusion::upper::{trace_upper_bound, young_bound, young_omega};
 use crate::fusion::{Criterion, FusionProblem};
 
+use super::geometry::cone_multipliers;
+use super::refine::certify_adaptive;
 use super::repair::repair_failed;
+use super::settings::Family;
 use super::settings::{CertifySettings, RETRY_REPAIR_RTOL};
-use super::sos::{certify_block, BlockCertificate};
+use super::sos::{certify_pieces, BlockCertificate, Piece};
 
 /// What [`certify`] finds for one block: its gain and proven bound, and how they were found.
 #[allow(non_snake_case)]
@@ -140,6 +143,7 @@ pub(super) fn certify_at_scale(
                 status: SdpStatus::AlmostSolved,
                 iterations: 0,
                 repair: 0.0,
+                pieces: 0,
             });
             s.P = P_ci;
             s.K_a = ci_gain;
@@ -154,7 +158,32 @@ pub(super) fn certify_at_scale(
         iterations: solved.iterations,
         repair: solved.repair,
         level: family.level(),
-        sectors: family.sectors(),
+        sectors: solved.pieces,
         ci_used,
     })
+}
+
+/// The certificate of `family` for one block, at `gain` when given.
+pub(super) fn certify_block(
+    problem: &FusionProblem,
+    gain: Option<&DMatrix<f64>>,
+    family: Family,
+    settings: &CertifySettings,
+) -> Result<BlockCertificate, SolveError> {
+    match family {
+        Family::Global(level) => {
+            let whole = [Piece {
+                multipliers: Vec::new(),
+            }];
+            Ok(certify_pieces(problem, gain, level, &whole, settings)?.0)
+        }
+        Family::Sectors(count) | Family::Cones(count) => {
+            let pieces = cone_multipliers(problem.dim(), count)?
+                .into_iter()
+                .map(|multipliers| Piece { multipliers })
+                .collect::<Vec<_>>();
+            Ok(certify_pieces(problem, gain, 1, &pieces, settings)?.0)
+        }
+        Family::Adaptive(budget) => certify_adaptive(problem, gain, budget, settings),
+    }
 }

@@ -72,36 +72,74 @@ pub(crate) fn cone_multipliers(n: usize, count: u32) -> Result<Vec<Vec<DMatrix<f
                 )]
             })
             .collect()),
-        3 => Ok(cone_generators(count)?
-            .iter()
-            .map(|u| {
-                let cross = |a: [i64; 3], b: [i64; 3]| {
-                    [
-                        a[1] * b[2] - a[2] * b[1],
-                        a[2] * b[0] - a[0] * b[2],
-                        a[0] * b[1] - a[1] * b[0],
-                    ]
-                };
-                let normals = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])];
-                [(0, 1), (0, 2), (1, 2)]
-                    .iter()
-                    .map(|&(i, j)| {
-                        let (a, b) = (normals[i], normals[j]);
-                        // 2 S = a bᵀ + b aᵀ in integers, then scaled by a power of two.
-                        let twice: Vec<i64> = (0..9)
-                            .map(|e| a[e / 3] * b[e % 3] + b[e / 3] * a[e % 3])
-                            .collect();
-                        let largest = twice.iter().map(|v| v.abs()).max().unwrap_or(1).max(1);
-                        let scale = 0.5 / (largest as f64).log2().ceil().exp2();
-                        DMatrix::from_iterator(3, 3, twice.iter().map(|&v| v as f64 * scale))
-                    })
-                    .collect()
-            })
-            .collect()),
+        3 => Ok(cone_generators(count)?.iter().map(cone_piece).collect()),
         _ => Err(SolveError::InvalidSettings(format!(
             "cones of directions certify blocks of two or three states (got a block of {n})"
         ))),
     }
+}
+
+/// The multipliers of the cone spanned by the integer generators `u` (three states; see
+/// [`cone_multipliers`]): the products `q_ij(v) = (n_i·v)(n_j·v)`, `i < j`, of its facet
+/// normals `n_i = u_j × u_k`, each matrix scaled by a power of two to entries of order one
+/// (exact: [`bisect`] keeps the generators below `2¹²`, so the normals stay below `2²⁵` and
+/// the entries of `2 S` below `2⁵¹`).
+#[allow(non_snake_case)]
+pub(crate) fn cone_piece(u: &[[i64; 3]; 3]) -> Vec<DMatrix<f64>> {
+    let normals = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])];
+    [(0, 1), (0, 2), (1, 2)]
+        .iter()
+        .map(|&(i, j)| {
+            let (a, b) = (normals[i], normals[j]);
+            // 2 S = a bᵀ + b aᵀ in integers, then scaled by a power of two.
+            let twice: Vec<i64> = (0..9)
+                .map(|e| a[e / 3] * b[e % 3] + b[e / 3] * a[e % 3])
+                .collect();
+            let largest = twice.iter().map(|v| v.abs()).max().unwrap_or(1).max(1);
+            let scale = 0.5 / (largest as f64).log2().ceil().exp2();
+            DMatrix::from_iterator(3, 3, twice.iter().map(|&v| v as f64 * scale))
+        })
+        .collect()
+}
+
+/// `a × b` in integers.
+fn cross(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The cone spanned by `u` cut in two at the midpoint of its widest edge (the largest angle
+/// between two generators): `[u_i, u_i + u_j, u_k]` and `[u_i + u_j, u_j, u_k]`. An exact
+/// subdivision: `v = λ_i u_i + λ_j u_j + λ_k u_k` with `λ ≥ 0` is
+/// `(λ_i − λ_j) u_i + λ_j (u_i + u_j) + λ_k u_k` when `λ_i ≥ λ_j`, else
+/// `(λ_j − λ_i) u_j + λ_i (u_i + u_j) + λ_k u_k`, in the first or the second cone; so a cover
+/// of space by cones and their negatives stays one. `None` when the new generator's entries
+/// would leave the range in which [`cone_piece`]'s multipliers are exact (`|u_i| < 2¹²`).
+pub(crate) fn bisect(u: &[[i64; 3]; 3]) -> Option<[[[i64; 3]; 3]; 2]> {
+    let angle = |a: [i64; 3], b: [i64; 3]| {
+        let f = |v: [i64; 3]| v.map(|x| x as f64);
+        let (a, b) = (f(a), f(b));
+        let dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        (dot / (norm(a) * norm(b))).clamp(-1.0, 1.0).acos()
+    };
+    let (i, j) = [(0, 1), (1, 2), (0, 2)]
+        .into_iter()
+        .max_by(|&(a, b), &(c, d)| angle(u[a], u[b]).total_cmp(&angle(u[c], u[d])))?;
+    let mid = [u[i][0] + u[j][0], u[i][1] + u[j][1], u[i][2] + u[j][2]];
+    if mid.iter().any(|x| x.abs() >= 1 << 12) {
+        return None;
+    }
+    // Each child keeps the parent's orientation (generator order), so its normals point
+    // the same way.
+    let mut first = *u;
+    first[j] = mid;
+    let mut second = *u;
+    second[i] = mid;
+    Some([first, second])
 }
 
 /// The integer generators of the cones of [`cone_multipliers`] for three states.

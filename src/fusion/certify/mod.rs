@@ -103,6 +103,22 @@
 //! the levels (it narrows the gaps at a cost of the order of level 3's, so it is not a
 //! default).
 //!
+//! **Adaptive cones** ([`CertifySettings::max_cones`], opt-in; `fusion::certify::refine`).
+//! Uniform cones spend most of the program on directions where the bound has slack. The
+//! adaptive family starts from the four octants, solves, and cuts in two the cones that
+//! carry the most of the solver's dual: for piece `k` the dual of its condition-3 rows is a
+//! moment matrix `M_k ⪰ 0` (the measure of worst directions the optimum rests on), and
+//! stationarity in `Q` gives `Σ_k M_k = I`, so `tr M_k` is the piece's share of the
+//! objective — zero where its certificate has slack. A cone is cut at the midpoint of its
+//! widest edge (`u_i + u_j`), an exact subdivision (`bisect`), so every round's cones and
+//! their negatives cover space and every round's certificate is a proof by the argument
+//! above; the generators stay below `2¹²`, so the multipliers stay exact. Rounds continue
+//! until the proven trace falls by less than `10⁻⁸` of itself, `max_cones` is reached or the
+//! time limit passes (a round stopped by it leaves the best proof found); the smallest proven
+//! trace is kept. The first round is the 4-cone program, so the result is never above the
+//! 4-cone certificate (exactly; tested). The choice of cones decides only how tight the bound
+//! is, never whether it is proven. docs/methods.md measures how far it closes the brackets.
+//!
 //! ## Exact in floating point, whatever the solver's accuracy
 //! The solver's point satisfies 1–4 only to its tolerance. The reported bound is made to
 //! satisfy them exactly, for the reported floats `K_a`, `P̄ = Q` and `K_b = I − K_a` taken
@@ -159,6 +175,7 @@ mod block;
 mod geometry;
 mod layout;
 mod memo;
+mod refine;
 mod repair;
 mod rule;
 mod settings;
@@ -172,4 +189,4 @@ pub(crate) use rule::certification_blocks;
 pub use rule::{
     certified_fusion, certified_fusion_memo, certify_gain, Certificates, CertifiedResult,
 };
-pub use settings::{CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_LEVEL};
+pub use settings::{CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_CONES, MAX_LEVEL};

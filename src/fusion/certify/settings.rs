@@ -39,9 +39,12 @@ pub struct CertifySettings {
     /// which then applies to two-state blocks too (one certificate for every direction).
     pub sectors: Option<u32>,
     /// Blocks of three states: the number of cones of directions (4, 16 or 64), each with its
-    /// own level-1 certificate (module docs, "Sectors"); `None` (default): one certificate of
-    /// [`CertifySettings::level_for`].
+    /// own level-1 certificate (module docs, "Sectors"); `None` (default): the adaptive cones
+    /// when `max_cones` is set, else one certificate of [`CertifySettings::level_for`].
     pub cones: Option<u32>,
+    /// Blocks of three states: cones of directions cut where the bound is tight, at most this
+    /// many, at least 4 (module docs, "Adaptive cones"; opt-in, `None` by default).
+    pub max_cones: Option<u32>,
 }
 
 impl Default for CertifySettings {
@@ -55,6 +58,7 @@ impl Default for CertifySettings {
             time_limit: None,
             sectors: None,
             cones: None,
+            max_cones: None,
         }
     }
 }
@@ -90,15 +94,30 @@ impl CertifySettings {
         if let Some(count) = self.cones {
             cone_generators(count)?;
         }
+        if let Some(budget) = self.max_cones {
+            if !(4..=MAX_CONES).contains(&budget) {
+                return Err(SolveError::InvalidSettings(format!(
+                    "max_cones must be in 4..={MAX_CONES} (got {budget})"
+                )));
+            }
+            if self.cones.is_some() {
+                return Err(SolveError::InvalidSettings(
+                    "give cones (uniform) or max_cones (adaptive), not both".into(),
+                ));
+            }
+        }
         check_time_limit(self.time_limit)
     }
 
     /// The certificate of a block of `dim` states: sectors for two states (the setting, or
     /// [`DEFAULT_SECTORS`] when neither `sectors` nor `level` is set), cones for three states
-    /// when `cones` is set, else one certificate of [`CertifySettings::level_for`].
+    /// (`cones`, else the adaptive cones when `max_cones` is set), else one certificate of
+    /// [`CertifySettings::level_for`].
     pub fn family_for(&self, dim: usize) -> Family {
-        if let (3, Some(count)) = (dim, self.cones) {
-            return Family::Cones(count);
+        match (dim, self.cones, self.max_cones) {
+            (3, Some(count), _) => return Family::Cones(count),
+            (3, None, Some(budget)) => return Family::Adaptive(budget),
+            _ => {}
         }
         match (dim, self.sectors, self.level) {
             (2, Some(_), _) | (2, None, None) => {
@@ -139,6 +158,10 @@ pub const MAX_LEVEL: u32 = 6;
 /// gap-and-time curves (docs/methods.md, `examples/certify_levels.rs`).
 pub const DEFAULT_SECTORS: u32 = 24;
 
+/// Most cones accepted for the adaptive cones ([`CertifySettings::max_cones`]): the program
+/// grows by a PSD cone of 19 rows per cone.
+pub const MAX_CONES: u32 = 256;
+
 /// A block solved only `AlmostSolved` whose repair added more than this fraction of its trace
 /// is certified again with the next lower family, and the smaller bound kept (a tenth of
 /// [`crate::bounds::CLOSED_RTOL`]: below it the repair cannot keep a bracket open).
@@ -158,6 +181,9 @@ pub enum Family {
     /// Three states: a level-1 certificate on each of this many cones of directions (4, 16
     /// or 64: the octants of a half-space, subdivided 0, 1 or 2 times).
     Cones(u32),
+    /// Three states: level-1 certificates on cones cut where the bound is tight, at most
+    /// this many (module docs, "Adaptive cones").
+    Adaptive(u32),
 }
 
 impl Family {
@@ -165,15 +191,16 @@ impl Family {
     pub fn level(self) -> u32 {
         match self {
             Family::Global(level) => level,
-            Family::Sectors(_) | Family::Cones(_) => 1,
+            Family::Sectors(_) | Family::Cones(_) | Family::Adaptive(_) => 1,
         }
     }
 
-    /// The number of sectors or cones (0 for one certificate for every direction).
+    /// The number of sectors or cones (0 for one certificate for every direction; the budget
+    /// of the adaptive cones).
     pub fn sectors(self) -> u32 {
         match self {
             Family::Global(_) => 0,
-            Family::Sectors(count) | Family::Cones(count) => count,
+            Family::Sectors(count) | Family::Cones(count) | Family::Adaptive(count) => count,
         }
     }
 
@@ -187,7 +214,9 @@ impl Family {
             }
             Family::Sectors(_) => Some(Family::Global(CertifySettings::auto_level(2))),
             Family::Cones(count) if count / 4 >= 4 => Some(Family::Cones(count / 4)),
-            Family::Cones(_) => Some(Family::Global(CertifySettings::auto_level(3))),
+            Family::Cones(_) | Family::Adaptive(_) => {
+                Some(Family::Global(CertifySettings::auto_level(3)))
+            }
             Family::Global(level) if level > 1 => Some(Family::Global(level - 1)),
             Family::Global(_) => None,
         }

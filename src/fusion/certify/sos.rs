@@ -11,10 +11,9 @@ use crate::error::SolveError;
 use crate::fusion::program::{solve_program, svec_index, Deadline, Kkt, SdpStatus};
 use crate::fusion::FusionProblem;
 
-use super::geometry::cone_multipliers;
 use super::layout::Layout;
 use super::repair::{exact_zero_sum, repair, repair_failed, sums_to_zero, MultiplierPart};
-use super::settings::{CertifySettings, Family};
+use super::settings::CertifySettings;
 
 #[allow(non_snake_case)]
 pub(super) struct BlockCertificate {
@@ -23,6 +22,9 @@ pub(super) struct BlockCertificate {
     pub(super) status: SdpStatus,
     pub(super) iterations: u32,
     pub(super) repair: f64,
+    /// The cones or sectors of directions certified on (0: one certificate for every
+    /// direction).
+    pub(super) pieces: u32,
 }
 
 /// One piece of a block's certificate: its conditions hold for every direction (no
@@ -33,29 +35,19 @@ pub(super) struct Piece {
     pub(super) multipliers: Vec<DMatrix<f64>>,
 }
 
+/// The level-`level` certificate on `pieces` (module docs), solved and repaired; with each
+/// piece's share of the objective: the trace of the moment matrix the solver's dual puts on
+/// the piece's condition 3 (the dual of `Q`'s rows; the shares sum to `n` up to tolerance),
+/// large where the bound is tight, zero where the piece's certificate has slack.
 #[allow(non_snake_case)]
-pub(super) fn certify_block(
+pub(super) fn certify_pieces(
     problem: &FusionProblem,
     gain: Option<&DMatrix<f64>>,
-    family: Family,
+    level: u32,
+    pieces: &[Piece],
     settings: &CertifySettings,
-) -> Result<BlockCertificate, SolveError> {
+) -> Result<(BlockCertificate, Vec<f64>), SolveError> {
     let n = problem.dim();
-    let (level, pieces) = match family {
-        Family::Global(level) => (
-            level,
-            vec![Piece {
-                multipliers: Vec::new(),
-            }],
-        ),
-        Family::Sectors(count) | Family::Cones(count) => {
-            let pieces = cone_multipliers(n, count)?
-                .into_iter()
-                .map(|multipliers| Piece { multipliers })
-                .collect::<Vec<_>>();
-            (1, pieces)
-        }
-    };
     let lay = Layout::new(n, level as usize);
     let (m, s, N) = (lay.m, lay.mons.len(), lay.big());
     let nb = lay.lower.len();
@@ -335,11 +327,31 @@ pub(super) fn certify_block(
         repair(problem, &lay, &K_a, C, &mut Q, &G, parts)?;
     }
     let repair = (Q.trace() - trace_solver).max(0.0);
-    Ok(BlockCertificate {
-        K_a,
-        P: Q,
-        status,
-        iterations: sol.iterations,
-        repair,
-    })
+    let shares = (0..pieces.len())
+        .map(|k| {
+            let first = groups.len() + k * lay.products.len();
+            let mut share = 0.0;
+            for (beta, c) in &lay.lower {
+                for i in 0..n {
+                    share -= c * sol.z[first + lay.quad(beta, i, i)];
+                }
+            }
+            share
+        })
+        .collect();
+    let pieces = match pieces {
+        [whole] if whole.multipliers.is_empty() => 0,
+        _ => pieces.len() as u32,
+    };
+    Ok((
+        BlockCertificate {
+            K_a,
+            P: Q,
+            status,
+            iterations: sol.iterations,
+            repair,
+            pieces,
+        },
+        shares,
+    ))
 }

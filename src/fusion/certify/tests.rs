@@ -224,3 +224,154 @@ fn cone_sizes_and_monomials() {
     assert_eq!(monomials(3, 2).len(), 6);
     assert_eq!(multinomial(&[2, 1]), 3.0);
 }
+
+/// `v` in the closed cone spanned by `u` or its negative, exactly: the three facet normals'
+/// products with `v` share a sign.
+fn in_cone(u: &[[i64; 3]; 3], v: [i64; 3]) -> bool {
+    let cross = |a: [i64; 3], b: [i64; 3]| {
+        [
+            a[1] as i128 * b[2] as i128 - a[2] as i128 * b[1] as i128,
+            a[2] as i128 * b[0] as i128 - a[0] as i128 * b[2] as i128,
+            a[0] as i128 * b[1] as i128 - a[1] as i128 * b[0] as i128,
+        ]
+    };
+    let d = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])]
+        .map(|n| n[0] * v[0] as i128 + n[1] * v[1] as i128 + n[2] * v[2] as i128);
+    d.iter().all(|&t| t >= 0) || d.iter().all(|&t| t <= 0)
+}
+
+#[test]
+#[allow(non_snake_case)]
+fn bisected_cones_still_cover_space_and_their_multipliers_stay_exact() {
+    // The adaptive cones' proof needs: each bisection is an exact subdivision (every
+    // direction of the parent cone is in a child, every direction of a child in the parent),
+    // so every refinement of the octants covers space with the cones and their negatives; and
+    // each cone's multipliers are exactly its normals' products (up to a power of two) while
+    // `bisect` accepts the cone. Checked in integers on random directions and a grid, over a
+    // refinement that cuts cones in a fixed scattered order and one cone down to the limit.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(44);
+    let mut cones = cone_generators(4).unwrap();
+    let mut depth = 0;
+    for step in 0..120 {
+        // Most steps cut the first cone (deep, thin cones), the others a scattered one.
+        let k = if step % 3 == 0 {
+            0
+        } else {
+            (step * 37) % cones.len()
+        };
+        let Some([a, b]) = bisect(&cones[k]) else {
+            // Refused only at the limit of exact multipliers.
+            let u = cones[k];
+            assert!(
+                [(0, 1), (1, 2), (0, 2)]
+                    .iter()
+                    .any(|&(i, j)| (0..3).any(|e| (u[i][e] + u[j][e]).abs() >= 1 << 12)),
+                "{u:?} refused below the limit"
+            );
+            continue;
+        };
+        let parent = cones[k];
+        for _ in 0..300 {
+            let v = [0; 3].map(|_| rng.random_range(-5000i64..=5000));
+            let in_child = in_cone(&a, v) || in_cone(&b, v);
+            assert_eq!(
+                in_cone(&parent, v),
+                in_child,
+                "{parent:?} → {a:?}, {b:?} at {v:?}"
+            );
+        }
+        cones[k] = a;
+        cones.push(b);
+        if k == 0 {
+            depth += 1;
+        }
+    }
+    assert!(depth >= 12, "cut the first cone {depth} times");
+    for x in -8i64..=8 {
+        for y in -8i64..=8 {
+            for z in -8i64..=8 {
+                let v = [x, y, z];
+                if v != [0, 0, 0] {
+                    assert!(cones.iter().any(|u| in_cone(u, v)), "{v:?} uncovered");
+                }
+            }
+        }
+    }
+    for u in &cones {
+        let cross = |a: [i64; 3], b: [i64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let normals = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])];
+        for (S, (i, j)) in cone_piece(u).iter().zip([(0, 1), (0, 2), (1, 2)]) {
+            let twice =
+                |r: usize, c: usize| normals[i][r] * normals[j][c] + normals[j][r] * normals[i][c];
+            let (r0, c0) = (0..9)
+                .map(|e| (e / 3, e % 3))
+                .find(|&(r, c)| twice(r, c) != 0)
+                .expect("two independent normals");
+            let ratio = S[(r0, c0)] / twice(r0, c0) as f64;
+            assert_eq!(ratio, ratio.log2().round().exp2(), "{u:?}");
+            for r in 0..3 {
+                for c in 0..3 {
+                    assert_eq!(S[(r, c)], twice(r, c) as f64 * ratio, "{u:?} ({r}, {c})");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn adaptive_cones_never_looser_than_their_first_round_and_stop_at_the_budget() {
+    // The refinement's first round is the program of 4 cones (the same pieces in the same
+    // order), and it keeps the smallest proven trace of its rounds: never above the 4-cone
+    // certificate's, exactly. It uses between 4 and `budget` cones, and a time limit ends it
+    // with the best proof found so far (or the time-limit error before any).
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let spd = |rng: &mut rand_chacha::ChaCha8Rng| {
+        let g = DMatrix::from_fn(3, 3, |_, _| rng.random_range(-1.0..1.0));
+        &g * g.transpose() + DMatrix::identity(3, 3) * 0.3
+    };
+    let p = FusionProblem::from_covariances(
+        spd(&mut rng),
+        spd(&mut rng),
+        CrossPattern::from_fn(3, |i, j| i + j != 2),
+    )
+    .unwrap();
+    let settings = CertifySettings::default();
+    let four = super::block::certify_block(&p, None, Family::Cones(4), &settings).unwrap();
+    let budget = 10;
+    let adaptive =
+        super::block::certify_block(&p, None, Family::Adaptive(budget), &settings).unwrap();
+    assert!(
+        (4..=budget).contains(&adaptive.pieces),
+        "{}",
+        adaptive.pieces
+    );
+    let trace = |m: &DMatrix<f64>| crate::fusion::upper::trace_upper_bound(m);
+    assert!(
+        trace(&adaptive.P) <= trace(&four.P),
+        "{} > {}",
+        trace(&adaptive.P),
+        trace(&four.P)
+    );
+    let limited = CertifySettings {
+        time_limit: Some(0.5),
+        ..settings
+    };
+    let start = std::time::Instant::now();
+    match super::block::certify_block(
+        &p,
+        None,
+        Family::Adaptive(crate::certify::MAX_CONES),
+        &limited,
+    ) {
+        Ok(c) => assert!(c.pieces < crate::certify::MAX_CONES),
+        Err(e) => assert!(matches!(e, crate::SolveError::TimeLimit { .. }), "{e}"),
+    }
+    // Without the limit, 256 cones take minutes.
+    assert!(start.elapsed().as_secs_f64() < 10.0);
+}
