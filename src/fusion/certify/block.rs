@@ -13,8 +13,7 @@ use crate::fusion::{Criterion, FusionProblem};
 use super::geometry::cone_multipliers;
 use super::refine::certify_adaptive;
 use super::repair::repair_failed;
-use super::settings::Family;
-use super::settings::{CertifySettings, RETRY_REPAIR_RTOL};
+use super::settings::{CertifySettings, Family, RETRY_REPAIR_RTOL};
 use super::sos::{certify_pieces, BlockCertificate, Piece};
 
 /// What [`certify`] finds for one block: its gain and proven bound, and how they were found.

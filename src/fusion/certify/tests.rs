@@ -343,6 +343,22 @@ fn adaptive_cones_never_looser_than_their_first_round_and_stop_at_the_budget() {
     .unwrap();
     let settings = CertifySettings::default();
     let four = super::block::certify_block(&p, None, Family::Cones(4), &settings).unwrap();
+    // The cones' shares of the dual sum to n (stationarity in Q's diagonal), as the cut
+    // rule reads them.
+    let pieces: Vec<super::sos::Piece> = cone_generators(4)
+        .unwrap()
+        .iter()
+        .map(|u| super::sos::Piece {
+            multipliers: cone_piece(u),
+        })
+        .collect();
+    let (same, shares) = super::sos::certify_pieces(&p, None, 1, &pieces, &settings).unwrap();
+    assert_eq!(same.P, four.P);
+    assert!(shares.iter().all(|&s| s > -1e-8), "{shares:?}");
+    assert!(
+        (shares.iter().sum::<f64>() - 3.0).abs() < 1e-6,
+        "{shares:?}"
+    );
     let budget = 10;
     let adaptive =
         super::block::certify_block(&p, None, Family::Adaptive(budget), &settings).unwrap();
