@@ -103,7 +103,7 @@ pub(crate) fn cone_piece(u: &[[i64; 3]; 3]) -> Vec<DMatrix<f64>> {
 }
 
 /// `a × b` in integers.
-fn cross(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
+pub(super) fn cross(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],

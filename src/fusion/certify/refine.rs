@@ -37,7 +37,8 @@ pub(super) fn certify_adaptive(
 ) -> Result<BlockCertificate, SolveError> {
     let deadline = Deadline::after(settings.time_limit);
     let mut cones = cone_generators(4)?;
-    let mut best: Option<BlockCertificate> = None;
+    // The best proof so far and its proven trace.
+    let mut best: Option<(f64, BlockCertificate)> = None;
     loop {
         let pieces: Vec<Piece> = cones
             .iter()
@@ -60,11 +61,10 @@ pub(super) fn certify_adaptive(
             Err(e) => return Err(e),
         };
         let trace = trace_upper_bound(&certificate.P);
-        let previous = best.as_ref().map(|b| trace_upper_bound(&b.P));
-        let improved = previous.is_none_or(|p| trace < p);
+        let previous = best.as_ref().map(|(p, _)| *p);
         let stalled = previous.is_some_and(|p| p - trace <= STALL_RTOL * p.abs());
-        if improved {
-            best = Some(certificate);
+        if previous.is_none_or(|p| trace < p) {
+            best = Some((trace, certificate));
         }
         if stalled || cones.len() >= budget as usize || deadline.passed() {
             break;
@@ -73,14 +73,17 @@ pub(super) fn certify_adaptive(
         let mut order: Vec<usize> = (0..cones.len()).collect();
         order.sort_by(|&a, &b| shares[b].total_cmp(&shares[a]));
         let room = budget as usize - cones.len();
-        let cut: Vec<usize> = order
+        let mut cut = vec![false; cones.len()];
+        for k in order
             .into_iter()
             .filter(|&k| shares[k] >= SPLIT_SHARE * largest && largest > 0.0)
             .take(room)
-            .collect();
-        let mut next = Vec::with_capacity(cones.len() + cut.len());
-        for (k, u) in cones.iter().enumerate() {
-            match cut.contains(&k).then(|| bisect(u)).flatten() {
+        {
+            cut[k] = true;
+        }
+        let mut next = Vec::with_capacity(cones.len() + room);
+        for (u, &cut) in cones.iter().zip(&cut) {
+            match cut.then(|| bisect(u)).flatten() {
                 Some(halves) => next.extend(halves),
                 None => next.push(*u),
             }
@@ -90,8 +93,9 @@ pub(super) fn certify_adaptive(
         }
         cones = next;
     }
-    best.ok_or_else(|| SolveError::SolverFailed {
-        status: "no round of the adaptive cones solved".into(),
-        iterations: 0,
-    })
+    best.map(|(_, certificate)| certificate)
+        .ok_or_else(|| SolveError::SolverFailed {
+            status: "no round of the adaptive cones solved".into(),
+            iterations: 0,
+        })
 }

@@ -298,13 +298,6 @@ fn bisected_cones_still_cover_space_and_their_multipliers_stay_exact() {
         }
     }
     for u in &cones {
-        let cross = |a: [i64; 3], b: [i64; 3]| {
-            [
-                a[1] * b[2] - a[2] * b[1],
-                a[2] * b[0] - a[0] * b[2],
-                a[0] * b[1] - a[1] * b[0],
-            ]
-        };
         let normals = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])];
         for (S, (i, j)) in cone_piece(u).iter().zip([(0, 1), (0, 2), (1, 2)]) {
             let twice =
