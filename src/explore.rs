@@ -223,7 +223,7 @@ fn analyse(
     // The explorer solves the sampled SDP of every state: its limits apply.
     request
         .pair
-        .check_sizes(Method::Sdp.info().limits.max_dim, "the explorer")?;
+        .check_sizes(Method::Sdp.info().limits.max_dim, &"the explorer")?;
     let problem = request.pair.problem()?;
     // nmCI and the certified rule solve the problem with its near-zero couplings absorbed
     // (`structure::absorb`), the SDP the deflated one; the bracket's upper ends (from the

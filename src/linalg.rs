@@ -46,13 +46,51 @@ macro_rules! wide {
 /// none: the iteration converges globally (Parlett, *The Symmetric Eigenvalue Problem*,
 /// § 8.10). `None` for an empty, non-square or non-finite `a`, where nalgebra would panic (a
 /// 2 × 2 block without real eigenvalues) or not end.
+///
+/// Sizes 2–4 run the same generic code on fixed-size matrices (no heap work inside, the same
+/// bits: tested), the sizes of most tracking states' blocks.
 pub(crate) fn symmetric_eigen(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>, DMatrix<f64>)> {
     if a.is_empty() || !a.is_square() || a.iter().any(|x| !x.is_finite()) {
         return None;
     }
+    match a.nrows() {
+        2 => symmetric_eigen_fixed!(a, eps, 2),
+        3 => symmetric_eigen_fixed!(a, eps, 3),
+        4 => symmetric_eigen_fixed!(a, eps, 4),
+        _ => symmetric_eigen_dynamic(a, eps),
+    }
+}
+
+/// `det a` of a square `a`: nalgebra's (closed forms up to 3 × 3, LU with partial pivoting
+/// above); 4 × 4 on stack storage, the same code and bits (tested).
+pub(crate) fn determinant(a: &DMatrix<f64>) -> f64 {
+    if a.nrows() == 4 && a.ncols() == 4 {
+        nalgebra::Matrix4::from_column_slice(a.as_slice()).determinant()
+    } else {
+        a.determinant()
+    }
+}
+
+/// [`symmetric_eigen`] on heap storage, any size.
+fn symmetric_eigen_dynamic(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>, DMatrix<f64>)> {
     let e = nalgebra::SymmetricEigen::try_new(a, eps, 0)?;
     Some((e.eigenvalues, e.eigenvectors))
 }
+
+/// [`symmetric_eigen`] of an `N × N` `a` on stack storage (`N` of 2, 3, 4: nalgebra's
+/// decomposition needs a type-level size).
+macro_rules! symmetric_eigen_fixed {
+    ($a:expr, $eps:expr, $n:literal) => {{
+        let m = nalgebra::SMatrix::<f64, $n, $n>::from_column_slice($a.as_slice());
+        nalgebra::SymmetricEigen::try_new(m, $eps, 0).map(|e| {
+            (
+                DVector::from_column_slice(e.eigenvalues.as_slice()),
+                DMatrix::from_column_slice($n, $n, e.eigenvectors.as_slice()),
+            )
+        })
+    }};
+}
+use symmetric_eigen_fixed;
 
 #[cfg(test)]
 thread_local! {
@@ -379,6 +417,44 @@ mod tests {
             let back = &vectors * DMatrix::from_diagonal(&values) * vectors.transpose();
             assert!((back - &a).amax() <= 1e-13 * a.amax(), "n = {n}");
         }
+    }
+
+    /// Sizes 2–4 on fixed-size storage give the bits of the heap-storage code, on random
+    /// symmetric matrices (lower triangle read), positive definite ones, and ones with a
+    /// repeated eigenvalue.
+    #[test]
+    fn fixed_size_eigen_gives_the_bits_of_the_dynamic_one() {
+        let mut seed = 11;
+        for n in 2..=4 {
+            for case in 0..200 {
+                let mut a = test_spd(n, &mut seed, 0.01);
+                match case % 3 {
+                    0 => a[(n - 1, 0)] -= 2.0 * a[(n - 1, 0)] + 0.3, // indefinite, asymmetric
+                    1 => a = DMatrix::identity(n, n) * 0.25 + DMatrix::from_element(n, n, 1.0),
+                    _ => {}
+                }
+                for eps in [f64::EPSILON, 4.0 * f64::EPSILON] {
+                    let fixed = symmetric_eigen(a.clone(), eps).unwrap();
+                    let dynamic = symmetric_eigen_dynamic(a.clone(), eps).unwrap();
+                    assert_eq!(fixed, dynamic, "n = {n}, case {case}");
+                }
+            }
+        }
+    }
+
+    /// The 4 × 4 determinant on stack storage gives the heap-storage bits.
+    #[test]
+    fn fixed_size_determinant_gives_the_bits_of_the_dynamic_one() {
+        let mut seed = 5;
+        for case in 0..300 {
+            let mut a = test_spd(4, &mut seed, 0.01);
+            if case % 2 == 0 {
+                a[(0, 3)] = -a[(0, 3)] * 3.0; // asymmetric, maybe indefinite
+            }
+            assert_eq!(determinant(&a), a.determinant(), "case {case}");
+        }
+        let b = test_spd(5, &mut seed, 0.1);
+        assert_eq!(determinant(&b), b.determinant());
     }
 
     /// The closed forms against nalgebra's QR iteration with eigenvectors (another

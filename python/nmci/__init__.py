@@ -206,17 +206,28 @@ def _two(
     xa: Optional[ArrayLike],
     xb: Optional[ArrayLike],
     pab_unknown: Optional[ArrayLike],
+    criterion: Optional[str] = None,
     **options: Any,
 ) -> Union[Fused, FusedStack]:
     if type(Pa) is np.ndarray and Pa.ndim == 2 and type(Pb) is np.ndarray:
         # One pair of float64 arrays, the common case: straight to Rust, which reads any
         # strides and checks every number. What it cannot take as given (another dtype, a
         # list, a stack) it refuses with a TypeError before any work, and goes the general way
-        # below, which converts it or names what is wrong.
+        # below, which converts it or names what is wrong. `criterion` is a positional
+        # parameter of `fuse_arrays` and the other options go as keywords only when there are
+        # any: a call with none passes no keywords.
         try:
-            return _fused(_nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, **options))
+            if options:
+                fused = _nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, criterion, **options)
+            else:
+                fused = _nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, criterion)
         except TypeError:
             pass
+        else:
+            note = fused.structure_note
+            if note is not None:
+                warnings.warn(note, StructureWarning, stacklevel=3)
+            return fused
     pa = _array("P_a", Pa, (2, 3))
     if pa.ndim == 3:
         # A stack of pairs: `(k, n, n)` covariances, `(k, n)` means, one pattern or one each.
@@ -228,6 +239,7 @@ def _two(
                 _vector("x_a", xa, 2),
                 _vector("x_b", xb, 2),
                 _pattern("pab_unknown", pab_unknown, (2, 3)),
+                criterion=criterion,
                 **options,
             )
         )
@@ -239,6 +251,7 @@ def _two(
             _vector("x_a", xa),
             _vector("x_b", xb),
             _pattern("pab_unknown", pab_unknown),
+            criterion=criterion,
             **options,
         )
     )
@@ -267,7 +280,7 @@ def ci(
 
     Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
     """
-    return _two("ci", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
+    return _two("ci", Pa, Pb, xa, xb, pab_unknown, criterion)
 
 
 def nmci(
@@ -447,7 +460,7 @@ def ici(
 
     Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
     """
-    return _two("ici", Pa, Pb, xa, xb, pab_unknown, criterion=criterion)
+    return _two("ici", Pa, Pb, xa, xb, pab_unknown, criterion)
 
 
 def ei(

@@ -111,6 +111,7 @@ def fuse_arrays(
     xa: Optional[npt.NDArray[np.float64]] = None,
     xb: Optional[npt.NDArray[np.float64]] = None,
     pab_unknown: Optional[npt.NDArray[np.bool_]] = None,
+    criterion: Optional[str] = None,
     estimates: Optional[Sequence[Tuple[Optional[Array], Array]]] = None,
     patterns: Optional[Sequence[Tuple[int, int, npt.NDArray[np.bool_]]]] = None,
     **options: Any,

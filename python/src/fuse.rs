@@ -75,6 +75,19 @@ fn options(py: Python<'_>, kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<(Opti
     Ok((options, pair))
 }
 
+/// The rule named `method`: a name of the registry as it is, anything else as the contract reads
+/// it (which names the field and the rules).
+fn method_of(py: Python<'_>, method: &Bound<'_, PyString>) -> PyResult<Method> {
+    match method
+        .to_cow()
+        .ok()
+        .and_then(|name| Method::from_name(&name))
+    {
+        Some(m) => Ok(m),
+        None => contract_value(py, method, Some("method")),
+    }
+}
+
 /// One estimate of an N-way request: `(x or None, P)`.
 type NumpyEstimate<'py> = (
     Option<PyReadonlyArray1<'py, f64>>,
@@ -88,9 +101,10 @@ fn fuse_json(py: Python<'_>, request: String) -> PyResult<String> {
 }
 
 /// A request of the contract with its matrices as numpy arrays and its options as keyword
-/// arguments ([`options`]); the response as [`Fused`].
+/// arguments ([`options`]; `criterion`, the option of every weighted rule, is a parameter, the
+/// seventh, so a call that gives only it passes no keywords); the response as [`Fused`].
 #[pyfunction]
-#[pyo3(signature = (method, pa=None, pb=None, xa=None, xb=None, pab_unknown=None, estimates=None, patterns=None, **options))]
+#[pyo3(signature = (method, pa=None, pb=None, xa=None, xb=None, pab_unknown=None, criterion=None, estimates=None, patterns=None, **options))]
 #[allow(clippy::too_many_arguments)]
 fn fuse_arrays<'py>(
     py: Python<'py>,
@@ -100,12 +114,16 @@ fn fuse_arrays<'py>(
     xa: Option<PyReadonlyArray1<'py, f64>>,
     xb: Option<PyReadonlyArray1<'py, f64>>,
     pab_unknown: Option<PyReadonlyArray2<'py, bool>>,
+    criterion: Option<&Bound<'py, PyAny>>,
     estimates: Option<Vec<NumpyEstimate<'py>>>,
     patterns: Option<Vec<(usize, usize, PyReadonlyArray2<'py, bool>)>>,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Fused> {
-    let method: Method = contract_value(py, method, Some("method"))?;
-    let (options, structure) = self::options(py, options)?;
+    let method = method_of(py, method)?;
+    let (mut options, structure) = self::options(py, options)?;
+    if let Some(criterion) = criterion.filter(|c| !c.is_none()) {
+        options.criterion = Some(contract_value(py, criterion, Some("criterion"))?);
+    }
     let pair = PairInput {
         pa: pa.as_ref().map(rows).unwrap_or_default(),
         pb: pb.as_ref().map(rows).unwrap_or_default(),
@@ -157,7 +175,7 @@ fn fuse_stack<'py>(
     pab_unknown: Option<Bound<'py, PyAny>>,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<FusedStack> {
-    let method: Method = contract_value(py, method, Some("method"))?;
+    let method = method_of(py, method)?;
     let (options, structure) = self::options(py, options)?;
     let n = pa.shape()[1];
     if pa.shape()[2] != n {

@@ -16,7 +16,11 @@
 //! - studies and fig. 2 run on a rayon pool built per call, never rayon's global pool, so they
 //!   also run in processes forked from one that used nmci (Python's process pools on Linux);
 //! - errors become the exceptions of `nmci._errors` (one class per Rust error concern), with
-//!   the request field at fault as their `field`.
+//!   the request field at fault as their `field`;
+//! - Rust's allocations go to mimalloc (as polars' Python package does): a single small fusion
+//!   makes some fifty short-lived allocations (the matrices of the problem, the pencil and the
+//!   response), and glibc's allocator was about a tenth of such a call (`perf`); memory handed
+//!   to numpy (`PyArray1::from_vec`) is freed by Rust, through the same allocator.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -29,6 +33,9 @@ use nmci::{RequestError, SampleError, SolveError};
 
 mod fuse;
 mod study;
+
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 /// The exception of `nmci._errors` named `kind`, carrying `message`.
 fn error(py: Python<'_>, kind: &str, message: String) -> PyErr {

@@ -89,7 +89,7 @@ impl CovarianceSummary {
     /// `tr P` and `det P`, as a response reports them.
     #[allow(non_snake_case)]
     pub(crate) fn trace_det(P: &DMatrix<f64>) -> (f64, f64) {
-        (P.trace(), P.determinant())
+        (P.trace(), crate::linalg::determinant(P))
     }
 }
 

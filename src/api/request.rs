@@ -55,7 +55,7 @@ pub(crate) fn check_rows<T>(
     field: &str,
     rows: &[Vec<T>],
     max: usize,
-    who: &str,
+    who: &dyn std::fmt::Display,
 ) -> Result<(), RequestError> {
     let longest = rows.iter().map(Vec::len).max().unwrap_or(0).max(rows.len());
     if longest > max {
@@ -65,6 +65,15 @@ pub(crate) fn check_rows<T>(
         ));
     }
     Ok(())
+}
+
+/// `method "ci"`: how a size error names the rule (written only when one is raised).
+struct RuleName(Method);
+
+impl std::fmt::Display for RuleName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "method \"{}\"", self.0.name())
+    }
 }
 
 /// A square matrix from nested rows, or `Empty` / `NotSquare` naming `name`.
@@ -171,7 +180,11 @@ impl PairInput {
     }
 
     /// Every field against a size limit of `max` states, before any matrix is built.
-    pub(crate) fn check_sizes(&self, max: usize, who: &str) -> Result<(), RequestError> {
+    pub(crate) fn check_sizes(
+        &self,
+        max: usize,
+        who: &dyn std::fmt::Display,
+    ) -> Result<(), RequestError> {
         check_rows("pa", &self.pa, max, who)?;
         check_rows("pb", &self.pb, max, who)?;
         for (field, v) in [("xa", &self.xa), ("xb", &self.xb)] {
@@ -542,7 +555,7 @@ impl FuseRequest {
     /// matrix is built (the block limit needs the problem: [`check_blocks`]).
     fn check_sizes(&self) -> Result<(), RequestError> {
         let max = self.method.info().limits.max_dim;
-        let who = format!("method \"{}\"", self.method.name());
+        let who = RuleName(self.method);
         self.pair.check_sizes(max, &who)?;
         if let Some(estimates) = &self.estimates {
             if estimates.len() > MAX_ESTIMATES {

@@ -332,7 +332,7 @@ fn psd_within(mid: &DMatrix<f64>, e: f64) -> bool {
     for i in 0..n {
         b[(i, i)] -= s;
     }
-    cholesky_succeeds(&b)
+    cholesky_succeeds(&mut b)
 }
 
 /// Proves that the symmetric float matrix `m` is positive definite: [`is_psd`] with radius 0,
@@ -384,23 +384,22 @@ pub(crate) fn is_not_positive_definite(m: &DMatrix<f64>) -> bool {
 }
 
 wide! {
-/// Plain floating-point Cholesky `B = R̃ᵀR̃`; whether every pivot is positive (and finite).
-/// Left-looking on the columns of the lower factor `R̃ᵀ`: each entry is `b` minus its
+/// Plain floating-point Cholesky `B = R̃ᵀR̃`, in `b`'s storage (which it leaves undefined);
+/// whether every pivot is positive (and finite). Left-looking on the columns of the lower factor `R̃ᵀ`: each entry is `b` minus its
 /// products summed in the order `k = 0, 1, …`, then divided by (or, on the diagonal, the
 /// square root of) the pivot — the factorization the error bound of the module docs is for
 /// (it holds for any summation order); the updates run along contiguous columns, so they
 /// vectorize — with AVX2 where the CPU has it ([`wide!`](crate::linalg), the same operations
 /// in the same order, so the same bits).
-fn cholesky_succeeds(b: &DMatrix<f64>) -> bool = cholesky_succeeds_kernel;
+fn cholesky_succeeds(b: &mut DMatrix<f64>) -> bool = cholesky_succeeds_kernel;
 }
 
 /// The body of [`cholesky_succeeds`], compiled into each of its copies.
 #[inline(always)]
 #[allow(non_snake_case)]
-fn cholesky_succeeds_kernel(b: &DMatrix<f64>) -> bool {
+fn cholesky_succeeds_kernel(b: &mut DMatrix<f64>) -> bool {
     let n = b.nrows();
-    let mut factor = b.clone();
-    let data = factor.as_mut_slice();
+    let data = b.as_mut_slice();
     for j in 0..n {
         let (done, rest) = data.split_at_mut(j * n);
         let col = &mut rest[j..n];
@@ -538,8 +537,8 @@ mod tests {
                 for i in 0..n {
                     b[(i, i)] += -lmin + k as f64 * 1e-14 * a.amax();
                 }
-                let wide = cholesky_succeeds(&b);
-                let base = crate::linalg::on_baseline(|| cholesky_succeeds(&b));
+                let wide = cholesky_succeeds(&mut b.clone());
+                let base = crate::linalg::on_baseline(|| cholesky_succeeds(&mut b.clone()));
                 assert_eq!(wide, base, "n {n} k {k}");
                 decided[usize::from(wide)] += 1;
             }

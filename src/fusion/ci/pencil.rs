@@ -8,7 +8,7 @@ use crate::fusion::scale::two_to;
 use crate::fusion::{definiteness_error, BlockMean, Criterion};
 use crate::linalg::{
     cholesky, cholesky_of, solve_lower_in_place, solve_lower_rows, solve_lower_transposed_rows,
-    symmetric_eigen, symmetrize, symmetrize_in_place,
+    symmetric_eigen, symmetrize_in_place,
 };
 
 /// `P_a + t P_b` (positive definite in exact arithmetic for accepted `P_a`, `P_b`) or the
@@ -30,13 +30,14 @@ pub(super) fn left_solve(L: &DMatrix<f64>, A: &DMatrix<f64>) -> DMatrix<f64> {
     Xt
 }
 
-/// `L⁻¹ A L⁻ᵀ = L⁻¹ Xᵀ` (symmetrized) from [`left_solve`]'s `Xᵀ`: the column-major transpose
-/// of `Xᵀ` is `Xᵀ` in row-major order, so one more row solve.
+/// `L⁻¹ A L⁻ᵀ = L⁻¹ Xᵀ` (symmetrized) from [`left_solve`]'s `Xᵀ`, in its storage: the
+/// column-major transpose of `Xᵀ` is `Xᵀ` in row-major order, so one more row solve.
 #[allow(non_snake_case)]
-pub(super) fn congruence(L: &DMatrix<f64>, Xt: &DMatrix<f64>) -> DMatrix<f64> {
-    let mut M = Xt.transpose();
-    solve_lower_rows(L, M.as_mut_slice());
-    symmetrize(&M)
+pub(super) fn congruence(L: &DMatrix<f64>, mut Xt: DMatrix<f64>) -> DMatrix<f64> {
+    Xt.transpose_mut();
+    solve_lower_rows(L, Xt.as_mut_slice());
+    symmetrize_in_place(&mut Xt);
+    Xt
 }
 
 /// `P_b = L Lᵀ` and `X = L⁻¹ P_a`: what the derivative of the criterion at `ω = 1` needs, so
@@ -60,7 +61,7 @@ impl HalfPencil {
 
     /// `M = L⁻¹ P_a L⁻ᵀ = L⁻¹ Xᵀ` (symmetrized).
     pub(super) fn pencil_matrix(&self) -> DMatrix<f64> {
-        congruence(&self.L, &self.Xt)
+        congruence(&self.L, self.Xt.clone())
     }
 
     /// The criterion's derivative at `ω = 1` (where `P = P_a`): `−tr P_a + tr(P_a P_b⁻¹ P_a)`
@@ -176,7 +177,7 @@ impl Pencil {
         let L = cholesky_of(S)
             .ok_or_else(|| unfactored("P_a + t P_b"))?
             .unpack();
-        let M = congruence(&L, &left_solve(&L, P_a));
+        let M = congruence(&L, left_solve(&L, P_a));
         // Off-diagonal entries below 4ε relative to their diagonal neighbours count as zero
         // (nalgebra's default is ε): eigenvalues still accurate to ~1e-15 ‖M‖ ≤ 1e-15, ~15 %
         // fewer QR sweeps. nalgebra's `SymmetricEigen` without an iteration limit, bit for bit
