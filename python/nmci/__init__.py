@@ -191,14 +191,6 @@ def _non_finite(value: Any, path: str) -> Optional[str]:
     return None
 
 
-def _fused(fused: Fused) -> Fused:
-    """``fused``, its structure note, if any, issued as a :class:`StructureWarning`."""
-    note = fused.structure_note
-    if note is not None:
-        warnings.warn(note, StructureWarning, stacklevel=4)
-    return fused
-
-
 def _two(
     method: str,
     Pa: ArrayLike,
@@ -215,19 +207,14 @@ def _two(
         # list, a stack) it refuses with a TypeError before any work, and goes the general way
         # below, which converts it or names what is wrong. `criterion` is a positional
         # parameter of `fuse_arrays` and the other options go as keywords only when there are
-        # any: a call with none passes no keywords.
+        # any: a call with none passes no keywords. `fuse_arrays` issues the structure note as
+        # a StructureWarning at the caller of the rule function.
         try:
             if options:
-                fused = _nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, criterion, **options)
-            else:
-                fused = _nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, criterion)
+                return _nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, criterion, **options)
+            return _nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, criterion)
         except TypeError:
             pass
-        else:
-            note = fused.structure_note
-            if note is not None:
-                warnings.warn(note, StructureWarning, stacklevel=3)
-            return fused
     pa = _array("P_a", Pa, (2, 3))
     if pa.ndim == 3:
         # A stack of pairs: `(k, n, n)` covariances, `(k, n)` means, one pattern or one each.
@@ -243,17 +230,15 @@ def _two(
                 **options,
             )
         )
-    return _fused(
-        _nmci.fuse_arrays(
-            method,
-            pa,
-            _matrix("P_b", Pb),
-            _vector("x_a", xa),
-            _vector("x_b", xb),
-            _pattern("pab_unknown", pab_unknown),
-            criterion=criterion,
-            **options,
-        )
+    return _nmci.fuse_arrays(
+        method,
+        pa,
+        _matrix("P_b", Pb),
+        _vector("x_a", xa),
+        _vector("x_b", xb),
+        _pattern("pab_unknown", pab_unknown),
+        criterion=criterion,
+        **options,
     )
 
 
@@ -522,10 +507,8 @@ def _nway(
         for entry in entries:
             (i, j), mask = entry if isinstance(patterns, Mapping) else ((entry[0], entry[1]), entry[2])
             pairs.append((int(i), int(j), _pattern(f"pattern ({i}, {j})", mask)))
-    return _fused(
-        _nmci.fuse_arrays(
-            method, estimates=items, patterns=pairs, criterion=criterion, blocks=blocks, coupling_tol=coupling_tol
-        )
+    return _nmci.fuse_arrays(
+        method, estimates=items, patterns=pairs, criterion=criterion, blocks=blocks, coupling_tol=coupling_tol
     )
 
 

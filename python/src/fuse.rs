@@ -21,6 +21,16 @@ use nmci::RequestError;
 
 use crate::{contract_value, detached, error, error_at, request_error, to_python};
 
+/// `a`'s rows, copied under the GIL without registering a borrow (`to_owned_array`, safe: a
+/// copy taken while no Python code runs): the two covariances of every single call, where
+/// numpy's borrow bookkeeping was a measurable part of the call.
+fn copied_rows(a: &Bound<'_, PyArray2<f64>>) -> Vec<Vec<f64>> {
+    a.to_owned_array()
+        .outer_iter()
+        .map(|r| r.to_vec())
+        .collect()
+}
+
 fn rows(a: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
     a.as_array().outer_iter().map(|r| r.to_vec()).collect()
 }
@@ -109,10 +119,10 @@ fn fuse_json(py: Python<'_>, request: String) -> PyResult<String> {
 fn fuse_arrays<'py>(
     py: Python<'py>,
     method: &Bound<'py, PyString>,
-    pa: Option<PyReadonlyArray2<'py, f64>>,
-    pb: Option<PyReadonlyArray2<'py, f64>>,
-    xa: Option<PyReadonlyArray1<'py, f64>>,
-    xb: Option<PyReadonlyArray1<'py, f64>>,
+    pa: Option<Bound<'py, PyArray2<f64>>>,
+    pb: Option<Bound<'py, PyArray2<f64>>>,
+    xa: Option<Bound<'py, PyArray1<f64>>>,
+    xb: Option<Bound<'py, PyArray1<f64>>>,
     pab_unknown: Option<PyReadonlyArray2<'py, bool>>,
     criterion: Option<&Bound<'py, PyAny>>,
     estimates: Option<Vec<NumpyEstimate<'py>>>,
@@ -125,10 +135,10 @@ fn fuse_arrays<'py>(
         options.criterion = Some(contract_value(py, criterion, Some("criterion"))?);
     }
     let pair = PairInput {
-        pa: pa.as_ref().map(rows).unwrap_or_default(),
-        pb: pb.as_ref().map(rows).unwrap_or_default(),
-        xa: xa.map(|v| v.as_array().to_vec()),
-        xb: xb.map(|v| v.as_array().to_vec()),
+        pa: pa.as_ref().map(copied_rows).unwrap_or_default(),
+        pb: pb.as_ref().map(copied_rows).unwrap_or_default(),
+        xa: xa.map(|v| v.to_owned_array().to_vec()),
+        xb: xb.map(|v| v.to_owned_array().to_vec()),
         pab_unknown: pab_unknown.as_ref().map(bool_rows),
         ..structure
     };
@@ -156,7 +166,22 @@ fn fuse_arrays<'py>(
     };
     let response =
         detached(py, move || nmci::contract::fuse(&request))?.map_err(|e| request_error(py, e))?;
+    warn_structure(py, &response)?;
     Fused::new_from(py, response)
+}
+
+/// The response's structure note, if it has one (round-off absorbed, declared blocks, a weak
+/// coupling kept), issued as `nmci.StructureWarning` at the user's line: `fuse_arrays` is
+/// called by a helper of the package (`_two`, `_nway`) that a rule function called, so the
+/// user's line is three frames up. An error is what the warnings filter made of it.
+fn warn_structure(py: Python<'_>, response: &FuseResponse) -> PyResult<()> {
+    let Some(note) = response.structure.as_ref().and_then(|s| s.note.as_deref()) else {
+        return Ok(());
+    };
+    let category = py.import("nmci._errors")?.getattr("StructureWarning")?;
+    let message = std::ffi::CString::new(note.replace('\0', " "))
+        .map_err(|e| error(py, "InternalError", e.to_string()))?;
+    PyErr::warn(py, &category, &message, 3)
 }
 
 /// `k` pairs fused by one closed-form rule ([`nmci::contract::fuse_stack`]): `pa`, `pb`
