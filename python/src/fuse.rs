@@ -22,17 +22,13 @@ use nmci::RequestError;
 use crate::{contract_value, detached, error, error_at, request_error, to_python};
 
 /// `a`'s rows, copied under the GIL without registering a borrow (`to_owned_array`, safe: a
-/// copy taken while no Python code runs): the two covariances of every single call, where
-/// numpy's borrow bookkeeping was a measurable part of the call.
-fn copied_rows(a: &Bound<'_, PyArray2<f64>>) -> Vec<Vec<f64>> {
+/// copy taken while no Python code runs); numpy's borrow bookkeeping was a measurable part of
+/// a single call.
+fn rows(a: &Bound<'_, PyArray2<f64>>) -> Vec<Vec<f64>> {
     a.to_owned_array()
         .outer_iter()
         .map(|r| r.to_vec())
         .collect()
-}
-
-fn rows(a: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
-    a.as_array().outer_iter().map(|r| r.to_vec()).collect()
 }
 
 fn bool_rows(a: &PyReadonlyArray2<'_, bool>) -> Vec<Vec<bool>> {
@@ -101,7 +97,7 @@ fn method_of(py: Python<'_>, method: &Bound<'_, PyString>) -> PyResult<Method> {
 /// One estimate of an N-way request: `(x or None, P)`.
 type NumpyEstimate<'py> = (
     Option<PyReadonlyArray1<'py, f64>>,
-    PyReadonlyArray2<'py, f64>,
+    Bound<'py, PyArray2<f64>>,
 );
 
 /// The JSON contract as text: exactly `nmci fuse`.
@@ -135,8 +131,8 @@ fn fuse_arrays<'py>(
         options.criterion = Some(contract_value(py, criterion, Some("criterion"))?);
     }
     let pair = PairInput {
-        pa: pa.as_ref().map(copied_rows).unwrap_or_default(),
-        pb: pb.as_ref().map(copied_rows).unwrap_or_default(),
+        pa: pa.as_ref().map(rows).unwrap_or_default(),
+        pb: pb.as_ref().map(rows).unwrap_or_default(),
         xa: xa.map(|v| v.to_owned_array().to_vec()),
         xb: xb.map(|v| v.to_owned_array().to_vec()),
         pab_unknown: pab_unknown.as_ref().map(bool_rows),
@@ -647,8 +643,8 @@ fn conservativeness_index(
 #[pyo3(signature = (pa, pb, pab_unknown, count, **options))]
 fn sample_cross_covariances<'py>(
     py: Python<'py>,
-    pa: PyReadonlyArray2<'py, f64>,
-    pb: PyReadonlyArray2<'py, f64>,
+    pa: Bound<'py, PyArray2<f64>>,
+    pb: Bound<'py, PyArray2<f64>>,
     pab_unknown: Option<PyReadonlyArray2<'py, bool>>,
     count: &Bound<'py, PyAny>,
     options: Option<&Bound<'py, PyDict>>,
@@ -669,7 +665,7 @@ fn sample_cross_covariances<'py>(
         nmci::sample::sample_cross_covariances(&problem, count, seed, settings)
     })?
     .map_err(|e| request_error(py, RequestError::Sample(e)))?;
-    let n = pa.as_array().nrows();
+    let n = pa.shape()[0];
     let flat: Vec<f64> = samples
         .cross
         .iter()
