@@ -50,7 +50,7 @@ macro_rules! wide {
 /// Sizes 2–4 run the same generic code on fixed-size matrices (no heap work inside, the same
 /// bits: tested), the sizes of most tracking states' blocks.
 pub(crate) fn symmetric_eigen(a: DMatrix<f64>, eps: f64) -> Option<(DVector<f64>, DMatrix<f64>)> {
-    if a.is_empty() || !a.is_square() || a.iter().any(|x| !x.is_finite()) {
+    if a.is_empty() || !a.is_square() || first_non_finite(&a).is_some() {
         return None;
     }
     match a.nrows() {
@@ -120,6 +120,18 @@ pub(crate) fn on_baseline<R>(f: impl FnOnce() -> R) -> R {
     let r = f();
     FORCE_BASELINE.with(|b| b.set(false));
     r
+}
+
+/// `maxᵢⱼ |aᵢⱼ|` (nalgebra's `amax`, NaN entries ignored as there; 0 for an empty matrix), read
+/// from the contiguous storage rather than through nalgebra's strided iterator.
+pub(crate) fn largest_abs(a: &DMatrix<f64>) -> f64 {
+    a.as_slice().iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+/// The first non-finite entry of `a`, as `(row, column)`.
+pub(crate) fn first_non_finite(a: &DMatrix<f64>) -> Option<(usize, usize)> {
+    let k = a.as_slice().iter().position(|x| !x.is_finite())?;
+    Some((k % a.nrows(), k / a.nrows()))
 }
 
 /// Relative tolerance of the symmetry check on inputs.

@@ -40,7 +40,6 @@ import json
 import math
 import os
 import re
-import warnings
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -201,54 +200,40 @@ def _two(
     criterion: Optional[str] = None,
     **options: Any,
 ) -> Union[Fused, FusedStack]:
-    if type(Pa) is np.ndarray and Pa.ndim == 2 and type(Pb) is np.ndarray:
-        # One pair of float64 arrays, the common case: straight to Rust, which reads any
-        # strides and checks every number. What it cannot take as given (another dtype, a
-        # list, a stack) it refuses with a TypeError before any work, and goes the general way
-        # below, which converts it or names what is wrong. `criterion` is a positional
-        # parameter of `fuse_arrays` and the other options go as keywords only when there are
-        # any: a call with none passes no keywords. `fuse_arrays` issues the structure note as
-        # a StructureWarning at the caller of the rule function.
-        try:
-            if options:
-                return _nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, criterion, **options)
-            return _nmci.fuse_arrays(method, Pa, Pb, xa, xb, pab_unknown, criterion)
-        except TypeError:
-            pass
+    """A two-estimate rule on any inputs: converted (or refused, named) here, then fused.
+
+    The closed-form rules first hand their arguments to ``_fuse_arrays`` as they are: one pair
+    of float64 arrays goes straight to Rust, which reads any strides and checks every number.
+    What it cannot take as given (another dtype, a list, a stack) it refuses with a
+    ``TypeError`` before any work, and the rule comes here. ``fuse_arrays`` issues a structure
+    note as a ``StructureWarning`` at the first frame outside this package.
+    """
     pa = _array("P_a", Pa, (2, 3))
     if pa.ndim == 3:
         # A stack of pairs: `(k, n, n)` covariances, `(k, n)` means, one pattern or one each.
-        return _stack(
-            _nmci.fuse_stack(
-                method,
-                pa,
-                _array("P_b", Pb, 3),
-                _vector("x_a", xa, 2),
-                _vector("x_b", xb, 2),
-                _pattern("pab_unknown", pab_unknown, (2, 3)),
-                criterion=criterion,
-                **options,
-            )
+        return _nmci.fuse_stack(
+            method,
+            pa,
+            _array("P_b", Pb, 3),
+            _vector("x_a", xa, 2),
+            _vector("x_b", xb, 2),
+            _pattern("pab_unknown", pab_unknown, (2, 3)),
+            criterion=criterion,
+            **options,
         )
-    return _nmci.fuse_arrays(
+    return _fuse_arrays(
         method,
         pa,
         _matrix("P_b", Pb),
         _vector("x_a", xa),
         _vector("x_b", xb),
         _pattern("pab_unknown", pab_unknown),
-        criterion=criterion,
+        criterion,
         **options,
     )
 
 
-def _stack(stack: FusedStack) -> FusedStack:
-    """``stack``, its pairs' structure notes, if any, issued as one :class:`StructureWarning`."""
-    notes = [(i, n) for i, n in enumerate(stack.structure_notes) if n is not None]
-    if notes:
-        first, note = notes[0]
-        warnings.warn(f"{len(notes)} of {len(stack)} pairs (the first, pair {first}): {note}", StructureWarning, stacklevel=4)
-    return stack
+_fuse_arrays = _nmci.fuse_arrays
 
 
 def ci(
@@ -265,6 +250,10 @@ def ci(
 
     Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
     """
+    try:
+        return _fuse_arrays("ci", Pa, Pb, xa, xb, pab_unknown, criterion)
+    except TypeError:
+        pass  # not one pair of float64 arrays (`_two`)
     return _two("ci", Pa, Pb, xa, xb, pab_unknown, criterion)
 
 
@@ -288,7 +277,11 @@ def nmci(
     proven block-diagonal bound, reported in ``structure``.
     Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
     """
-    return _two("nmci", Pa, Pb, xa, xb, pab_unknown, criterion=criterion, blocks=blocks, coupling_tol=coupling_tol)
+    try:
+        return _fuse_arrays("nmci", Pa, Pb, xa, xb, pab_unknown, criterion, blocks=blocks, coupling_tol=coupling_tol)
+    except TypeError:
+        pass  # not one pair of float64 arrays (`_two`)
+    return _two("nmci", Pa, Pb, xa, xb, pab_unknown, criterion, blocks=blocks, coupling_tol=coupling_tol)
 
 
 def optimal(
@@ -445,6 +438,10 @@ def ici(
 
     Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
     """
+    try:
+        return _fuse_arrays("ici", Pa, Pb, xa, xb, pab_unknown, criterion)
+    except TypeError:
+        pass  # not one pair of float64 arrays (`_two`)
     return _two("ici", Pa, Pb, xa, xb, pab_unknown, criterion)
 
 
@@ -460,6 +457,10 @@ def ei(
 
     Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
     """
+    try:
+        return _fuse_arrays("ei", Pa, Pb, xa, xb, pab_unknown)
+    except TypeError:
+        pass  # not one pair of float64 arrays (`_two`)
     return _two("ei", Pa, Pb, xa, xb, pab_unknown)
 
 
@@ -476,6 +477,10 @@ def naive(
 
     Stacks (``Pa``, ``Pb`` of shape ``(k, n, n)``) give a :class:`FusedStack`.
     """
+    try:
+        return _fuse_arrays("naive", Pa, Pb, xa, xb, pab_unknown)
+    except TypeError:
+        pass  # not one pair of float64 arrays (`_two`)
     return _two("naive", Pa, Pb, xa, xb, pab_unknown)
 
 

@@ -160,24 +160,64 @@ fn fuse_arrays<'py>(
                 .collect()
         }),
     };
-    let response =
-        detached(py, move || nmci::contract::fuse(&request))?.map_err(|e| request_error(py, e))?;
+    // The response goes into its `Arc` where it is made: a few hundred bytes not moved again.
+    let response = detached(py, || nmci::contract::fuse(&request).map(Arc::new))?
+        .map_err(|e| request_error(py, e))?;
     warn_structure(py, &response)?;
-    Fused::new_from(py, response)
+    Ok(Fused::new_from(py, response))
 }
 
 /// The response's structure note, if it has one (round-off absorbed, declared blocks, a weak
-/// coupling kept), issued as `nmci.StructureWarning` at the user's line: `fuse_arrays` is
-/// called by a helper of the package (`_two`, `_nway`) that a rule function called, so the
-/// user's line is three frames up. An error is what the warnings filter made of it.
+/// coupling kept), issued as a warning ([`warn`]).
 fn warn_structure(py: Python<'_>, response: &FuseResponse) -> PyResult<()> {
-    let Some(note) = response.structure.as_ref().and_then(|s| s.note.as_deref()) else {
+    match response.structure.as_ref().and_then(|s| s.note.as_deref()) {
+        Some(note) => warn(py, note),
+        None => Ok(()),
+    }
+}
+
+/// A stack's structure notes, if any, as one warning ([`warn`]): how many pairs have one, and
+/// the first pair's.
+fn warn_stack(py: Python<'_>, notes: &[Option<String>]) -> PyResult<()> {
+    let mut given = (notes.iter().enumerate()).filter_map(|(i, n)| Some((i, n.as_deref()?)));
+    let Some((first, note)) = given.next() else {
         return Ok(());
     };
+    let count = 1 + given.count();
+    let total = notes.len();
+    warn(
+        py,
+        &format!("{count} of {total} pairs (the first, pair {first}): {note}"),
+    )
+}
+
+/// `note` issued as `nmci.StructureWarning` at the user's line ([`user_stacklevel`]). An error
+/// is what the warnings filter made of it.
+fn warn(py: Python<'_>, note: &str) -> PyResult<()> {
     let category = py.import("nmci._errors")?.getattr("StructureWarning")?;
     let message = std::ffi::CString::new(note.replace('\0', " "))
         .map_err(|e| error(py, "InternalError", e.to_string()))?;
-    PyErr::warn(py, &category, &message, 3)
+    PyErr::warn(py, &category, &message, user_stacklevel(py)?)
+}
+
+/// The `stacklevel` of the user's line for a warning issued here: the first frame, counting
+/// from the Python caller of this extension (level 1), whose module is not the package (`nmci`
+/// or `nmci.…`). A rule function may call `fuse_arrays` itself or through a helper, and the
+/// Stone Soup plugin calls the rule functions: the warning points past all of them, as
+/// Python 3.12's `skip_file_prefixes` would. Read only when a warning is issued.
+fn user_stacklevel(py: Python<'_>) -> PyResult<i32> {
+    let mut frame = py.import("sys")?.getattr("_getframe")?.call0()?;
+    let mut level = 1;
+    while !frame.is_none() {
+        let module = frame.getattr("f_globals")?.get_item("__name__").ok();
+        let name = module.as_ref().and_then(|m| m.extract::<String>().ok());
+        if !name.is_some_and(|n| n == "nmci" || n.starts_with("nmci.")) {
+            break;
+        }
+        frame = frame.getattr("f_back")?;
+        level += 1;
+    }
+    Ok(level)
 }
 
 /// `k` pairs fused by one closed-form rule ([`nmci::contract::fuse_stack`]): `pa`, `pb`
@@ -235,6 +275,7 @@ fn fuse_stack<'py>(
         })
     })?
     .map_err(|e| request_error(py, e))?;
+    warn_stack(py, &response.notes)?;
     FusedStack::new_from(py, method, response)
 }
 
@@ -406,11 +447,11 @@ fn bulk_field<'py>(
 }
 
 impl Fused {
-    fn new_from(py: Python<'_>, r: FuseResponse) -> PyResult<Self> {
-        Ok(Self {
+    fn new_from(py: Python<'_>, r: Arc<FuseResponse>) -> Self {
+        Self {
             fields: PyDict::new(py).unbind(),
-            rest: Mutex::new(Some(Arc::new(r))),
-        })
+            rest: Mutex::new(Some(r)),
+        }
     }
 
     /// The response not yet converted, if any (a new reference to it).

@@ -26,6 +26,29 @@ def test_a_round_off_coupling_keeps_the_blocks_and_says_so(rule):
     assert nmci.ci(PA, PB).trace > 3.0
 
 
+STACK_A = np.array([PA, np.diag([3.0, 1.0])])
+STACK_B = np.array([PB, PB])
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: nmci.nmci(PA, PB, pab_unknown=DIAGONAL),  # the arrays as they are
+        lambda: nmci.nmci(PA.tolist(), PB, pab_unknown=DIAGONAL),  # converted first
+        lambda: nmci.nmci(PA, PB, blocks=[[0], [1]]),
+        lambda: nmci.certified(PA, PB, pab_unknown=DIAGONAL),
+        lambda: nmci.nmci(STACK_A, STACK_B, blocks=[[0], [1]]),  # a stack: one warning
+        lambda: nmci.nmci_nway([PA, PB], blocks=[[0], [1]]),
+    ],
+)
+def test_the_warning_points_at_the_users_line(call):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        call()
+    assert [w.category for w in caught] == [nmci.StructureWarning]
+    assert caught[0].filename == __file__
+
+
 def test_exact_zeros_say_nothing_and_are_unchanged():
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -23,7 +23,10 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::error::InputError;
-use crate::linalg::{cholesky_of, max_eigenvalue, min_eigenvalue, symmetrize, SYMMETRY_RTOL};
+use crate::linalg::{
+    cholesky_of, first_non_finite, largest_abs, max_eigenvalue, min_eigenvalue, symmetrize,
+    SYMMETRY_RTOL,
+};
 use crate::structure::CrossPattern;
 
 /// What a fusion rule minimises over its weights.
@@ -74,11 +77,11 @@ pub(crate) fn validate_square(name: &str, m: &DMatrix<f64>, n: usize) -> Result<
             expected: n,
         });
     }
-    if let Some(k) = m.iter().position(|v| !v.is_finite()) {
+    if let Some((row, col)) = first_non_finite(m) {
         return Err(InputError::NotFinite {
             name: name.into(),
-            row: k % n,
-            col: k / n,
+            row,
+            col,
         });
     }
     Ok(())
@@ -94,7 +97,7 @@ pub(crate) fn validate_symmetric(name: &str, m: &DMatrix<f64>) -> Result<(), Inp
     }
     validate_square(name, m, m.nrows())?;
     let n = m.nrows();
-    let scale = m.amax();
+    let scale = largest_abs(m);
     for i in 0..n {
         for j in i + 1..n {
             let (v, w) = (m[(i, j)], m[(j, i)]);
@@ -134,7 +137,7 @@ pub(crate) fn symmetric_covariance(
     m: &DMatrix<f64>,
 ) -> Result<DMatrix<f64>, InputError> {
     validate_symmetric(name, m)?;
-    let scale = m.amax();
+    let scale = largest_abs(m);
     let sym = symmetrize(m);
     // The common case in one factorization: proven positive definite by the verified
     // Cholesky test (`verify::is_positive_definite`). A matrix too close to singular for
@@ -201,7 +204,7 @@ fn refusal(name: &str, sym: &DMatrix<f64>, lambda_min: f64) -> InputError {
 pub(crate) fn definiteness_error(name: &str, m: &DMatrix<f64>) -> InputError {
     let sym = symmetrize(m);
     let lambda_min = min_eigenvalue(&sym);
-    let scale = m.amax();
+    let scale = largest_abs(m);
     if !lambda_min.is_finite() || !scale.is_finite() || (scale > 0.0 && scale < f64::MIN_POSITIVE) {
         return InputError::OutOfRange {
             name: name.into(),

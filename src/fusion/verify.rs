@@ -314,7 +314,7 @@ pub(crate) fn is_psd(mid: &DMatrix<f64>, rad: &DMatrix<f64>) -> bool {
 fn psd_within(mid: &DMatrix<f64>, e: f64) -> bool {
     let n = mid.nrows();
     if mid.ncols() != n
-        || mid.iter().any(|x| !x.is_finite())
+        || crate::linalg::first_non_finite(mid).is_some()
         || (0..n).any(|j| (j + 1..n).any(|i| mid[(i, j)] != mid[(j, i)]))
     {
         return false;
