@@ -122,10 +122,14 @@ pub(crate) fn on_baseline<R>(f: impl FnOnce() -> R) -> R {
     r
 }
 
-/// `maxᵢⱼ |aᵢⱼ|` (nalgebra's `amax`, NaN entries ignored as there; 0 for an empty matrix), read
-/// from the contiguous storage rather than through nalgebra's strided iterator.
+/// `maxᵢⱼ |aᵢⱼ|`: nalgebra's `amax` bit for bit, the same fold in the same order (from the
+/// first entry's `|a|`, then `if m ≥ |x| { m } else { |x| }`, so NaN entries give what they
+/// give there; 0 for an empty matrix), over the contiguous storage rather than through
+/// nalgebra's strided iterator (tested).
 pub(crate) fn largest_abs(a: &DMatrix<f64>) -> f64 {
-    a.as_slice().iter().fold(0.0, |m, x| m.max(x.abs()))
+    let mut entries = a.as_slice().iter();
+    let first = entries.next().map_or(0.0, |x| x.abs());
+    entries.fold(first, |m, x| if m >= x.abs() { m } else { x.abs() })
 }
 
 /// The first non-finite entry of `a`, as `(row, column)`.
@@ -455,6 +459,24 @@ mod tests {
     }
 
     /// The 4 × 4 determinant on stack storage gives the heap-storage bits.
+    #[test]
+    fn largest_abs_is_amax_bit_for_bit() {
+        let nan = f64::NAN;
+        for v in [
+            vec![],
+            vec![-3.0, 2.0, 1.0, -0.5],
+            vec![nan, -2.0, 1.0, 0.5],
+            vec![1.0, nan, -7.0, nan],
+            vec![nan, nan, nan, nan],
+            vec![f64::NEG_INFINITY, 1.0, 2.0, 3.0],
+            vec![-0.0, 0.0, -0.0, 0.0],
+        ] {
+            let n = if v.is_empty() { 0 } else { 2 };
+            let m = DMatrix::from_vec(n, n, v);
+            assert_eq!(largest_abs(&m).to_bits(), m.amax().to_bits(), "{m}");
+        }
+    }
+
     #[test]
     fn fixed_size_determinant_gives_the_bits_of_the_dynamic_one() {
         let mut seed = 5;
