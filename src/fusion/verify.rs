@@ -387,10 +387,10 @@ wide! {
 /// Plain floating-point Cholesky `B = R̃ᵀR̃`, in `b`'s storage (which it leaves undefined);
 /// whether every pivot is positive (and finite). Left-looking on the columns of the lower
 /// factor `R̃ᵀ`: each entry is `b` minus its products summed in the order `k = 0, 1, …`,
-/// then divided by (or, on the diagonal, the square root of) the pivot — the factorization the error bound of the module docs is for
-/// (it holds for any summation order); the updates run along contiguous columns, so they
-/// vectorize — with AVX2 where the CPU has it ([`wide!`](crate::linalg), the same operations
-/// in the same order, so the same bits).
+/// then divided by (or, on the diagonal, the square root of) the pivot — the factorization
+/// the error bound of the module docs is for (it holds for any summation order); the updates
+/// run along contiguous columns, so they vectorize — with AVX2 where the CPU has it
+/// ([`wide!`](crate::linalg), the same operations in the same order, so the same bits).
 fn cholesky_succeeds(b: &mut DMatrix<f64>) -> bool = cholesky_succeeds_kernel;
 }
 
