@@ -10,7 +10,12 @@
 //! the smaller of nmCI's proven trace and that certified rule's. Both are rigorous, so the gap
 //! is too.
 //!
-//! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--cones 16,64] [--adaptive 32] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--tolerance 1e-10] [--verbose]`
+//! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--cones 16,64] [--adaptive 32] [--own-rule 64] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--tolerance 1e-10] [--verbose]`
+//!
+//! `--own-rule 64` (three states) adds the upper end `sdp_cuts` reports: the default certified
+//! rule's (the loop's guide), and where that leaves the bracket open the loop's own rule proven
+//! on at most that many cones (`certify_rule`); its times are the proof's alone, where it ran,
+//! and the notes give the cutting planes' median time.
 //!
 //! Pattern classes (`P_ab[i][j]` unknown where listed, known zero elsewhere):
 //! - `anti-diagonal`: `j = n − 1 − i`;
@@ -100,6 +105,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .into_iter()
             .map(|c| Family::Adaptive(c as u32)),
     );
+    // `--own-rule 64`: the cutting planes' own rule proven on at most that many cones.
+    let own_rule = arg_list(&args, "--own-rule", &[]).first().map(|&c| c as u32);
     // The cutting planes stop when the worst violation is below this times tr P̄ (the
     // library default is 1e-7; the lower end needs less to close brackets to 1e-6).
     let cuts_tol = match args.iter().position(|a| a == "--cuts-tol") {
@@ -129,6 +136,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut times = vec![Vec::new(); families.len()];
             let mut done = 0;
             let mut failed = 0;
+            // The own rule: gaps, proof times where it ran, and the cutting planes' times.
+            let (mut own_gaps, mut own_times, mut cuts_times) = (Vec::new(), Vec::new(), Vec::new());
             while done < count {
                 let pat = pattern(class, n, &mut rng);
                 let p = FusionProblem::from_covariances(
@@ -141,11 +150,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 {
                     continue;
                 }
+                let cuts_start = Instant::now();
                 let cuts = match optimal_fusion_cuts(
                     &p,
                     &CutsSettings {
                         tolerance: cuts_tol,
                         max_iterations: 200,
+                        certify_settings: CertifySettings {
+                            tolerance,
+                            ..CertifySettings::default()
+                        },
+                        own_rule_cones: 0,
                         ..CutsSettings::default()
                     },
                 ) {
@@ -168,8 +183,46 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         cuts.constraints
                     );
                 }
+                cuts_times.push(cuts_start.elapsed().as_secs_f64());
                 let nm = non_monolithic_ci(&p, Criterion::Trace)?;
                 let nm_upper = nmci_upper_bound(&p, &nm).unwrap_or(f64::INFINITY);
+                if let Some(budget) = own_rule.filter(|_| n == 3) {
+                    let guide = cuts.certified_trace.unwrap_or(f64::INFINITY).min(nm_upper);
+                    let gap = |upper| {
+                        Bracket {
+                            lower: cuts.lower_bound,
+                            upper,
+                            upper_rule: UpperRule::Certified,
+                        }
+                        .gap_relative()
+                    };
+                    let mut upper = guide;
+                    if gap(guide) > CLOSED_RTOL {
+                        let start = Instant::now();
+                        let settings = CertifySettings {
+                            tolerance,
+                            ..CertifySettings::default()
+                        };
+                        match certify_rule(&p, &cuts.fused, budget, CLOSED_RTOL, &settings) {
+                            Ok(Some(proven)) => {
+                                upper = upper.min(trace_upper_bound(&proven.fused.P));
+                                if verbose {
+                                    eprintln!(
+                                        "  own rule: upper {:.10} cones {:?} cuts {} repair {:.1e}",
+                                        trace_upper_bound(&proven.fused.P),
+                                        proven.sectors,
+                                        proven.iterations,
+                                        proven.repair
+                                    );
+                                }
+                            }
+                            Ok(None) => {}
+                            Err(e) => eprintln!("{class}: the own rule's proof failed: {e}"),
+                        }
+                        own_times.push(start.elapsed().as_secs_f64());
+                    }
+                    own_gaps.push(gap(upper));
+                }
                 for (k, &family) in families.iter().enumerate() {
                     if matches!(family, Family::Sectors(_)) && n != 2
                         || matches!(family, Family::Cones(_) | Family::Adaptive(_)) && n != 3
@@ -231,6 +284,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         );
                     }
                 }
+            }
+            if let (Some(budget), false) = (own_rule, own_gaps.is_empty()) {
+                let closed = own_gaps.iter().filter(|&&g| g <= CLOSED_RTOL).count();
+                let ran = own_times.len();
+                let (median, worst) = if ran > 0 {
+                    (
+                        format!("{:.0} ms", 1e3 * quantile(&mut own_times, 0.5)),
+                        format!("{:.0} ms", 1e3 * quantile(&mut own_times, 1.0)),
+                    )
+                } else {
+                    ("–".into(), "–".into())
+                };
+                println!(
+                    "| {n} | {class} | level 2, else the cuts' rule on ≤ {budget} cones | {:.1e} | {:.1e} | {closed}/{count} | {median} | {worst} | proof run on {ran}; cutting planes {:.0} ms median, {:.0} ms worst |",
+                    quantile(&mut own_gaps, 0.5),
+                    quantile(&mut own_gaps, 1.0),
+                    1e3 * quantile(&mut cuts_times, 0.5),
+                    1e3 * quantile(&mut cuts_times, 1.0),
+                );
             }
             for (k, &family) in families.iter().enumerate() {
                 if gaps[k].is_empty() {

@@ -46,6 +46,15 @@
 //! search from the eigenvectors of its `P̄` finds nothing new (all beyond the tolerance).
 //! `constraints` counts the final program, `constraints_generated` the whole run.
 //!
+//! (6) Its own rule, proven. The certified rule is the loop's guide and its upper end. Where
+//! that leaves the bracket open on a problem of one block of three states, the loop's own
+//! final rule `(K, P̄)` — a relaxation's, with a trace near the lower end — is proven after
+//! the loop (`certify_rule`; module docs of `fusion::certify`, "At a given rule") on at most
+//! `own_rule_cones` cones of directions in the time left. Its bound replaces the certified
+//! rule's as `certified` when its proven trace is smaller (`own_rule_proven`); the gain is
+//! the loop's, so `sdp_cuts`' own gain is then proven to the bracket's upper end. A proof the
+//! solver fails on, or that runs out of time, leaves the result as it was.
+//!
 //! `converged: false` reports an iteration or time limit (`stop` says which); a solver
 //! failure is returned as an error. Measurements: docs/methods.md (`examples/cuts_probe.rs`).
 
@@ -55,7 +64,11 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::certify::{certification_blocks, certified_fusion, Certificates, CertifySettings};
+use super::bracket::CLOSED_RTOL;
+use super::certify::{
+    certification_blocks, certified_fusion, certify_rule, Certificates, CertifySettings,
+    MAX_CONES,
+};
 use super::check::{error_covariance, lowest_margin, margin};
 use super::nmci::non_monolithic_ci;
 use super::program::{check_time_limit, solve_program, svec_index, Deadline, Kkt, SdpStatus};
@@ -108,6 +121,11 @@ pub struct CutsSettings {
     /// the first program did not finish in time. The guiding certificate gets half of the
     /// limit and is left out if it does not finish.
     pub time_limit: Option<f64>,
+    /// Three-state problems whose bracket the certified rule leaves open: the loop's own rule
+    /// is proven on at most this many cones of directions (module docs, "Its own rule,
+    /// proven"; default 64, 0: off, else at least 4 and at most
+    /// [`MAX_CONES`](super::certify::MAX_CONES)).
+    pub own_rule_cones: u32,
 }
 
 /// Why the cutting-plane loop stopped.
@@ -137,6 +155,7 @@ impl Default for CutsSettings {
             in_out: 0.5,
             certify_settings: CertifySettings::default(),
             time_limit: None,
+            own_rule_cones: 64,
         }
     }
 }
@@ -157,6 +176,12 @@ impl CutsSettings {
         }
         self.certify_settings.validate()?;
         check_time_limit(self.time_limit)?;
+        if self.own_rule_cones != 0 && !(4..=MAX_CONES).contains(&self.own_rule_cones) {
+            return Err(SolveError::InvalidSettings(format!(
+                "own_rule_cones must be 0 or in 4..={MAX_CONES} (got {})",
+                self.own_rule_cones
+            )));
+        }
         if !(self.tolerance > 0.0 && self.tolerance.is_finite()) {
             return Err(SolveError::InvalidSettings(format!(
                 "tolerance must be positive and finite (got {})",
@@ -189,16 +214,22 @@ pub struct CutsResult {
     pub converged: bool,
     /// Why the loop stopped.
     pub stop: CutsStop,
-    /// The certified rule's `tr P̄` rounded up (a proven upper bound on the robust
-    /// optimum), when computed.
+    /// `tr P̄` of `certified` rounded up (a proven upper bound on the robust optimum), when
+    /// computed.
     pub certified_trace: Option<f64>,
-    /// The certified rule's certificate on each block, when computed.
+    /// The certificate of `certified` on each block, when computed.
     pub certificates: Option<Certificates>,
-    /// The certified rule itself (its gain and proven bound), when computed.
+    /// A proven rule (gain and bound), when computed: the certified rule, or where
+    /// `own_rule_proven` the loop's own gain with a proven bound.
     pub certified: Option<Fused>,
-    /// Whether the loop stopped because `lower_bound` reached `certified_trace` within the
-    /// tolerance: the optimum is then proven to that relative accuracy, and the certified rule
-    /// attains it to that accuracy.
+    /// Whether `certified` is the loop's own rule proven on cones of directions (module docs,
+    /// "Its own rule, proven"): its gain is `fused`'s, its bound proven and tighter than the
+    /// certified rule's.
+    pub own_rule_proven: bool,
+    /// Whether `lower_bound` reached `certified_trace` within the tolerance: the optimum is
+    /// then proven to that relative accuracy, and `certified` attains it to that accuracy.
+    /// The loop stops there (`stop: GapClosed`), or the own rule proven after the loop
+    /// closed it.
     pub gap_closed: bool,
     /// Clarabel's dual objective of the last program (a lower bound only up to the solver's
     /// tolerance).
@@ -346,6 +377,7 @@ fn cuts_at_scale(
         certified_trace,
         certificates: certified.as_ref().map(Certificates::of),
         certified: certified.as_ref().map(|c| c.fused.clone()),
+        own_rule_proven: false,
         gap_closed: stop == CutsStop::GapClosed,
         dual_objective: opt.dual_objective,
         lower_bound,
@@ -470,9 +502,8 @@ fn cuts_at_scale(
                 }
             }
             let lower = best_lower.max(opt.lower_bound);
-            return Ok(finish(
-                opt, cross, generated, iterations, violation, stop, lower,
-            ));
+            let result = finish(opt, cross, generated, iterations, violation, stop, lower);
+            return prove_own_rule(problem, result, settings, &deadline);
         }
         previous = Some((opt.clone(), set.cross.len(), violation));
         // In-out separation: cut at a point between the relaxation's optimum and a feasible
@@ -516,6 +547,58 @@ fn cuts_at_scale(
             }
         }
     }
+}
+
+/// Where the certified rule left the bracket of a three-state problem open, the loop's own
+/// rule proven on cones of directions (module docs, "Its own rule, proven"), kept when its
+/// proven trace is smaller; past the time limit, or where the solver fails on it, the result
+/// as it is.
+fn prove_own_rule(
+    problem: &FusionProblem,
+    mut result: CutsResult,
+    settings: &CutsSettings,
+    deadline: &Deadline,
+) -> Result<CutsResult, SolveError> {
+    let Some(upper) = result.certified_trace else {
+        return Ok(result);
+    };
+    if result.gap_closed
+        || settings.own_rule_cones == 0
+        || result.stop == CutsStop::TimeLimit
+        || deadline.passed()
+    {
+        return Ok(result);
+    }
+    let certify_settings = CertifySettings {
+        time_limit: settings.time_limit.map(|_| deadline.remaining()),
+        ..settings.certify_settings
+    };
+    let proven = match certify_rule(
+        problem,
+        &result.fused,
+        settings.own_rule_cones,
+        CLOSED_RTOL,
+        &certify_settings,
+    ) {
+        Ok(Some(proven)) => proven,
+        Ok(None)
+        | Err(
+            SolveError::TimeLimit { .. }
+            | SolveError::SolverFailed { .. }
+            | SolveError::NotProven { .. },
+        ) => return Ok(result),
+        Err(e) => return Err(e),
+    };
+    let trace = trace_upper_bound(&proven.fused.P);
+    if trace < upper {
+        result.certified_trace = Some(trace);
+        result.certificates = Some(Certificates::of(&proven));
+        result.certified = Some(proven.fused);
+        result.own_rule_proven = true;
+        result.gap_closed =
+            result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
+    }
+    Ok(result)
 }
 
 /// The program on the active cuts alone (margin `λ_min(P̄ − K P' Kᵀ) ≤ 10⁻⁶ max(tr P̄, 1)` at

@@ -119,6 +119,33 @@
 //! 4-cone certificate (exactly; tested). The choice of cones decides only how tight the bound
 //! is, never whether it is proven. docs/methods.md measures how far it closes the brackets.
 //!
+//! **At a given rule** ([`certify_rule`], three states; `fusion::certify::point`). The
+//! families above choose the gain and the bound together. The cutting planes
+//! (`fusion::cuts`) end with a rule `(K, P̄)` whose trace is within their tolerance of the
+//! proven lower end, but `P̄ ⪰ K J Kᵀ` is known there only for the cuts they found.
+//! `certify_rule` proves a bound for that `K` near `P̄`. With `K` fixed the pieces' conditions
+//! share only `Q`, so each cone is certified on its own at `Q = P̄ + t_k I`, with the
+//! smallest `t_k` (of either sign) of the cone's level-1 program with its three multipliers
+//! — one PSD cone of 19 rows, not one program over every cone. From the four octants, the cone
+//! with the largest `t_k` above the target is cut in two ([`bisect`](geometry), an exact
+//! subdivision, so the cones and their negatives always cover space) and both halves are
+//! certified. This goes on until every `t_k` is within the target (`rtol · tr P̄ / (8n)`),
+//! the cone budget is spent or the time limit passes. A cone whose larger half keeps 99 % of
+//! its `t_k` four cuts in a row is not cut again: `P̄` itself is short there, and cutting
+//! cannot help. The cones within the target hold at `P̄ + τI`, `τ` the largest of their
+//! `t_k`. The others are certified together in one program with `Q ⪰ P̄` in place of
+//! `Q = P̄ + tI`, so `Q − P̄` follows the directions where `P̄` is short; call its `Q`
+//! `Q_open`. The bound is `Q = Q_open + max(τ, 0) I`, and every cone's certificate is repaired
+//! against this one `Q` ("Exact in floating point" below). The proof is then the argument of
+//! "Three states" above, with `K` given and each cone's `C`, `G`, `C′`, `g′` from its own
+//! program. It rests on the exact cover and the repair, not on the solver's accuracy, and
+//! holds whatever `P̄` is. What `P̄` decides is how small the repair and `Q − P̄` are: a
+//! certificate found at `Q′` holds at every `Q ⪰ Q′` (its residual gains `vᵀ(Q − Q′)v ≥ 0`),
+//! so the repair is of the solver's tolerance, and `Q − P̄` is about the largest
+//! `λ_max(K J Kᵀ − P̄)` over the admissible `J`, where `P̄` is short of dominating. For the
+//! cutting planes' `P̄` that is their stopping tolerance, plus the shrink of their cuts
+//! (`CUT_SHRINK`). docs/methods.md measures how often this closes the brackets.
+//!
 //! ## Exact in floating point, whatever the solver's accuracy
 //! The solver's point satisfies 1–4 only to its tolerance. The reported bound is made to
 //! satisfy them exactly, for the reported floats `K_a`, `P̄ = Q` and `K_b = I − K_a` taken
@@ -175,6 +202,7 @@ mod block;
 mod geometry;
 mod layout;
 mod memo;
+mod point;
 mod refine;
 mod repair;
 mod rule;
@@ -185,8 +213,10 @@ mod tests;
 
 pub use geometry::MAX_SECTORS;
 pub use memo::{CertificateMemo, MEMO_BLOCKS};
+pub use point::certify_rule;
 pub(crate) use rule::certification_blocks;
 pub use rule::{
     certified_fusion, certified_fusion_memo, certify_gain, Certificates, CertifiedResult,
 };
 pub use settings::{CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_CONES, MAX_LEVEL};
+

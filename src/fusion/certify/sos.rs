@@ -47,6 +47,97 @@ pub(super) fn certify_pieces(
     pieces: &[Piece],
     settings: &CertifySettings,
 ) -> Result<(BlockCertificate, Vec<f64>), SolveError> {
+    let solved = solve_pieces(problem, gain, Base::Free, level, pieces, settings)?;
+    let mut Q = solved.Q.clone();
+    for raw in &solved.pieces {
+        prove_piece(problem, &solved.layout, &solved.K_a, &mut Q, raw)?;
+    }
+    let repair = (Q.trace() - solved.Q.trace()).max(0.0);
+    let count = match pieces {
+        [whole] if whole.multipliers.is_empty() => 0,
+        _ => pieces.len() as u32,
+    };
+    Ok((
+        BlockCertificate {
+            K_a: solved.K_a,
+            P: Q,
+            status: solved.status,
+            iterations: solved.iterations,
+            repair,
+            pieces: count,
+        },
+        solved.shares,
+    ))
+}
+
+/// A piece's certificate as solved, its zero-sum groups made exact (module docs): the parts
+/// [`prove_piece`] repairs against a given `Q`.
+#[allow(non_snake_case)]
+pub(super) struct RawPiece {
+    pub(super) C: DMatrix<f64>,
+    pub(super) G: DMatrix<f64>,
+    pub(super) parts: Vec<MultiplierPart>,
+}
+
+/// The solver's point of the program on `pieces`, before the repair.
+#[allow(non_snake_case)]
+pub(super) struct Solved {
+    pub(super) layout: Layout,
+    pub(super) K_a: DMatrix<f64>,
+    /// The solver's `Q` (in its `base`, up to the solver's tolerance).
+    pub(super) Q: DMatrix<f64>,
+    pub(super) status: SdpStatus,
+    pub(super) iterations: u32,
+    pub(super) pieces: Vec<RawPiece>,
+    /// Each piece's share of the objective ([`certify_pieces`]).
+    pub(super) shares: Vec<f64>,
+}
+
+/// Repairs `Q` (by multiples of `I`) until `raw`'s certificate is proven for `K_a` and `Q`
+/// (module docs, "Exact in floating point"). `Q` only grows, so pieces proven before stay
+/// proven.
+#[allow(non_snake_case)]
+pub(super) fn prove_piece(
+    problem: &FusionProblem,
+    layout: &Layout,
+    K_a: &DMatrix<f64>,
+    Q: &mut DMatrix<f64>,
+    raw: &RawPiece,
+) -> Result<(), SolveError> {
+    let parts = raw
+        .parts
+        .iter()
+        .map(|p| MultiplierPart {
+            S: p.S.clone(),
+            Cp: p.Cp.clone(),
+            gp: p.gp,
+        })
+        .collect();
+    repair(problem, layout, K_a, raw.C.clone(), Q, &raw.G, parts)
+}
+
+/// Where the program's `Q` may go (the parent's module docs, "At a given rule").
+#[allow(non_snake_case)]
+#[derive(Clone, Copy)]
+pub(super) enum Base<'a> {
+    /// `Q` free.
+    Free,
+    /// `Q = Q₀ + tI` with a free scalar `t` (of either sign).
+    Shift(&'a DMatrix<f64>),
+    /// `Q ⪰ Q₀`.
+    Above(&'a DMatrix<f64>),
+}
+
+/// The program of [`certify_pieces`], solved, with `Q` restricted by `base`.
+#[allow(non_snake_case)]
+pub(super) fn solve_pieces(
+    problem: &FusionProblem,
+    gain: Option<&DMatrix<f64>>,
+    base: Base,
+    level: u32,
+    pieces: &[Piece],
+    settings: &CertifySettings,
+) -> Result<Solved, SolveError> {
     let n = problem.dim();
     let lay = Layout::new(n, level as usize);
     let (m, s, N) = (lay.m, lay.mons.len(), lay.big());
@@ -86,7 +177,9 @@ pub(super) fn certify_pieces(
             Offsets { c, g, mult }
         })
         .collect();
-    let total_vars = next;
+    // With `Base::Shift`: t, the multiple of I added to Q₀.
+    let var_t = next;
+    let total_vars = next + usize::from(matches!(base, Base::Shift(_)));
     let var_c = |o: &Offsets, x: usize, y: usize| o.c + svec_index(x.min(y), x.max(y));
     let var_g = |o: &Offsets, a: usize, b: usize| o.g + svec_index(a.min(b), a.max(b));
     let var_cp = |cp: usize, x: usize, y: usize| cp + svec_index(x.min(y), x.max(y));
@@ -148,13 +241,22 @@ pub(super) fn certify_pieces(
         sos.extend(rows);
     }
     let sqrt2 = std::f64::consts::SQRT_2;
-    let zeros = groups.len() + sos.len();
+    let base_rows = match base {
+        Base::Shift(_) => n * (n + 1) / 2,
+        _ => 0,
+    };
+    let above_rows = match base {
+        Base::Above(_) => n * (n + 1) / 2,
+        _ => 0,
+    };
+    let zeros = groups.len() + sos.len() + base_rows;
     let cone = N + nb;
     let multipliers: usize = pieces.iter().map(|p| p.multipliers.len()).sum();
     let piece_rows = |piece: &Piece| {
         cone * (cone + 1) / 2 + s * (s + 1) / 2 + piece.multipliers.len() * m * (m + 1) / 2
     };
-    let rows_total = zeros + pieces.iter().map(piece_rows).sum::<usize>() + multipliers;
+    let rows_total =
+        zeros + pieces.iter().map(piece_rows).sum::<usize>() + multipliers + above_rows;
     let mut b = vec![0.0; rows_total];
     let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
     for (e, group) in groups.iter().enumerate() {
@@ -177,17 +279,34 @@ pub(super) fn certify_pieces(
             }
         }
     }
-    let mut base = zeros;
+    // Q_kl − δ_kl t = Q₀_kl.
+    if let Base::Shift(Q0) = base {
+        for l in 0..n {
+            for k in 0..=l {
+                let row = groups.len() + sos.len() + var_q(k, l);
+                rows.push(row);
+                cols.push(var_q(k, l));
+                vals.push(1.0);
+                if k == l {
+                    rows.push(row);
+                    cols.push(var_t);
+                    vals.push(-1.0);
+                }
+                b[row] = Q0[(k, l)];
+            }
+        }
+    }
+    let mut base_row = zeros;
     let mut cones = vec![SupportedConeT::ZeroConeT(zeros)];
     let psd = |rows: &mut Vec<usize>,
                cols: &mut Vec<usize>,
                vals: &mut Vec<f64>,
-               base: usize,
+               base_row: usize,
                size: usize,
                var: &dyn Fn(usize, usize) -> usize| {
         for c in 0..size {
             for r in 0..=c {
-                rows.push(base + svec_index(r, c));
+                rows.push(base_row + svec_index(r, c));
                 cols.push(var(r, c));
                 vals.push(if r == c { -1.0 } else { -sqrt2 });
             }
@@ -197,7 +316,7 @@ pub(super) fn certify_pieces(
     // multiplier, C' ⪰ 0.
     let mut schur_bases = Vec::with_capacity(pieces.len());
     for (piece, o) in pieces.iter().zip(&offsets) {
-        psd(&mut rows, &mut cols, &mut vals, base, N, &|x, y| {
+        psd(&mut rows, &mut cols, &mut vals, base_row, N, &|x, y| {
             var_c(o, x, y)
         });
         // The top left block is C − Σ_j S_j ⊗ C'_j (S_j the matrix of q_j):
@@ -210,7 +329,7 @@ pub(super) fn certify_pieces(
                     let w = if r == c { 1.0 } else { sqrt2 };
                     if S[(a, bb)] != 0.0 {
                         *coef
-                            .entry((base + svec_index(r, c), var_cp(cp, p, q)))
+                            .entry((base_row + svec_index(r, c), var_cp(cp, p, q)))
                             .or_default() += w * S[(a, bb)];
                     }
                 }
@@ -221,35 +340,47 @@ pub(super) fn certify_pieces(
             cols.push(var);
             vals.push(c);
         }
-        schur_bases.push(base);
-        base += cone * (cone + 1) / 2;
+        schur_bases.push(base_row);
+        base_row += cone * (cone + 1) / 2;
         cones.push(SupportedConeT::PSDTriangleConeT(cone));
-        psd(&mut rows, &mut cols, &mut vals, base, s, &|x, y| {
+        psd(&mut rows, &mut cols, &mut vals, base_row, s, &|x, y| {
             var_g(o, x, y)
         });
-        base += s * (s + 1) / 2;
+        base_row += s * (s + 1) / 2;
         cones.push(SupportedConeT::PSDTriangleConeT(s));
         for &(cp, _) in &o.mult {
-            psd(&mut rows, &mut cols, &mut vals, base, m, &|x, y| {
+            psd(&mut rows, &mut cols, &mut vals, base_row, m, &|x, y| {
                 var_cp(cp, x, y)
             });
-            base += m * (m + 1) / 2;
+            base_row += m * (m + 1) / 2;
             cones.push(SupportedConeT::PSDTriangleConeT(m));
         }
     }
     // g' ≥ 0 for each multiplier.
     for o in &offsets {
         for &(_, gp) in &o.mult {
-            rows.push(base);
+            rows.push(base_row);
             cols.push(gp);
             vals.push(-1.0);
-            base += 1;
+            base_row += 1;
         }
     }
     if multipliers > 0 {
         cones.push(SupportedConeT::NonnegativeConeT(multipliers));
     }
-    debug_assert_eq!(base, rows_total);
+    // Q − Q₀ ⪰ 0: s = b − A x = svec(Q) − svec(Q₀).
+    if let Base::Above(Q0) = base {
+        psd(&mut rows, &mut cols, &mut vals, base_row, n, &|k, l| var_q(k, l));
+        for l in 0..n {
+            for k in 0..=l {
+                let scale = if k == l { 1.0 } else { sqrt2 };
+                b[base_row + svec_index(k, l)] = -scale * Q0[(k, l)];
+            }
+        }
+        base_row += n * (n + 1) / 2;
+        cones.push(SupportedConeT::PSDTriangleConeT(n));
+    }
+    debug_assert_eq!(base_row, rows_total);
     for &schur in &schur_bases {
         for (t, (beta, cb)) in lay.lower.iter().enumerate() {
             let scale = sqrt2 * cb.sqrt();
@@ -309,24 +440,25 @@ pub(super) fn certify_pieces(
             return Err(repair_failed("the zero-sum groups"));
         }
     }
-    let mut Q = DMatrix::from_fn(n, n, |k, l| x[var_q(k, l)]);
-    let trace_solver = Q.trace();
-    for (piece, o) in pieces.iter().zip(&offsets) {
-        let C = DMatrix::from_fn(N, N, |r, c| x[var_c(o, r, c)]);
-        let G = DMatrix::from_fn(s, s, |a, b| x[var_g(o, a, b)]);
-        let parts = piece
-            .multipliers
-            .iter()
-            .zip(&o.mult)
-            .map(|(S, &(cp, gp))| MultiplierPart {
-                S: S.clone(),
-                Cp: DMatrix::from_fn(m, m, |r, c| x[var_cp(cp, r, c)]),
-                gp: x[gp].max(0.0),
-            })
-            .collect();
-        repair(problem, &lay, &K_a, C, &mut Q, &G, parts)?;
-    }
-    let repair = (Q.trace() - trace_solver).max(0.0);
+    let Q = DMatrix::from_fn(n, n, |k, l| x[var_q(k, l)]);
+    let raw = pieces
+        .iter()
+        .zip(&offsets)
+        .map(|(piece, o)| RawPiece {
+            C: DMatrix::from_fn(N, N, |r, c| x[var_c(o, r, c)]),
+            G: DMatrix::from_fn(s, s, |a, b| x[var_g(o, a, b)]),
+            parts: piece
+                .multipliers
+                .iter()
+                .zip(&o.mult)
+                .map(|(S, &(cp, gp))| MultiplierPart {
+                    S: S.clone(),
+                    Cp: DMatrix::from_fn(m, m, |r, c| x[var_cp(cp, r, c)]),
+                    gp: x[gp].max(0.0),
+                })
+                .collect(),
+        })
+        .collect();
     let shares = (0..pieces.len())
         .map(|k| {
             let first = groups.len() + k * lay.products.len();
@@ -339,19 +471,13 @@ pub(super) fn certify_pieces(
             share
         })
         .collect();
-    let pieces = match pieces {
-        [whole] if whole.multipliers.is_empty() => 0,
-        _ => pieces.len() as u32,
-    };
-    Ok((
-        BlockCertificate {
-            K_a,
-            P: Q,
-            status,
-            iterations: sol.iterations,
-            repair,
-            pieces,
-        },
+    Ok(Solved {
+        layout: lay,
+        K_a,
+        Q,
+        status,
+        iterations: sol.iterations,
+        pieces: raw,
         shares,
-    ))
+    })
 }

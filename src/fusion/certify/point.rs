@@ -1,0 +1,254 @@
+//! Three states: a given rule `(K, Q₀)` — the cutting planes' — proven on cones of directions
+//! cut where `Q₀` is short (the parent's module docs, "At a given rule": the argument, the
+//! rule for cutting and how the cones' certificates are joined into one bound).
+
+use std::cell::Cell;
+
+use nalgebra::DMatrix;
+
+use crate::error::SolveError;
+use crate::fusion::program::{Deadline, SdpStatus};
+use crate::fusion::upper::trace_upper_bound;
+use crate::fusion::{Fused, FusionProblem};
+
+use super::geometry::{bisect, cone_generators, cone_piece};
+use super::layout::Layout;
+use super::rule::{certification_blocks, CertifiedResult};
+use super::settings::CertifySettings;
+use super::sos::{prove_piece, solve_pieces, Base, BlockCertificate, Piece, RawPiece, Solved};
+
+/// A cut whose larger half needs at least this fraction of its own `t` has reached the
+/// violation of `Q₀` itself there: that half is not cut again.
+const SETTLED: f64 = 0.99;
+
+/// Cuts in a row without progress before a cone counts as settled (a cut along an edge
+/// away from the short direction does not lower the half that holds it).
+const STALLS: u32 = 4;
+
+/// A given rule `rule = (K, P̄)` of a three-state problem — e.g. the cutting planes' — proven
+/// on at most `budget` cones of directions (module docs of `fusion::certify`, "At a given
+/// rule"): the certificate of `K` with a bound near `P̄`, the cones cut until each adds at
+/// most `rtol · tr P̄ / 8` to the trace. `None` where the problem with this gain is not one
+/// block of three states. The bound is proven whatever `P̄` is; how close to `P̄` it ends
+/// depends on how close `P̄` is to dominating `K P' Kᵀ` for every admissible `P'`.
+///
+/// ```
+/// use nalgebra::DMatrix;
+/// use nmci::prelude::*;
+/// use nmci::certify::certify_rule;
+/// let p = FusionProblem::from_covariances(
+///     DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]),
+///     DMatrix::from_row_slice(3, 3, &[2.0, -0.3, 0.1, -0.3, 5.0, 1.0, 0.1, 1.0, 1.5]),
+///     CrossPattern::from_fn(3, |i, j| i + j != 2), // the anti-diagonal known zero
+/// ).unwrap();
+/// let cuts = optimal_fusion_cuts(&p, &CutsSettings { own_rule_cones: 0, ..Default::default() }).unwrap();
+/// let proven = certify_rule(&p, &cuts.fused, 64, 1e-6, &CertifySettings::default())
+///     .unwrap()
+///     .expect("one block of three states");
+/// assert_eq!(proven.fused.K_a, cuts.fused.K_a);
+/// assert!(proven.fused.trace() >= cuts.lower_bound);
+/// ```
+pub fn certify_rule(
+    problem: &FusionProblem,
+    rule: &Fused,
+    budget: u32,
+    rtol: f64,
+    settings: &CertifySettings,
+) -> Result<Option<CertifiedResult>, SolveError> {
+    let n = problem.dim();
+    if n != 3 || certification_blocks(problem, Some(&rule.K_a)).len() != 1 {
+        return Ok(None);
+    }
+    let target = rtol * rule.P.trace().abs() / (8.0 * n as f64);
+    let proven = certify_point(problem, &rule.K_a, &rule.P, target, budget as usize, settings)?;
+    Ok(Some(CertifiedResult {
+        fused: Fused {
+            P: proven.P,
+            ..rule.clone()
+        },
+        status: proven.status,
+        iterations: proven.iterations,
+        repair: proven.repair,
+        blocks: vec![(0..n).collect()],
+        levels: vec![1],
+        sectors: vec![proven.pieces],
+        ci_blocks: vec![false],
+    }))
+}
+
+/// How many times an octant the solver fails on is cut before the proof gives up.
+const FAILED_CUTS: u32 = 3;
+
+/// One cone of the cover: its generators, its certificate and the `t` it needs.
+struct Leaf {
+    cone: [[i64; 3]; 3],
+    raw: RawPiece,
+    t: f64,
+    settled: bool,
+    /// Cuts in a row that left this cone's `t` within `SETTLED` of its parent's.
+    stalls: u32,
+}
+
+/// The certificate of `K_a` and a bound near `Q₀` on cones of directions (module docs, "At a
+/// given rule"); its `iterations` are summed over every program solved, its status
+/// `AlmostSolved` if any ended so.
+#[allow(non_snake_case)]
+pub(super) fn certify_point(
+    problem: &FusionProblem,
+    K_a: &DMatrix<f64>,
+    Q0: &DMatrix<f64>,
+    target: f64,
+    budget: usize,
+    settings: &CertifySettings,
+) -> Result<BlockCertificate, SolveError> {
+    let n = problem.dim();
+    let deadline = Deadline::after(settings.time_limit);
+    let round = || CertifySettings {
+        time_limit: settings.time_limit.map(|_| deadline.remaining()),
+        ..*settings
+    };
+    let pieces = |cones: &[[[i64; 3]; 3]]| -> Vec<Piece> {
+        cones
+            .iter()
+            .map(|u| Piece {
+                multipliers: cone_piece(u),
+            })
+            .collect()
+    };
+    // Interior-point iterations over every program solved, and whether any ended
+    // `AlmostSolved`.
+    let iterations = Cell::new(0u32);
+    let almost = Cell::new(false);
+    let count = |solved: &Solved| {
+        iterations.set(iterations.get() + solved.iterations);
+        almost.set(almost.get() || solved.status == SdpStatus::AlmostSolved);
+    };
+    let solve = |cone: [[i64; 3]; 3]| -> Result<Leaf, SolveError> {
+        let one = pieces(&[cone]);
+        let solved = solve_pieces(problem, Some(K_a), Base::Shift(Q0), 1, &one, &round())?;
+        count(&solved);
+        let t = (solved.Q.trace() - Q0.trace()) / n as f64;
+        let raw = solved.pieces.into_iter().next().expect("one piece");
+        Ok(Leaf {
+            cone,
+            raw,
+            t,
+            settled: false,
+            stalls: 0,
+        })
+    };
+    // The four octants; one the solver fails on is cut in two and its halves tried instead
+    // (a few times at most: the cover must be complete before anything is proven).
+    let mut leaves = Vec::new();
+    let mut pending: Vec<([[i64; 3]; 3], u32)> =
+        cone_generators(4)?.into_iter().map(|c| (c, 0)).collect();
+    while let Some((cone, depth)) = pending.pop() {
+        match solve(cone) {
+            Ok(leaf) => leaves.push(leaf),
+            Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. })
+                if depth < FAILED_CUTS =>
+            {
+                let halves = bisect(&cone).ok_or_else(|| SolveError::SolverFailed {
+                    status: "a cone the solver fails on cannot be cut further".into(),
+                    iterations: 0,
+                })?;
+                pending.extend(halves.map(|h| (h, depth + 1)));
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    while leaves.len() < budget && !deadline.passed() {
+        let Some(worst) = (0..leaves.len())
+            .filter(|&k| !leaves[k].settled && leaves[k].t > target)
+            .max_by(|&a, &b| leaves[a].t.total_cmp(&leaves[b].t))
+        else {
+            break;
+        };
+        let Some(halves) = bisect(&leaves[worst].cone) else {
+            leaves[worst].settled = true;
+            continue;
+        };
+        let (first, second) = match (solve(halves[0]), solve(halves[1])) {
+            (Ok(a), Ok(b)) => (a, b),
+            // Out of time: the cover as it is.
+            (Err(SolveError::TimeLimit { .. }), _) | (_, Err(SolveError::TimeLimit { .. })) => {
+                break
+            }
+            // A half the solver fails on: the cone stays whole.
+            (Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }), _)
+            | (_, Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. })) => {
+                leaves[worst].settled = true;
+                continue;
+            }
+            (Err(e), _) | (_, Err(e)) => return Err(e),
+        };
+        let parent = leaves.swap_remove(worst);
+        for mut half in [first, second] {
+            half.stalls = if half.t >= parent.t - (1.0 - SETTLED) * parent.t.abs() {
+                parent.stalls + 1
+            } else {
+                0
+            };
+            half.settled = half.stalls >= STALLS;
+            leaves.push(half);
+        }
+    }
+    // The cones within the target are proven at Q₀ + τI (τ their largest t); the others
+    // share one program with Q ⪰ Q₀, whose Q − Q₀ follows the directions where Q₀ is short.
+    // Where that program fails, runs out of time or ends with the larger bound after the
+    // repair, every cone is proven at Q₀ + tI, t the largest of all.
+    let t_all = leaves.iter().map(|l| l.t).fold(f64::NEG_INFINITY, f64::max);
+    let (open, within): (Vec<&Leaf>, Vec<&Leaf>) = leaves.iter().partition(|l| l.t > target);
+    let tau = within.iter().map(|l| l.t).fold(0.0, f64::max);
+    let layout = Layout::new(n, 1);
+    let identity = DMatrix::<f64>::identity(n, n);
+    let proven = |start: DMatrix<f64>, raws: &mut dyn Iterator<Item = &RawPiece>| {
+        let mut Q = start.clone();
+        for raw in raws {
+            prove_piece(problem, &layout, K_a, &mut Q, raw)?;
+        }
+        let repair = (Q.trace() - start.trace()).max(0.0);
+        Ok::<_, SolveError>((Q, repair))
+    };
+    // A repair that fails on one candidate leaves the other.
+    let mut best = proven(Q0 + &identity * t_all, &mut leaves.iter().map(|l| &l.raw));
+    if !open.is_empty() {
+        let cones: Vec<_> = open.iter().map(|l| l.cone).collect();
+        match solve_pieces(problem, Some(K_a), Base::Above(Q0), 1, &pieces(&cones), &round()) {
+            Ok(joint) => {
+                count(&joint);
+                // Q ⪰ Q₀ only to the solver's tolerance: the repair proves every cone at the
+                // final Q, whatever it is.
+                let start = &joint.Q + &identity * tau;
+                let raws = within.iter().map(|l| &l.raw).chain(&joint.pieces);
+                if let Ok((Q, repair)) = proven(start, &mut raws.into_iter()) {
+                    let tighter = |b: &(DMatrix<f64>, f64)| {
+                        trace_upper_bound(&b.0) <= trace_upper_bound(&Q)
+                    };
+                    if !best.as_ref().is_ok_and(tighter) {
+                        best = Ok((Q, repair));
+                    }
+                }
+            }
+            Err(
+                SolveError::SolverFailed { .. }
+                | SolveError::NotProven { .. }
+                | SolveError::TimeLimit { .. },
+            ) => {}
+            Err(e) => return Err(e),
+        }
+    }
+    let (Q, repair) = best?;
+    Ok(BlockCertificate {
+        K_a: K_a.clone(),
+        P: Q,
+        status: if almost.get() {
+            SdpStatus::AlmostSolved
+        } else {
+            SdpStatus::Solved
+        },
+        iterations: iterations.get(),
+        repair,
+        pieces: leaves.len() as u32,
+    })
+}
