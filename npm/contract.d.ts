@@ -136,6 +136,8 @@ export interface FuseResponse {
   violation?: number;
   converged?: boolean;
   gap_closed?: boolean;
+  /** `sdp_cuts`: the certified upper end is the loop's own rule proven on cones of directions. */
+  own_rule_proven?: boolean;
   guarantee: Guarantee;
   structure?: StructureDetails;
 }

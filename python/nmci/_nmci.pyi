@@ -56,6 +56,7 @@ class Fused:
     violation: Optional[float]
     converged: Optional[bool]
     gap_closed: Optional[bool]
+    own_rule_proven: Optional[bool]
     guarantee: str
     structure: Optional[Dict[str, Any]]
 

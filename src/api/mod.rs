@@ -203,6 +203,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                 bracket: uppers.bracket(cuts.lower_bound),
                 certificates: cuts.certificates,
                 gain_certified_trace,
+                own_rule_proven: cuts.own_rule_proven,
             });
             Ok::<_, RequestError>(response(
                 Method::SdpCuts,

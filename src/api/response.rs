@@ -185,6 +185,10 @@ pub struct CutsDetails {
     pub certificates: Option<Certificates>,
     /// As [`SdpDetails::gain_certified_trace`] (absent past the time limit).
     pub gain_certified_trace: Option<f64>,
+    /// Whether the bracket's certified upper end is the loop's own rule proven on cones of
+    /// directions (`CutsResult::own_rule_proven`; then `certificates` gives level 1 and the
+    /// number of cones).
+    pub own_rule_proven: bool,
 }
 
 /// The certified rule's report.
@@ -334,6 +338,8 @@ struct ResponseWire {
     converged: Option<bool>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     gap_closed: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    own_rule_proven: Option<bool>,
     guarantee: Guarantee,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     structure: Option<StructureDetails>,
@@ -411,6 +417,7 @@ impl From<FuseResponse> for ResponseWire {
             violation: None,
             converged: None,
             gap_closed: None,
+            own_rule_proven: None,
             guarantee,
             structure: r.structure,
         };
@@ -453,6 +460,7 @@ impl From<FuseResponse> for ResponseWire {
                 w.stop = Some(d.stop);
                 w.gain_certified_trace = d.gain_certified_trace;
                 w.gap_closed = Some(d.gap_closed);
+                w.own_rule_proven = Some(d.own_rule_proven);
                 w.set_certificates(d.certificates.as_ref());
                 w.set_bracket(d.bracket.as_ref());
             }
@@ -525,6 +533,7 @@ impl TryFrom<ResponseWire> for FuseResponse {
                 bracket: w.bracket(),
                 certificates: w.certificates(),
                 gain_certified_trace: w.gain_certified_trace,
+                own_rule_proven: need(w.own_rule_proven, "own_rule_proven", m)?,
             }),
             Method::Certified => Details::Certified(CertifiedDetails {
                 status: need(w.status, "status", m)?,

@@ -556,3 +556,188 @@ fn near_singular_pairs_cost_the_certified_rule_the_enclosure_of_cis_bound() {
     let nm = non_monolithic_ci(&q, Criterion::Trace).unwrap();
     assert!(cert.fused.trace() <= nm.fused.trace() * (1.0 + 1e-14));
 }
+
+/// `max_J λ_max(K J Kᵀ − P̄)` over admissible joint covariances `J`, searched independently of
+/// the crate: for each start direction `v`, the worst `P_ab` for `v` (the inner program,
+/// written here anew for Clarabel: maximise `2 (K_aᵀv)ᵀ P_ab (K_bᵀv)` over the free entries
+/// with `[[P_a, P_ab], [P_abᵀ, P_b]] ⪰ 0`), then `v ←` the top eigenvector of
+/// `K J Kᵀ − P̄`, five times. The worst `P_ab` is shrunk by `10⁻¹⁰` towards 0 (inside the
+/// admissible set, which the solver meets only to its tolerance).
+#[allow(non_snake_case)]
+fn worst_violation_by_hand(
+    p: &FusionProblem,
+    K_a: &DMatrix<f64>,
+    P: &DMatrix<f64>,
+    starts: &[nalgebra::DVector<f64>],
+) -> f64 {
+    use clarabel::algebra::CscMatrix;
+    use clarabel::solver::{
+        DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+    };
+    let n = p.dim();
+    let K_b = DMatrix::identity(n, n) - K_a;
+    let free: Vec<(usize, usize)> = (0..n)
+        .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .filter(|&(i, j)| p.cross_pattern.is_unknown(i, j))
+        .collect();
+    let m = 2 * n;
+    let at = |r: usize, c: usize| {
+        let (r, c) = (r.min(c), r.max(c));
+        c * (c + 1) / 2 + r
+    };
+    let worst_cross = |v: &nalgebra::DVector<f64>| {
+        let (u_a, u_b) = (K_a.tr_mul(v), K_b.tr_mul(v));
+        let mut b = vec![0.0; m * (m + 1) / 2];
+        for c in 0..n {
+            for r in 0..=c {
+                let s = if r == c { 1.0 } else { 2f64.sqrt() };
+                b[at(r, c)] = s * p.P_a[(r, c)];
+                b[at(n + r, n + c)] = s * p.P_b[(r, c)];
+            }
+        }
+        let (mut rows, mut cols, mut vals, mut q) = (vec![], vec![], vec![], vec![]);
+        for (k, &(i, j)) in free.iter().enumerate() {
+            rows.push(at(i, n + j));
+            cols.push(k);
+            vals.push(-(2f64.sqrt()));
+            q.push(-2.0 * u_a[i] * u_b[j]);
+        }
+        let A = CscMatrix::new_from_triplets(b.len(), free.len(), rows, cols, vals);
+        let zero = CscMatrix::zeros((free.len(), free.len()));
+        let settings = DefaultSettings {
+            verbose: false,
+            tol_gap_abs: 1e-11,
+            tol_gap_rel: 1e-11,
+            tol_feas: 1e-11,
+            ..DefaultSettings::default()
+        };
+        let cones = [SupportedConeT::PSDTriangleConeT(m)];
+        let mut solver = DefaultSolver::new(&zero, &q, &A, &b, &cones, settings).unwrap();
+        solver.solve();
+        assert!(
+            matches!(
+                solver.solution.status,
+                SolverStatus::Solved | SolverStatus::AlmostSolved
+            ),
+            "{:?}",
+            solver.solution.status
+        );
+        let mut X = DMatrix::zeros(n, n);
+        for (k, &(i, j)) in free.iter().enumerate() {
+            X[(i, j)] = solver.solution.x[k] * (1.0 - 1e-10);
+        }
+        X
+    };
+    let mut worst = f64::NEG_INFINITY;
+    for start in starts {
+        let mut v = start.normalize();
+        for _ in 0..5 {
+            let X = worst_cross(&v);
+            let E = K_a * &p.P_a * K_a.transpose()
+                + K_a * &X * K_b.transpose()
+                + &K_b * X.transpose() * K_a.transpose()
+                + &K_b * &p.P_b * K_b.transpose();
+            let D = E - P;
+            let eig = nalgebra::SymmetricEigen::new((&D + D.transpose()) * 0.5);
+            let k = eig.eigenvalues.imax();
+            worst = worst.max(eig.eigenvalues[k]);
+            v = eig.eigenvectors.column(k).into_owned();
+        }
+    }
+    worst
+}
+
+/// Directions spread over the half sphere `v₃ ≥ 0` (a Fibonacci lattice).
+fn half_sphere(count: usize) -> Vec<nalgebra::DVector<f64>> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..count)
+        .map(|k| {
+            let z = (k as f64 + 0.5) / count as f64;
+            let r = (1.0 - z * z).sqrt();
+            let t = golden * k as f64;
+            nalgebra::DVector::from_vec(vec![r * t.cos(), r * t.sin(), z])
+        })
+        .collect()
+}
+
+#[test]
+#[allow(non_snake_case)]
+fn the_cutting_planes_own_rule_is_proven_and_closes_brackets_level_2_leaves_open() {
+    // Three-state problems whose known zeros sit on the anti-diagonal of P_ab, where the
+    // level-2 certificate leaves the bracket open (asserted). sdp_cuts then proves its own
+    // rule on cones of directions (`own_rule_proven`): the bound's gain is the loop's, the
+    // bracket closes to 10⁻⁶, and the bound is conservative against an independent
+    // worst-case search written here (not the crate's). The same search finds the violation
+    // of that bound lowered by a multiple of I that would put its trace below the proven lower
+    // end, so it can fail. With `own_rule_cones: 0` the certified rule stays. The loop runs
+    // to a tolerance of 10⁻¹⁰ (as docs/methods.md's sweep): its P̄ must be short of a bound by
+    // well below the closing tolerance for the proof to close the bracket.
+    let settings = CutsSettings {
+        tolerance: 1e-10,
+        max_iterations: 200,
+        ..CutsSettings::default()
+    };
+    let mut r = rng(1);
+    let pattern = CrossPattern::from_fn(3, |i, j| i + j != 2);
+    let mut checked = 0;
+    while checked < 2 {
+        let p = random_problem(3, pattern.clone(), &mut r);
+        let off = optimal_fusion_cuts(
+            &p,
+            &CutsSettings {
+                own_rule_cones: 0,
+                ..settings
+            },
+        )
+        .unwrap();
+        let level2 = off.certified_trace.unwrap();
+        if (level2 - off.lower_bound) <= CLOSED_RTOL * level2 {
+            continue;
+        }
+        assert!(!off.own_rule_proven);
+        let dbg = certify_rule(&p, &off.fused, 64, CLOSED_RTOL, &CertifySettings::default());
+        eprintln!("DBG {:?}", dbg.as_ref().map(|r| r.as_ref().map(|r| (r.fused.trace(), r.repair, r.sectors.clone(), r.status))));
+        eprintln!("DBG primal {} lower {} violation {}", off.fused.trace(), off.lower_bound, off.violation);
+        let cuts = optimal_fusion_cuts(&p, &settings).unwrap();
+        assert!(
+            cuts.own_rule_proven,
+            "problem {checked}: stop {:?}, lower {}, upper {:?} (level 2: {level2})",
+            cuts.stop,
+            cuts.lower_bound,
+            cuts.certified_trace
+        );
+        let proven = cuts.certified.as_ref().unwrap();
+        assert_eq!(proven.K_a, cuts.fused.K_a);
+        let upper = cuts.certified_trace.unwrap();
+        assert_eq!(upper, trace_upper_bound(&proven.P));
+        assert!(upper < level2);
+        let gap = (upper - cuts.lower_bound) / upper;
+        assert!(gap <= CLOSED_RTOL, "problem {checked}: gap {gap:e}");
+        assert_eq!(cuts.certificates.as_ref().unwrap().levels, vec![1]);
+        let starts = half_sphere(200);
+        let violation = worst_violation_by_hand(&p, &proven.K_a, &proven.P, &starts);
+        assert!(violation <= 1e-9 * upper, "problem {checked}: violation {violation:e}");
+        // Lowered so that its trace is below the proven lower end: no longer a bound.
+        let eps = 2.0 * (upper - cuts.lower_bound) / 3.0 + 1e-7;
+        let lowered = &proven.P - DMatrix::identity(3, 3) * eps;
+        let found = worst_violation_by_hand(&p, &proven.K_a, &lowered, &starts);
+        assert!(found > 0.0, "problem {checked}: the search missed {found:e}");
+        checked += 1;
+    }
+}
+
+#[test]
+fn own_rule_cones_out_of_range_is_a_typed_error() {
+    let p = random_problem(3, CrossPattern::from_fn(3, |i, j| i + j != 2), &mut rng(2));
+    for cones in [1, 3, MAX_CONES + 1] {
+        let err = optimal_fusion_cuts(
+            &p,
+            &CutsSettings {
+                own_rule_cones: cones,
+                ..CutsSettings::default()
+            },
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("own_rule_cones"), "{err}");
+    }
+}

@@ -123,12 +123,20 @@ pub(super) fn certify_point(
         iterations.set(iterations.get() + solved.iterations);
         almost.set(almost.get() || solved.status == SdpStatus::AlmostSolved);
     };
+    let layout = Layout::new(n, 1);
+    let identity = DMatrix::<f64>::identity(n, n);
+    // A cone's t: the solver's, plus what proving its certificate at Q₀ + tI adds (a cone
+    // the solver meets only to reduced accuracy needs a large repair, and is cut like one
+    // where Q₀ is short).
     let solve = |cone: [[i64; 3]; 3]| -> Result<Leaf, SolveError> {
         let one = pieces(&[cone]);
         let solved = solve_pieces(problem, Some(K_a), Base::Shift(Q0), 1, &one, &round())?;
         count(&solved);
-        let t = (solved.Q.trace() - Q0.trace()) / n as f64;
         let raw = solved.pieces.into_iter().next().expect("one piece");
+        let start = Q0 + &identity * ((solved.Q.trace() - Q0.trace()) / n as f64);
+        let mut Q = start.clone();
+        prove_piece(problem, &layout, K_a, &mut Q, &raw)?;
+        let t = (Q.trace() - Q0.trace()) / n as f64;
         Ok(Leaf {
             cone,
             raw,
@@ -200,8 +208,6 @@ pub(super) fn certify_point(
     let t_all = leaves.iter().map(|l| l.t).fold(f64::NEG_INFINITY, f64::max);
     let (open, within): (Vec<&Leaf>, Vec<&Leaf>) = leaves.iter().partition(|l| l.t > target);
     let tau = within.iter().map(|l| l.t).fold(0.0, f64::max);
-    let layout = Layout::new(n, 1);
-    let identity = DMatrix::<f64>::identity(n, n);
     let proven = |start: DMatrix<f64>, raws: &mut dyn Iterator<Item = &RawPiece>| {
         let mut Q = start.clone();
         for raw in raws {
