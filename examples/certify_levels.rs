@@ -106,7 +106,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|c| Family::Adaptive(c as u32)),
     );
     // `--own-rule 64`: the cutting planes' own rule proven on at most that many cones.
-    let own_rule = arg_list(&args, "--own-rule", &[]).first().map(|&c| c as u32);
+    let own_rule = arg_list(&args, "--own-rule", &[])
+        .first()
+        .map(|&c| c as u32);
     // The cutting planes stop when the worst violation is below this times tr P̄ (the
     // library default is 1e-7; the lower end needs less to close brackets to 1e-6).
     let cuts_tol = match args.iter().position(|a| a == "--cuts-tol") {
@@ -137,7 +139,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut done = 0;
             let mut failed = 0;
             // The own rule: gaps, proof times where it ran, and the cutting planes' times.
-            let (mut own_gaps, mut own_times, mut cuts_times) = (Vec::new(), Vec::new(), Vec::new());
+            let (mut own_gaps, mut own_times, mut cuts_times) =
+                (Vec::new(), Vec::new(), Vec::new());
             while done < count {
                 let pat = pattern(class, n, &mut rng);
                 let p = FusionProblem::from_covariances(

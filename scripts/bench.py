@@ -8,6 +8,7 @@ that produced them all, peers (numpy, scipy, cvxpy) measured in the same run.
 Sections (each one command, run in order on an otherwise idle machine):
   rust      criterion benches of benches/fusion.rs (a chosen set, shortened measurement)
   brackets  examples/certify_levels: proven brackets at 2 and 3 states, the default certificate
+            and, at 3 states, the cutting planes' own rule proven on cones where it leaves them open
   study     `nmci track` (release), the paper's 16-agent study, and its headline result
   python    scripts/python.sh bench: nmci from Python against numpy, scipy and cvxpy
   stack     scripts/python.sh bench-stack: k pairs by CI, nmci's stack against numpy, a loop, Stone Soup
@@ -112,8 +113,9 @@ def rust():
 def brackets():
     parts = []
     cmds = []
-    # The defaults: two states, 24 sectors (level 1 beside it); three states, level 2.
-    for args in ["--dims 2 --count 50 --levels 1 --sectors 24", "--dims 3 --count 50 --levels 2"]:
+    # The defaults: two states, 24 sectors (level 1 beside it); three states, level 2, and
+    # what `sdp_cuts` reports: level 2, else its own rule proven on at most 64 cones.
+    for args in ["--dims 2 --count 50 --levels 1 --sectors 24", "--dims 3 --count 50 --levels 2 --own-rule 64"]:
         cmd = f"cargo run --quiet --release --example certify_levels -- {args}"
         cmds.append(cmd)
         out = sh(cmd)
@@ -176,7 +178,7 @@ def browser():
 
 SECTIONS = {
     "rust": ("Rust (criterion)", rust),
-    "brackets": ("Proven brackets (the certified rule against the cutting planes' lower end)", brackets),
+    "brackets": ("Proven brackets (the certified rule, and the cutting planes' own rule proven, against the cutting planes' lower end)", brackets),
     "study": ("The 16-agent tracking study", study),
     "python": ("From Python, beside numpy, scipy and cvxpy", python),
     "stack": ("Stacks: k pairs by CI in one call, one thread", stack),

@@ -105,9 +105,9 @@ pub mod rules {
 /// sum-of-squares certificate repaired with every rounding accounted for.
 pub mod certify {
     pub use crate::fusion::certify::{
-        certified_fusion, certified_fusion_memo, certify_gain, certify_rule, CertificateMemo, Certificates,
-        CertifiedResult, CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_CONES,
-        MAX_LEVEL, MAX_SECTORS, MEMO_BLOCKS,
+        certified_fusion, certified_fusion_memo, certify_gain, certify_rule, CertificateMemo,
+        Certificates, CertifiedResult, CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM,
+        MAX_CONES, MAX_LEVEL, MAX_SECTORS, MEMO_BLOCKS,
     };
 }
 

@@ -66,8 +66,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::bracket::CLOSED_RTOL;
 use super::certify::{
-    certification_blocks, certified_fusion, certify_rule, Certificates, CertifySettings,
-    MAX_CONES,
+    certification_blocks, certified_fusion, certify_rule, Certificates, CertifySettings, MAX_CONES,
 };
 use super::check::{error_covariance, lowest_margin, margin};
 use super::nmci::non_monolithic_ci;
@@ -595,8 +594,7 @@ fn prove_own_rule(
         result.certificates = Some(Certificates::of(&proven));
         result.certified = Some(proven.fused);
         result.own_rule_proven = true;
-        result.gap_closed =
-            result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
+        result.gap_closed = result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
     }
     Ok(result)
 }

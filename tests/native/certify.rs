@@ -695,16 +695,11 @@ fn the_cutting_planes_own_rule_is_proven_and_closes_brackets_level_2_leaves_open
             continue;
         }
         assert!(!off.own_rule_proven);
-        let dbg = certify_rule(&p, &off.fused, 64, CLOSED_RTOL, &CertifySettings::default());
-        eprintln!("DBG {:?}", dbg.as_ref().map(|r| r.as_ref().map(|r| (r.fused.trace(), r.repair, r.sectors.clone(), r.status))));
-        eprintln!("DBG primal {} lower {} violation {}", off.fused.trace(), off.lower_bound, off.violation);
         let cuts = optimal_fusion_cuts(&p, &settings).unwrap();
         assert!(
             cuts.own_rule_proven,
             "problem {checked}: stop {:?}, lower {}, upper {:?} (level 2: {level2})",
-            cuts.stop,
-            cuts.lower_bound,
-            cuts.certified_trace
+            cuts.stop, cuts.lower_bound, cuts.certified_trace
         );
         let proven = cuts.certified.as_ref().unwrap();
         assert_eq!(proven.K_a, cuts.fused.K_a);
@@ -716,12 +711,18 @@ fn the_cutting_planes_own_rule_is_proven_and_closes_brackets_level_2_leaves_open
         assert_eq!(cuts.certificates.as_ref().unwrap().levels, vec![1]);
         let starts = half_sphere(200);
         let violation = worst_violation_by_hand(&p, &proven.K_a, &proven.P, &starts);
-        assert!(violation <= 1e-9 * upper, "problem {checked}: violation {violation:e}");
+        assert!(
+            violation <= 1e-9 * upper,
+            "problem {checked}: violation {violation:e}"
+        );
         // Lowered so that its trace is below the proven lower end: no longer a bound.
         let eps = 2.0 * (upper - cuts.lower_bound) / 3.0 + 1e-7;
         let lowered = &proven.P - DMatrix::identity(3, 3) * eps;
         let found = worst_violation_by_hand(&p, &proven.K_a, &lowered, &starts);
-        assert!(found > 0.0, "problem {checked}: the search missed {found:e}");
+        assert!(
+            found > 0.0,
+            "problem {checked}: the search missed {found:e}"
+        );
         checked += 1;
     }
 }

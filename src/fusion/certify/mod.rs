@@ -219,4 +219,3 @@ pub use rule::{
     certified_fusion, certified_fusion_memo, certify_gain, Certificates, CertifiedResult,
 };
 pub use settings::{CertifySettings, Family, DEFAULT_SECTORS, MAX_BLOCK_DIM, MAX_CONES, MAX_LEVEL};
-

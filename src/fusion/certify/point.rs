@@ -8,13 +8,14 @@ use nalgebra::DMatrix;
 
 use crate::error::SolveError;
 use crate::fusion::program::{Deadline, SdpStatus};
+use crate::fusion::scale::Pow2;
 use crate::fusion::upper::trace_upper_bound;
 use crate::fusion::{Fused, FusionProblem};
 
 use super::geometry::{bisect, cone_generators, cone_piece};
 use super::layout::Layout;
 use super::rule::{certification_blocks, CertifiedResult};
-use super::settings::CertifySettings;
+use super::settings::{CertifySettings, MAX_CONES};
 use super::sos::{prove_piece, solve_pieces, Base, BlockCertificate, Piece, RawPiece, Solved};
 
 /// A cut whose larger half needs at least this fraction of its own `t` has reached the
@@ -25,11 +26,16 @@ const SETTLED: f64 = 0.99;
 /// away from the short direction does not lower the half that holds it).
 const STALLS: u32 = 4;
 
+/// How many times an octant the solver fails on is cut before the proof gives up.
+const FAILED_CUTS: u32 = 3;
+
 /// A given rule `rule = (K, P̄)` of a three-state problem — e.g. the cutting planes' — proven
 /// on at most `budget` cones of directions (module docs of `fusion::certify`, "At a given
 /// rule"): the certificate of `K` with a bound near `P̄`, the cones cut until each adds at
-/// most `rtol · tr P̄ / 8` to the trace. `None` where the problem with this gain is not one
-/// block of three states. The bound is proven whatever `P̄` is; how close to `P̄` it ends
+/// most `rtol · tr P̄ / 8` to the trace (`budget` in `4..=`[`MAX_CONES`], `rtol` in
+/// `(0, 1)`, a finite gain and a finite symmetric bound; otherwise
+/// [`SolveError::InvalidSettings`]). `None` where the problem with this gain is not one block
+/// of three states. The bound is proven whatever `P̄` is; how close to `P̄` it ends
 /// depends on how close `P̄` is to dominating `K P' Kᵀ` for every admissible `P'`.
 ///
 /// ```
@@ -55,12 +61,50 @@ pub fn certify_rule(
     rtol: f64,
     settings: &CertifySettings,
 ) -> Result<Option<CertifiedResult>, SolveError> {
+    settings.validate()?;
     let n = problem.dim();
+    let square = |m: &DMatrix<f64>| m.shape() == (n, n) && m.iter().all(|x| x.is_finite());
+    if !square(&rule.K_a) || !square(&rule.P) || rule.P != rule.P.transpose() {
+        return Err(SolveError::InvalidSettings(format!(
+            "the rule must have a finite {n}×{n} gain and a finite symmetric {n}×{n} bound"
+        )));
+    }
+    if !(4..=MAX_CONES).contains(&budget) {
+        return Err(SolveError::InvalidSettings(format!(
+            "the cone budget must be in 4..={MAX_CONES} (got {budget})"
+        )));
+    }
+    if !(rtol > 0.0 && rtol < 1.0) {
+        return Err(SolveError::InvalidSettings(format!(
+            "rtol must be in (0, 1) (got {rtol})"
+        )));
+    }
     if n != 3 || certification_blocks(problem, Some(&rule.K_a)).len() != 1 {
         return Ok(None);
     }
-    let target = rtol * rule.P.trace().abs() / (8.0 * n as f64);
-    let proven = certify_point(problem, &rule.K_a, &rule.P, target, budget as usize, settings)?;
+    // At unit scale, as every certificate (`block::certify_one_block`): the covariances and
+    // P̄ times the same power of two, exactly; the gain is unchanged, the bound mapped back
+    // dominating (or, where that overflows, the rule certified as given).
+    let (scaled, scale) = Pow2::normalising(problem).scaled_problem(problem);
+    let at_scale = |p: &FusionProblem, bound: &DMatrix<f64>| {
+        let target = rtol * bound.trace().abs() / (8.0 * n as f64);
+        certify_point(p, &rule.K_a, bound, target, budget as usize, settings)
+    };
+    let mut proven = None;
+    if scale != Pow2::ONE {
+        let outcome = at_scale(&scaled, &scale.scale(&rule.P))?;
+        if let Some(bound) = scale.unscale_dominating(&outcome.P) {
+            proven = Some(BlockCertificate {
+                P: bound,
+                repair: scale.unscale_value(outcome.repair),
+                ..outcome
+            });
+        }
+    }
+    let proven = match proven {
+        Some(p) => p,
+        None => at_scale(problem, &rule.P)?,
+    };
     Ok(Some(CertifiedResult {
         fused: Fused {
             P: proven.P,
@@ -75,9 +119,6 @@ pub fn certify_rule(
         ci_blocks: vec![false],
     }))
 }
-
-/// How many times an octant the solver fails on is cut before the proof gives up.
-const FAILED_CUTS: u32 = 3;
 
 /// One cone of the cover: its generators, its certificate and the `t` it needs.
 struct Leaf {
@@ -220,7 +261,14 @@ pub(super) fn certify_point(
     let mut best = proven(Q0 + &identity * t_all, &mut leaves.iter().map(|l| &l.raw));
     if !open.is_empty() {
         let cones: Vec<_> = open.iter().map(|l| l.cone).collect();
-        match solve_pieces(problem, Some(K_a), Base::Above(Q0), 1, &pieces(&cones), &round()) {
+        match solve_pieces(
+            problem,
+            Some(K_a),
+            Base::Above(Q0),
+            1,
+            &pieces(&cones),
+            &round(),
+        ) {
             Ok(joint) => {
                 count(&joint);
                 // Q ⪰ Q₀ only to the solver's tolerance: the repair proves every cone at the
@@ -228,9 +276,8 @@ pub(super) fn certify_point(
                 let start = &joint.Q + &identity * tau;
                 let raws = within.iter().map(|l| &l.raw).chain(&joint.pieces);
                 if let Ok((Q, repair)) = proven(start, &mut raws.into_iter()) {
-                    let tighter = |b: &(DMatrix<f64>, f64)| {
-                        trace_upper_bound(&b.0) <= trace_upper_bound(&Q)
-                    };
+                    let tighter =
+                        |b: &(DMatrix<f64>, f64)| trace_upper_bound(&b.0) <= trace_upper_bound(&Q);
                     if !best.as_ref().is_ok_and(tighter) {
                         best = Ok((Q, repair));
                     }

@@ -370,7 +370,9 @@ pub(super) fn solve_pieces(
     }
     // Q − Q₀ ⪰ 0: s = b − A x = svec(Q) − svec(Q₀).
     if let Base::Above(Q0) = base {
-        psd(&mut rows, &mut cols, &mut vals, base_row, n, &|k, l| var_q(k, l));
+        psd(&mut rows, &mut cols, &mut vals, base_row, n, &|k, l| {
+            var_q(k, l)
+        });
         for l in 0..n {
             for k in 0..=l {
                 let scale = if k == l { 1.0 } else { sqrt2 };
