@@ -742,3 +742,53 @@ fn own_rule_cones_out_of_range_is_a_typed_error() {
         assert!(err.to_string().contains("own_rule_cones"), "{err}");
     }
 }
+
+#[test]
+#[allow(non_snake_case)]
+fn certify_rule_refuses_bad_rules_and_leaves_other_shapes_alone() {
+    // Bad input is a typed error naming it; a problem that is not one block of three states
+    // (here two states, and three states in independent blocks) gives `None`, not an error.
+    let p = random_problem(3, CrossPattern::from_fn(3, |i, j| i + j != 2), &mut rng(3));
+    let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap().fused;
+    let settings = CertifySettings::default();
+    let asymmetric = {
+        let mut f = nm.clone();
+        f.P[(0, 1)] += 1e-3;
+        f
+    };
+    let infinite = {
+        let mut f = nm.clone();
+        f.K_a[(2, 2)] = f64::NAN;
+        f
+    };
+    for (rule, budget, rtol, what) in [
+        (&nm, 3, 1e-6, "cone budget"),
+        (&nm, MAX_CONES + 1, 1e-6, "cone budget"),
+        (&nm, 64, 0.0, "rtol"),
+        (&nm, 64, f64::NAN, "rtol"),
+        (&asymmetric, 64, 1e-6, "symmetric"),
+        (&infinite, 64, 1e-6, "finite"),
+    ] {
+        let err = certify_rule(&p, rule, budget, rtol, &settings).unwrap_err();
+        assert!(matches!(err, SolveError::InvalidSettings(_)), "{err}");
+        assert!(err.to_string().contains(what), "{what}: {err}");
+    }
+    let two = random_problem(2, CrossPattern::from_fn(2, |i, j| i != j), &mut rng(4));
+    let two_rule = non_monolithic_ci(&two, Criterion::Trace).unwrap().fused;
+    assert!(certify_rule(&two, &two_rule, 64, 1e-6, &settings)
+        .unwrap()
+        .is_none());
+    let diagonal = random_problem(3, CrossPattern::diagonal(3), &mut rng(5));
+    let diagonal = FusionProblem::from_covariances(
+        DMatrix::from_diagonal(&diagonal.P_a.diagonal()),
+        DMatrix::from_diagonal(&diagonal.P_b.diagonal()),
+        CrossPattern::diagonal(3),
+    )
+    .unwrap();
+    let diagonal_rule = non_monolithic_ci(&diagonal, Criterion::Trace)
+        .unwrap()
+        .fused;
+    assert!(certify_rule(&diagonal, &diagonal_rule, 64, 1e-6, &settings)
+        .unwrap()
+        .is_none());
+}
