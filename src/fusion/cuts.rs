@@ -561,15 +561,17 @@ fn prove_own_rule(
     let Some(upper) = result.certified_trace else {
         return Ok(result);
     };
+    // The time left, read once (a limit of zero would be refused as a setting).
+    let left = deadline.remaining();
     if result.gap_closed
         || settings.own_rule_cones == 0
         || result.stop == CutsStop::TimeLimit
-        || deadline.passed()
+        || left <= 0.0
     {
         return Ok(result);
     }
     let certify_settings = CertifySettings {
-        time_limit: settings.time_limit.map(|_| deadline.remaining()),
+        time_limit: settings.time_limit.map(|_| left),
         ..settings.certify_settings
     };
     let proven = match certify_rule(
