@@ -8,6 +8,7 @@ use rand_chacha::ChaCha8Rng;
 
 pub mod fuzz;
 pub mod memo;
+pub mod worst;
 
 pub fn rng(seed: u64) -> ChaCha8Rng {
     ChaCha8Rng::seed_from_u64(seed)

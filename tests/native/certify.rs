@@ -558,9 +558,8 @@ fn near_singular_pairs_cost_the_certified_rule_the_enclosure_of_cis_bound() {
 }
 
 /// `max_J λ_max(K J Kᵀ − P̄)` over admissible joint covariances `J`, searched independently of
-/// the crate: for each start direction `v`, the worst `P_ab` for `v` (the inner program,
-/// written here anew for Clarabel: maximise `2 (K_aᵀv)ᵀ P_ab (K_bᵀv)` over the free entries
-/// with `[[P_a, P_ab], [P_abᵀ, P_b]] ⪰ 0`), then `v ←` the top eigenvector of
+/// the crate: for each start direction `v`, the worst `P_ab` for `v` (`common::worst`, the
+/// inner program written for the tests with Clarabel directly), then `v ←` the top eigenvector of
 /// `K J Kᵀ − P̄`, five times. The worst `P_ab` is shrunk by `10⁻¹⁰` towards 0 (inside the
 /// admissible set, which the solver meets only to its tolerance).
 #[allow(non_snake_case)]
@@ -570,63 +569,10 @@ fn worst_violation_by_hand(
     P: &DMatrix<f64>,
     starts: &[nalgebra::DVector<f64>],
 ) -> f64 {
-    use clarabel::algebra::CscMatrix;
-    use clarabel::solver::{
-        DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-    };
     let n = p.dim();
     let K_b = DMatrix::identity(n, n) - K_a;
-    let free: Vec<(usize, usize)> = (0..n)
-        .flat_map(|i| (0..n).map(move |j| (i, j)))
-        .filter(|&(i, j)| p.cross_pattern.is_unknown(i, j))
-        .collect();
-    let m = 2 * n;
-    let at = |r: usize, c: usize| {
-        let (r, c) = (r.min(c), r.max(c));
-        c * (c + 1) / 2 + r
-    };
     let worst_cross = |v: &nalgebra::DVector<f64>| {
-        let (u_a, u_b) = (K_a.tr_mul(v), K_b.tr_mul(v));
-        let mut b = vec![0.0; m * (m + 1) / 2];
-        for c in 0..n {
-            for r in 0..=c {
-                let s = if r == c { 1.0 } else { 2f64.sqrt() };
-                b[at(r, c)] = s * p.P_a[(r, c)];
-                b[at(n + r, n + c)] = s * p.P_b[(r, c)];
-            }
-        }
-        let (mut rows, mut cols, mut vals, mut q) = (vec![], vec![], vec![], vec![]);
-        for (k, &(i, j)) in free.iter().enumerate() {
-            rows.push(at(i, n + j));
-            cols.push(k);
-            vals.push(-(2f64.sqrt()));
-            q.push(-2.0 * u_a[i] * u_b[j]);
-        }
-        let A = CscMatrix::new_from_triplets(b.len(), free.len(), rows, cols, vals);
-        let zero = CscMatrix::zeros((free.len(), free.len()));
-        let settings = DefaultSettings {
-            verbose: false,
-            tol_gap_abs: 1e-11,
-            tol_gap_rel: 1e-11,
-            tol_feas: 1e-11,
-            ..DefaultSettings::default()
-        };
-        let cones = [SupportedConeT::PSDTriangleConeT(m)];
-        let mut solver = DefaultSolver::new(&zero, &q, &A, &b, &cones, settings).unwrap();
-        solver.solve();
-        assert!(
-            matches!(
-                solver.solution.status,
-                SolverStatus::Solved | SolverStatus::AlmostSolved
-            ),
-            "{:?}",
-            solver.solution.status
-        );
-        let mut X = DMatrix::zeros(n, n);
-        for (k, &(i, j)) in free.iter().enumerate() {
-            X[(i, j)] = solver.solution.x[k] * (1.0 - 1e-10);
-        }
-        X
+        common::worst::worst_cross(p, &K_a.tr_mul(v), &K_b.tr_mul(v)) * (1.0 - 1e-10)
     };
     let mut worst = f64::NEG_INFINITY;
     for start in starts {

@@ -10,13 +10,11 @@
 //! - exact zeros come back bit for bit; declared blocks imply the pattern;
 //! - each refusal is a typed error naming its field.
 
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use nmci::{check::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *};
 use rand::Rng;
 
-use crate::common::{block_spd, diag, rng};
+use crate::common::{self, block_spd, diag, rng};
 
 /// A steady-state Kalman covariance of a 2-axis constant-velocity model (states
 /// `[x, vx, y, vy]`) with a position sensor of variances `r` per axis, computed in a frame
@@ -137,62 +135,14 @@ fn round_off_couplings_keep_nmcis_per_axis_bound() {
     );
 }
 
-/// `max_{P_ab} vᵀ K J Kᵀ v` over admissible joints `J` of `problem` (pattern and `J ⪰ 0`),
-/// solved here by Clarabel: `vᵀ D v + 2 max u_aᵀ P_ab u_b`, `u = Kᵀ v`.
+/// `max_{P_ab} vᵀ K J Kᵀ v` over admissible joints `J` of `problem` (pattern and `J ⪰ 0`):
+/// `vᵀ D v + 2 u_aᵀ P_ab u_b` at the worst `P_ab` for `u = Kᵀ v` (`common::worst`).
 fn worst_in_direction(problem: &FusionProblem, fused: &Fused, v: &DVector<f64>) -> f64 {
-    let n = problem.dim();
     let (u_a, u_b) = (fused.K_a.tr_mul(v), fused.K_b.tr_mul(v));
-    let free: Vec<(usize, usize)> = (0..n)
-        .flat_map(|i| (0..n).map(move |j| (i, j)))
-        .filter(|&(i, j)| problem.cross_pattern.is_unknown(i, j))
-        .collect();
-    let d = u_a.dot(&(&problem.P_a * &u_a)) + u_b.dot(&(&problem.P_b * &u_b));
-    if free.is_empty() {
-        return d;
-    }
-    let m = 2 * n;
-    let svec = |r: usize, c: usize| {
-        let (r, c) = (r.min(c), r.max(c));
-        c * (c + 1) / 2 + r
-    };
-    let s2 = std::f64::consts::SQRT_2;
-    let mut b = vec![0.0; m * (m + 1) / 2];
-    for c in 0..n {
-        for r in 0..=c {
-            let k = if r == c { 1.0 } else { s2 };
-            b[svec(r, c)] = k * problem.P_a[(r, c)];
-            b[svec(n + r, n + c)] = k * problem.P_b[(r, c)];
-        }
-    }
-    let (mut ri, mut ci, mut vals) = (Vec::new(), Vec::new(), Vec::new());
-    let mut q = vec![0.0; free.len()];
-    for (k, &(i, j)) in free.iter().enumerate() {
-        ri.push(svec(i, n + j));
-        ci.push(k);
-        vals.push(-s2);
-        q[k] = -2.0 * u_a[i] * u_b[j];
-    }
-    let a = CscMatrix::new_from_triplets(b.len(), free.len(), ri, ci, vals);
-    let p = CscMatrix::zeros((free.len(), free.len()));
-    let settings = DefaultSettings {
-        verbose: false,
-        tol_gap_abs: 1e-10,
-        tol_gap_rel: 1e-10,
-        tol_feas: 1e-10,
-        ..DefaultSettings::default()
-    };
-    let cones = [SupportedConeT::PSDTriangleConeT(m)];
-    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings).unwrap();
-    solver.solve();
-    assert!(
-        matches!(
-            solver.solution.status,
-            SolverStatus::Solved | SolverStatus::AlmostSolved
-        ),
-        "{:?}",
-        solver.solution.status
-    );
-    d - solver.solution.obj_val
+    let P_ab = common::worst::worst_cross(problem, &u_a, &u_b);
+    u_a.dot(&(&problem.P_a * &u_a))
+        + u_b.dot(&(&problem.P_b * &u_b))
+        + 2.0 * u_a.dot(&(&P_ab * &u_b))
 }
 
 /// A near-block problem: `groups` of states, block-diagonal covariances plus couplings of
