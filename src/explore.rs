@@ -9,16 +9,18 @@ use serde::de::IgnoredAny;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{
-    certificate_response, check_blocks, check_count, sdp_response, structured, unknown_field,
-    ClosedForm, CovarianceSummary, FuseResponse, Options, PairInput, StructureDetails, Structured,
-    MAX_SAMPLES,
+    certificate_response, check_blocks, check_count, fuse, sdp_response, structured, unknown_field,
+    ClosedForm, CovarianceSummary, Details, FuseRequest, FuseResponse, Options, PairInput,
+    StructureDetails, Structured, MAX_SAMPLES,
 };
 use crate::error::RequestError;
 use crate::fusion::bracket::{
-    bracket_certificate, trace_upper_bound, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL,
+    bracket_certificate, trace_upper_bound, Bracket, UpperBounds, BRACKET_CERTIFY_MAX_BLOCK,
+    CLOSED_RTOL,
 };
 use crate::fusion::certify::{CertificateMemo, Certificates};
 use crate::fusion::check::{fused_coins, lowest_margin};
+use crate::fusion::cuts::CutsStop;
 use crate::fusion::known::known_fusion;
 use crate::fusion::rules::{Method, RULES};
 use crate::fusion::sample::{sample_cross_covariances, AutoChoice};
@@ -98,6 +100,37 @@ pub struct Gap {
     /// `sectors`).
     #[serde(flatten)]
     pub certificates: Option<Certificates>,
+}
+
+impl Gap {
+    /// The gap of a proven bracket, with the certificates of its certified upper end.
+    fn of(b: &Bracket, certificates: Option<Certificates>) -> Gap {
+        Gap {
+            lower: b.lower,
+            upper: b.upper,
+            upper_rule: b.upper_rule.into(),
+            absolute: b.gap(),
+            relative: b.gap_relative(),
+            closed: b.gap_relative() <= CLOSED_RTOL,
+            certificates,
+        }
+    }
+}
+
+/// The explorer's second stage ([`prove`]): the cutting-plane SDP's proven bracket.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Proof {
+    /// The bracket: the loop's Lagrangian bound below, the best proven rule above (CI, nmCI,
+    /// or the certified rule — the loop's own rule when `own_rule_proven`).
+    #[serde(flatten)]
+    pub gap: Gap,
+    /// Whether the upper end is the loop's own rule, proven on cones of directions (then
+    /// `levels` is `[1]` and `sectors` the number of cones).
+    pub own_rule_proven: bool,
+    /// Why the loop stopped (`time_limit`: the bracket is the best one proven by then).
+    pub stop: CutsStop,
+    /// The loop's outer iterations.
+    pub iterations: u32,
 }
 
 /// The conservativeness index of one rule over the region's cross-covariances:
@@ -215,6 +248,40 @@ pub fn explore_with_memo(
     analyse(request, Some(memo))
 }
 
+/// The explorer's second stage: the cutting-plane SDP (`sdp_cuts`, exactly as [`fuse`] runs it,
+/// with the request's options that apply to it: `seed`, `time_limit`, the certificate's) on
+/// the same state, for its proven bracket. Its
+/// lower end is the loop's Lagrangian bound, which at convergence sits at the robust optimum
+/// to the loop's tolerance, far above the sampled SDP's; on one block of three states its
+/// upper end is the loop's own rule, proven on cones of directions
+/// ([`crate::certify::certify_rule`]). The page runs it after [`explore`] when the bracket is
+/// open at `n ≤ 3`, where it can close it. `None` when the loop has no bracket.
+///
+/// ```
+/// let req: nmci::explore::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],
+///     "pb": [[1,0],[0,4]], "pab_unknown": [[true,true],[true,false]]}"#).unwrap();
+/// let proof = nmci::explore::prove(&req).unwrap().unwrap();
+/// assert!(proof.gap.closed && proof.gap.lower <= proof.gap.upper);
+/// ```
+pub fn prove(request: &ExploreRequest) -> Result<Option<Proof>, RequestError> {
+    let response = fuse(&FuseRequest {
+        pair: request.pair.clone(),
+        method: Method::SdpCuts,
+        options: request.options.for_method(Method::SdpCuts),
+        estimates: None,
+        patterns: None,
+    })?;
+    let Details::SdpCuts(d) = response.details else {
+        unreachable!("method sdp_cuts answers with its details")
+    };
+    Ok(d.bracket.as_ref().map(|b| Proof {
+        gap: Gap::of(b, d.certificates.clone()),
+        own_rule_proven: d.own_rule_proven,
+        stop: d.stop,
+        iterations: d.iterations,
+    }))
+}
+
 #[allow(non_snake_case)]
 fn analyse(
     request: &ExploreRequest,
@@ -291,17 +358,12 @@ fn analyse(
         (Method::Sdp, Ok((r, _))) => Some(r),
         _ => None,
     });
-    let gap = sdp.and_then(|s| s.bracket()).map(|b| Gap {
-        lower: b.lower,
-        upper: b.upper,
-        upper_rule: b.upper_rule.into(),
-        absolute: b.gap(),
-        relative: b.gap_relative(),
-        closed: b.gap_relative() <= CLOSED_RTOL,
-        certificates: match &certificate {
+    let gap = sdp.and_then(|s| s.bracket()).map(|b| {
+        let certificates = match &certificate {
             Ok(Some(cert)) => Some(Certificates::of(cert)),
             _ => None,
-        },
+        };
+        Gap::of(b, certificates)
     });
 
     let region_samples = request.region_samples.unwrap_or(REGION_SAMPLES);

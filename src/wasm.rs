@@ -145,6 +145,16 @@ pub fn explore(request: JsValue) -> Result<JsValue, JsValue> {
     Ok(object)
 }
 
+/// The explorer's second stage on one state ([`crate::explore::prove`]): the cutting-plane SDP's
+/// proven bracket (`null` when the loop has none). The page sends it the request of
+/// [`explore`], with a `time_limit`. Throws as [`fuse`] does.
+#[wasm_bindgen]
+pub fn prove(request: JsValue) -> Result<JsValue, JsValue> {
+    let request: ExploreRequest = parse(request).map_err(thrown)?;
+    let proof = crate::explore::prove(&request).map_err(thrown)?;
+    Ok(to_js(&proof)?)
+}
+
 /// The tracking study advanced a few steps at a time (for a Web Worker with live plots).
 #[wasm_bindgen]
 pub struct Study {

@@ -278,6 +278,31 @@ impl Options {
         })
     }
 
+    /// The options `method` takes ([`crate::rules::RuleInfo::options`], and the criterion
+    /// where it allows it), the others left out: the explorer's options for a second method
+    /// (`crate::explore::prove`).
+    pub fn for_method(&self, method: Method) -> Options {
+        let rule = method.info();
+        let mut o = self.clone();
+        for option in RequestOption::ALL {
+            if !rule.options.contains(&option) {
+                match option {
+                    RequestOption::Samples => o.samples = None,
+                    RequestOption::MaxTrials => o.max_trials = None,
+                    RequestOption::Sampler => o.sampler = None,
+                    RequestOption::Seed => o.seed = None,
+                    RequestOption::TimeLimit => o.time_limit = None,
+                    RequestOption::Level => o.level = None,
+                    RequestOption::Sectors => o.sectors = None,
+                    RequestOption::Cones => o.cones = None,
+                    RequestOption::MaxCones => o.max_cones = None,
+                }
+            }
+        }
+        o.criterion = o.criterion.filter(|&c| rule.criteria.allows(c));
+        o
+    }
+
     /// The options validated (errors name the field) and completed with the settings'
     /// defaults.
     ///

@@ -296,3 +296,57 @@ fn the_two_block_preset_is_certified_by_ci_without_a_solve() {
 fn the_memo_reuses_blocks_certified_before_and_changes_no_number() {
     common::memo::memo_sequence_matches_fresh_analyses();
 }
+
+#[test]
+fn the_second_stage_proves_three_state_brackets_the_page_leaves_open() {
+    // Three states, the anti-diagonal of P_ab known zero: one block, which nmCI cannot split.
+    // The page's analysis (200 samples) leaves the bracket open by percent; the second stage
+    // (`prove`: the cutting planes at their default tolerance, and their own rule proven)
+    // narrows it by more than a thousand times, and closes it to 10⁻⁶ on these three. Both
+    // brackets are proven, so they must overlap. On the third, a cone of the own rule's proof
+    // the solver fails on must be cut, not left whole (`certify_rule`).
+    let mut r = rng(44);
+    let mut own = 0;
+    for _ in 0..3 {
+        let rows = |m: &DMatrix<f64>| {
+            let rows: Vec<Vec<f64>> = m.row_iter().map(|r| r.iter().copied().collect()).collect();
+            serde_json::to_string(&rows).unwrap()
+        };
+        let (pa, pb) = (random_spd(3, &mut r), random_spd(3, &mut r));
+        let req = request(&format!(
+            r#"{{"pa": {}, "pb": {}, "pab_unknown": [[true,true,false],[true,false,true],[false,true,true]], "samples": 200, "sampler": "auto", "region_samples": 0}}"#,
+            rows(&pa),
+            rows(&pb)
+        ));
+        let first = explore(&req).unwrap().gap.unwrap();
+        let proof = prove(&req).unwrap().unwrap();
+        assert!(first.relative > 1e-2, "{first:?}");
+        assert!(proof.gap.lower <= first.upper && first.lower <= proof.gap.upper);
+        assert!(
+            proof.gap.relative < first.relative * 1e-3,
+            "{proof:?} {first:?}"
+        );
+        assert!(proof.gap.closed, "{proof:?}");
+        assert_eq!(proof.gap.closed, proof.gap.relative <= 1e-6);
+        own += proof.own_rule_proven as usize;
+        if proof.own_rule_proven {
+            assert_eq!(proof.gap.certificates.as_ref().unwrap().levels, vec![1]);
+        }
+    }
+    assert!(own >= 1);
+}
+
+#[test]
+fn the_second_stage_refuses_what_the_cutting_planes_refuse() {
+    // The explorer's options that sdp_cuts does not take are left out, not refused...
+    let ok = request(
+        r#"{"pa": [[3,0],[0,1]], "pb": [[1,0],[0,4]], "pab_unknown": [[true,false],[false,true]], "samples": 50, "criterion": "logdet", "sampler": "hit_and_run"}"#,
+    );
+    assert!(prove(&ok).unwrap().unwrap().gap.closed);
+    // ...while bad values of the ones it takes are typed errors naming the field.
+    let bad = request(r#"{"pa": [[3,0],[0,1]], "pb": [[1,0],[0,4]], "time_limit": -1}"#);
+    assert_eq!(
+        prove(&bad).unwrap_err().field().as_deref(),
+        Some("time_limit")
+    );
+}

@@ -129,7 +129,9 @@
 //! — one PSD cone of 19 rows, not one program over every cone. From the four octants, the cone
 //! with the largest `t_k` above the target is cut in two ([`bisect`](geometry), an exact
 //! subdivision, so the cones and their negatives always cover space) and both halves are
-//! certified. This goes on until every `t_k` is within the target (`rtol · tr P̄ / (8n)`),
+//! certified; a cone the solver fails on (an octant or a half) is cut in two in its place,
+//! three times at most, and a cut whose parts would pass the budget or still fail leaves its
+//! cone whole and uncut from then on. This goes on until every `t_k` is within the target (`rtol · tr P̄ / (8n)`),
 //! the cone budget is spent or the time limit passes. A cone whose larger half keeps 99 % of
 //! its `t_k` four cuts in a row is not cut again: `P̄` itself is short there, and cutting
 //! cannot help. The cones within the target hold at `P̄ + τI`, `τ` the largest of their

@@ -186,14 +186,15 @@ pub(super) fn certify_point(
             stalls: 0,
         })
     };
-    // The four octants; one the solver fails on is cut in two and its halves tried instead
-    // (a few times at most: the cover must be complete before anything is proven).
-    let mut leaves = Vec::new();
-    let mut pending: Vec<([[i64; 3]; 3], u32)> =
-        cone_generators(4)?.into_iter().map(|c| (c, 0)).collect();
-    while let Some((cone, depth)) = pending.pop() {
+    // A cone the solver fails on is cut in two and its halves tried instead, a few times at
+    // most (the cover must be complete before anything is proven).
+    fn solve_or_cut(
+        solve: &dyn Fn([[i64; 3]; 3]) -> Result<Leaf, SolveError>,
+        cone: [[i64; 3]; 3],
+        depth: u32,
+    ) -> Result<Vec<Leaf>, SolveError> {
         match solve(cone) {
-            Ok(leaf) => leaves.push(leaf),
+            Ok(leaf) => Ok(vec![leaf]),
             Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. })
                 if depth < FAILED_CUTS =>
             {
@@ -201,10 +202,16 @@ pub(super) fn certify_point(
                     status: "a cone the solver fails on cannot be cut further".into(),
                     iterations: 0,
                 })?;
-                pending.extend(halves.map(|h| (h, depth + 1)));
+                let mut leaves = solve_or_cut(solve, halves[0], depth + 1)?;
+                leaves.extend(solve_or_cut(solve, halves[1], depth + 1)?);
+                Ok(leaves)
             }
-            Err(e) => return Err(e),
+            Err(e) => Err(e),
         }
+    }
+    let mut leaves = Vec::new();
+    for octant in cone_generators(4)? {
+        leaves.extend(solve_or_cut(&solve, octant, 0)?);
     }
     while leaves.len() < budget && !deadline.passed() {
         let Some(worst) = (0..leaves.len())
@@ -217,22 +224,30 @@ pub(super) fn certify_point(
             leaves[worst].settled = true;
             continue;
         };
-        let (first, second) = match (solve(halves[0]), solve(halves[1])) {
-            (Ok(a), Ok(b)) => (a, b),
-            // Out of time: the cover as it is.
-            (Err(SolveError::TimeLimit { .. }), _) | (_, Err(SolveError::TimeLimit { .. })) => {
-                break
+        let halves = match (
+            solve_or_cut(&solve, halves[0], 1),
+            solve_or_cut(&solve, halves[1], 1),
+        ) {
+            // Within the budget: the parent's place goes to its halves (or their parts).
+            (Ok(mut a), Ok(b)) if leaves.len() - 1 + a.len() + b.len() <= budget => {
+                a.extend(b);
+                a
             }
-            // A half the solver fails on: the cone stays whole.
-            (Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }), _)
+            // Over the budget, or a part the solver fails on: the cone stays whole.
+            (Ok(_), Ok(_))
+            | (Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. }), _)
             | (_, Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. })) => {
                 leaves[worst].settled = true;
                 continue;
             }
+            // Out of time: the cover as it is.
+            (Err(SolveError::TimeLimit { .. }), _) | (_, Err(SolveError::TimeLimit { .. })) => {
+                break
+            }
             (Err(e), _) | (_, Err(e)) => return Err(e),
         };
         let parent = leaves.swap_remove(worst);
-        for mut half in [first, second] {
+        for mut half in halves {
             half.stalls = if half.t >= parent.t - (1.0 - SETTLED) * parent.t.abs() {
                 parent.stalls + 1
             } else {
