@@ -5,6 +5,7 @@ import { el, marginal, axes, fromAxes, ellipsePath, frame } from "./plot.js";
 import { EXPLORER_RULES } from "./rules.js";
 import { createExploreClient } from "./explore-client.js";
 import { renderNumbersPanel, STYLE } from "./numbers.js";
+import { createProveClient, worthProving } from "./prove-client.js";
 
 const $ = (id) => document.getElementById(id);
 // How a rule's ellipse is stroked follows its guarantee: the conservative rules solid, each
@@ -25,6 +26,9 @@ let state = preset("paper");
 let text = null; // the grids' raw text, so an invalid entry stays visible
 let last = null; // the last valid analysis (the picture stays when an input is invalid)
 let analysedState = null;
+// The second stage of the analysed state (www/prove-client.js): `{ running }`, `{ proof }` or
+// `{ error }`; null when there is none.
+let second = null;
 // One explore request in flight, the latest state wins (www/explore-client.js).
 const client = createExploreClient({
   url: new URL("./worker.js", import.meta.url),
@@ -36,6 +40,11 @@ const client = createExploreClient({
   onResult: (result, analysed) => {
     last = result;
     analysedState = analysed;
+    second = null;
+    if (worthProving(result)) {
+      second = { running: true };
+      prover.start(analysed);
+    }
     clearErrors();
     render();
   },
@@ -45,7 +54,31 @@ const client = createExploreClient({
     $("timing").textContent = count ? `recompute (all rules + region, worker round trip): median ${median.toFixed(1)} ms over ${count}` : "";
   },
 });
-const submit = () => client.submit(structuredClone(state));
+// The second stage of the analysed state; an edit abandons it.
+const prover = createProveClient({
+  url: new URL("./prove-worker.js", import.meta.url),
+  onProving: (running) => {
+    document.body.dataset.proving = String(running);
+  },
+  onProof: (proof, of) => {
+    if (of !== analysedState) return;
+    second = { proof };
+    renderNumbers();
+  },
+  onProofError: (error, of) => {
+    if (of !== analysedState) return;
+    second = { error };
+    renderNumbers();
+  },
+});
+const submit = () => {
+  if (second?.running) {
+    prover.cancel();
+    second = null;
+    renderNumbers();
+  }
+  client.submit(structuredClone(state));
+};
 
 // ---------- errors shown inline ----------
 function clearErrors() {
@@ -343,7 +376,8 @@ function onDrag(e) {
 }
 
 function renderNumbers() {
-  renderNumbersPanel(last, analysedState);
+  if (!last || !analysedState) return;
+  renderNumbersPanel(last, analysedState, second);
 }
 
 // ---------- wiring ----------

@@ -16,8 +16,8 @@ const MAX_FAILURES_IN_A_ROW = 3;
 // sooner.
 const INTERACTIVE_MAX_TRIALS = 200_000;
 
-/** The request of the wasm `explore` for an explorer state. */
-function request(s) {
+/** The request of the wasm `explore` (and `prove`) for an explorer state. */
+export function request(s) {
   return {
     pa: s.pa, pb: s.pb, pab_unknown: s.pattern, criterion: s.criterion,
     samples: s.samples, seed: s.seed, region_samples: s.region, sampler: s.sampler,

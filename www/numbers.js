@@ -2,6 +2,7 @@
 // determinant, ω, worst margin and COIN over the region), then each rule's own details (nmCI's
 // blocks, the SDP's status, the proven bracket, the certified rule, the region).
 import { EXPLORER_RULES, RULE } from "./rules.js";
+import { PROVE_SECONDS } from "./prove-client.js";
 
 const $ = (id) => document.getElementById(id);
 // Labels and colours: the region and the two estimates here, every rule from the registry.
@@ -38,7 +39,7 @@ function samplerText(requested, choice, acceptance, count) {
 
 /** Fills the numbers table and the details under it from an analysis `a` of the explorer
  * state `s`. */
-export function renderNumbersPanel(a, s) {
+export function renderNumbersPanel(a, s, second = null) {
   // Negative = not conservative for some drawn P' (red). Within 1e-8·max(1, tr P) of zero it is
   // solver round-off of a bound that touches the region (the SDP's optimum does by design).
   const margin = (v, scale) => {
@@ -121,14 +122,22 @@ export function renderNumbersPanel(a, s) {
       `, ${sdp.iterations} iterations, ${sdp.lmis} LMIs in the final working set of ${sdp.samples} samples, ${samplerText(s.sampler, sdp.sampler_choice, sdp.acceptance_rate, sdp.samples)}`));
   }
   if (a.gap) {
-    const upperName = `the ${RULE[a.gap.upper_rule].label} bound`;
-    const level = a.gap.levels ? ` (${certificateText(a.gap.levels, a.gap.sectors)})` : "";
-    const verdict = a.gap.closed
-      ? el("span", { id: "gap-verdict", class: "ok" }, `proven optimal to 10⁻⁶ (relative): ${upperName}${a.gap.upper_rule === "certified" ? level : ""} is within 10⁻⁶ of the robust optimum`)
-      : el("span", { id: "gap-verdict", class: "open" }, `open: the robust optimum lies between the ends${level}`);
-    parts.push(el("div", { id: "gap" }, key("robust optimum of tr P̄ lies in"), ` [${a.gap.lower.toFixed(6)}, ${a.gap.upper.toFixed(6)}] `,
-      key(`(both ends proven, every rounding accounted for: a Lagrangian bound from the SDP's duals below, ${upperName} above): gap`),
-      ` ${a.gap.absolute.toExponential(2)} `, key("absolute,"), ` ${(a.gap.relative * 100).toPrecision(3)} % `, key("relative —"), " ", verdict));
+    // The second stage's bracket (www/prove-client.js) where it is narrower: both are proven.
+    const proof = second?.proof && second.proof.relative < a.gap.relative ? second.proof : null;
+    const g = proof ?? a.gap;
+    const level = g.levels ? ` (${certificateText(g.levels, g.sectors)})` : "";
+    const upperName = proof?.own_rule_proven
+      ? `the cutting planes' own rule (proven on ${proof.sectors[0]} cones of directions)`
+      : `the ${RULE[g.upper_rule].label} bound`;
+    const withLevel = `${upperName}${g.upper_rule === "certified" && !proof?.own_rule_proven ? level : ""}`;
+    const verdict = g.closed
+      ? el("span", { id: "gap-verdict", class: "ok" }, `proven optimal to 10⁻⁶ (relative): ${withLevel} is within 10⁻⁶ of the robust optimum`)
+      : el("span", { id: "gap-verdict", class: "open" }, `open: the robust optimum lies between the ends${proof?.own_rule_proven ? "" : level}`);
+    const lowerName = proof ? "a Lagrangian bound from the cutting planes' duals" : "a Lagrangian bound from the SDP's duals";
+    parts.push(el("div", { id: "gap" }, key("robust optimum of tr P̄ lies in"), ` [${g.lower.toFixed(6)}, ${g.upper.toFixed(6)}] `,
+      key(`(both ends proven, every rounding accounted for: ${lowerName} below, ${upperName} above): gap`),
+      ` ${g.absolute.toExponential(2)} `, key("absolute,"), ` ${g.relative < 1e-4 ? g.relative.toExponential(2) : `${(g.relative * 100).toPrecision(3)} %`} `, key("relative —"), " ", verdict));
+    if (second) parts.push(secondStage(second, a.gap));
   }
   if (certified) {
     const best = Math.min(ci.trace, nmci.trace);
@@ -146,6 +155,24 @@ export function renderNumbersPanel(a, s) {
       ` drawn (${samplerText(s.sampler, a.region_sampler_choice, a.region_acceptance_rate, a.region_count)}), independent of the SDP's samples`));
   }
   $("details").replaceChildren(...parts);
+}
+
+/** The second stage's line: running, its outcome, or why it failed. */
+function secondStage(second, first) {
+  const key = (...children) => el("span", { class: "k" }, ...children);
+  if (second.running) {
+    return el("div", { id: "proof-status" }, key("second stage:"), ` the cutting planes are closing the bracket (up to ${PROVE_SECONDS} s)…`);
+  }
+  if (second.error !== undefined) {
+    return el("div", { id: "proof-status", class: "err" }, `second stage: ${second.error}`);
+  }
+  const p = second.proof;
+  if (!p) return el("div", { id: "proof-status" }, key("second stage:"), " the cutting planes gave no bracket");
+  const stop = { tolerance: "converged", gap_closed: "the bracket closed", time_limit: `the time limit (${PROVE_SECONDS} s)`, max_iterations: "the iteration limit" }[p.stop] ?? p.stop;
+  const narrower = p.relative < first.relative
+    ? `narrowed the bracket ${(first.relative / Math.max(p.relative, Number.MIN_VALUE)).toPrecision(2)} times`
+    : "did not narrow the bracket";
+  return el("div", { id: "proof-status" }, key("second stage:"), ` the cutting planes (${p.iterations} iterations, stopped by ${stop}) ${narrower}`);
 }
 
 /** An element with attributes and children (strings become text nodes). */

@@ -271,6 +271,40 @@ test("a fully unknown 4-D P_ab defeats the rejection sampler; hit-and-run gives 
   await page.screenshot({ path: join(out, "explorer-hit-and-run.png"), fullPage: true });
 });
 
+test("at three states a second stage closes the bracket the sampled SDP leaves open: the cutting planes' own rule, proven; an edit abandons it", async () => {
+  // P_ab's anti-diagonal known zero: one block, so nmCI is CI; the sampled SDP's lower end
+  // and the level-2 certificate leave the bracket open by percent.
+  const state = {
+    n: 3, pattern: ["110", "101", "011"], view: [0, 1],
+    pa: [[2.573, 1.484, 0.916], [1.484, 1.767, 0.987], [0.916, 0.987, 3.586]],
+    pb: [[2.645, -0.105, 1.613], [-0.105, 4.357, -0.592], [1.613, -0.592, 1.562]],
+  };
+  page = await openPage(`${base}#${encodeURIComponent(JSON.stringify(state))}`);
+  assert.match(await text("#gap"), /duals below, the certified bound above\): gap [\d.e-]+ absolute, [\d.]+ % relative — open: the robust optimum lies between the ends \(certificate level 2\)$/);
+  assert.match(await text("#proof-status"), /^second stage: the cutting planes are closing the bracket \(up to 30 s\)…$/);
+  const proven = async () => {
+    await page.waitForFunction(() => document.body.dataset.proving === "false", null, { timeout: 120_000 });
+    assert.match(await text("#gap"), /\(both ends proven, every rounding accounted for: a Lagrangian bound from the cutting planes' duals below, the cutting planes' own rule \(proven on \d+ cones of directions\) above\)/);
+    assert.match(await text("#gap-verdict"), /^proven optimal to 10⁻⁶ \(relative\): the cutting planes' own rule \(proven on \d+ cones of directions\) is within 10⁻⁶ of the robust optimum$/);
+    assert.match(await text("#proof-status"), /^second stage: the cutting planes \(\d+ iterations, stopped by converged\) narrowed the bracket [\d.e+]+ times$/);
+  };
+  await proven();
+  await page.screenshot({ path: join(out, "explorer-second-stage.png"), fullPage: true });
+  // The proof's bracket lies within the first one (both proven, so they must overlap).
+  const ends = (t) => t.match(/\[([\d.]+), ([\d.]+)\]/).slice(1).map(Number);
+  const [lo, hi] = ends(await text("#gap"));
+  assert.ok(hi - lo <= 2e-6 * hi && lo <= hi, `${lo} ${hi}`);
+  // Two edits in a row: the first one's proof is abandoned, the second one's shown.
+  const abandoned = await page.evaluate(() => window.nmciStats.proofsAbandoned);
+  await cell("pb", 3, 3).fill("1.6");
+  await page.waitForFunction(() => document.body.dataset.proving === "true", null, { timeout: 60_000 });
+  await cell("pb", 3, 3).fill("1.562");
+  await settle();
+  assert.ok((await page.evaluate(() => window.nmciStats.proofsAbandoned)) > abandoned, "no proof was abandoned");
+  await proven();
+  assert.deepEqual(ends(await text("#gap")), [lo, hi]);
+});
+
 test("an edit during a long solve abandons it: a fresh worker computes the newest state", async () => {
   await page.selectOption("#preset", "twoblock");
   await settle();
