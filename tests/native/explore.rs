@@ -350,15 +350,3 @@ fn the_second_stage_refuses_what_the_cutting_planes_refuse() {
         Some("time_limit")
     );
 }
-#[test]
-fn tmp_print_cases() {
-    let mut r = rng(44);
-    for _ in 0..3 {
-        let (pa, pb) = (random_spd(3, &mut r), random_spd(3, &mut r));
-        let rows = |m: &DMatrix<f64>| {
-            let rows: Vec<Vec<f64>> = m.row_iter().map(|r| r.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()).collect();
-            serde_json::to_string(&rows).unwrap()
-        };
-        eprintln!("CASE {} {}", rows(&pa), rows(&pb));
-    }
-}
