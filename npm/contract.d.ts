@@ -57,6 +57,8 @@ export interface FuseRequest {
   cones?: number;
   /** Three-state blocks certified on at most this many cones, cut where the bound is tight (4–256; not with `cones`). */
   max_cones?: number;
+  /** `sdp_cuts`: stop when the worst violation found is below this times max(tr P̄, 1) (positive; default 1e-7). */
+  cuts_tolerance?: number;
   /** N-way fusion: k ≥ 2 estimates. */
   estimates?: NwayEstimate[];
   /** N-way: the patterns of the pairs' cross-covariances. */

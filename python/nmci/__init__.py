@@ -349,10 +349,12 @@ def sdp_cuts(
     sectors: Optional[int] = None,
     cones: Optional[int] = None,
     max_cones: Optional[int] = None,
+    cuts_tolerance: Optional[float] = None,
 ) -> Fused:
     """The robust SDP by cutting planes: worst-case cross-covariances as constraints, with a
     proven bracket on the robust optimum (``lower_bound``, ``upper_bound``, ``gap_closed``,
-    ``stop``).
+    ``stop``). The loop stops when the worst violation it finds is below ``cuts_tolerance``
+    times ``max(tr P̄, 1)`` (default ``1e-7``).
 
     ``blocks`` declares a partition of the states into blocks with independent errors (it
     implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up
@@ -374,6 +376,7 @@ def sdp_cuts(
         sectors=sectors,
         cones=cones,
         max_cones=max_cones,
+        cuts_tolerance=cuts_tolerance,
     )
 
 

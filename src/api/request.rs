@@ -244,6 +244,11 @@ pub struct Options {
     /// most this many, `4..=256` ([`CertifySettings::max_cones`]; default none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_cones: Option<u32>,
+    /// The cutting planes stop when the worst violation found is below this times
+    /// `max(tr P̄, 1)`, positive ([`CutsSettings::tolerance`]; default `10⁻⁷`): smaller
+    /// costs more iterations and leaves less for the own rule's proof to add back.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cuts_tolerance: Option<f64>,
 }
 
 /// What a request runs: its [`Options`] validated, every default filled in.
@@ -261,7 +266,7 @@ pub struct Plan {
 
 impl Options {
     /// Whether each method-specific option is set.
-    fn set(&self) -> [(RequestOption, bool); 9] {
+    fn set(&self) -> [(RequestOption, bool); 10] {
         RequestOption::ALL.map(|o| {
             let set = match o {
                 RequestOption::Samples => self.samples.is_some(),
@@ -273,6 +278,7 @@ impl Options {
                 RequestOption::Sectors => self.sectors.is_some(),
                 RequestOption::Cones => self.cones.is_some(),
                 RequestOption::MaxCones => self.max_cones.is_some(),
+                RequestOption::CutsTolerance => self.cuts_tolerance.is_some(),
             };
             (o, set)
         })
@@ -296,6 +302,7 @@ impl Options {
                     RequestOption::Sectors => o.sectors = None,
                     RequestOption::Cones => o.cones = None,
                     RequestOption::MaxCones => o.max_cones = None,
+                    RequestOption::CutsTolerance => o.cuts_tolerance = None,
                 }
             }
         }
@@ -319,6 +326,14 @@ impl Options {
                 return Err(RequestError::invalid(
                     "time_limit",
                     format!("`time_limit` must be a positive number of seconds (got {t})"),
+                ));
+            }
+        }
+        if let Some(t) = self.cuts_tolerance {
+            if !(t > 0.0 && t.is_finite()) {
+                return Err(RequestError::invalid(
+                    "cuts_tolerance",
+                    format!("`cuts_tolerance` must be positive and finite (got {t})"),
                 ));
             }
         }
@@ -385,6 +400,7 @@ impl Options {
         let cuts_defaults = CutsSettings::default();
         let cuts = CutsSettings {
             seed: self.seed.unwrap_or(cuts_defaults.seed),
+            tolerance: self.cuts_tolerance.unwrap_or(cuts_defaults.tolerance),
             time_limit: self.time_limit,
             certify_settings: certify,
             ..cuts_defaults
@@ -636,6 +652,7 @@ impl Options {
             sectors: Some(2),
             cones: Some(4),
             max_cones: Some(4),
+            cuts_tolerance: Some(1e-7),
         }
     }
 }

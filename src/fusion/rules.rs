@@ -173,11 +173,13 @@ pub enum RequestOption {
     Cones,
     /// `max_cones`.
     MaxCones,
+    /// `cuts_tolerance`.
+    CutsTolerance,
 }
 
 impl RequestOption {
     /// Every option, in the order the request check reports them.
-    pub const ALL: [RequestOption; 9] = [
+    pub const ALL: [RequestOption; 10] = [
         RequestOption::Samples,
         RequestOption::MaxTrials,
         RequestOption::Sampler,
@@ -187,6 +189,7 @@ impl RequestOption {
         RequestOption::Sectors,
         RequestOption::Cones,
         RequestOption::MaxCones,
+        RequestOption::CutsTolerance,
     ];
 
     /// The request field's name.
@@ -201,6 +204,7 @@ impl RequestOption {
             RequestOption::Sectors => "sectors",
             RequestOption::Cones => "cones",
             RequestOption::MaxCones => "max_cones",
+            RequestOption::CutsTolerance => "cuts_tolerance",
         }
     }
 }
@@ -363,8 +367,18 @@ pub const RULES: [RuleInfo; 8] = [
         guarantee: Guarantee::Relaxation,
         colour: "#2a9d3f",
         criteria: Criteria::TraceOnly,
-        // Every option: its sampler's, its seed, the time limit and the bracket's certificate.
-        options: &RequestOption::ALL,
+        // Its sampler's options, its seed, the time limit and the bracket's certificate.
+        options: &[
+            RequestOption::Samples,
+            RequestOption::MaxTrials,
+            RequestOption::Sampler,
+            RequestOption::Seed,
+            RequestOption::TimeLimit,
+            RequestOption::Level,
+            RequestOption::Sectors,
+            RequestOption::Cones,
+            RequestOption::MaxCones,
+        ],
         nway: false,
         explorer: true,
         limits: Limits {
@@ -388,6 +402,7 @@ pub const RULES: [RuleInfo; 8] = [
             RequestOption::Sectors,
             RequestOption::Cones,
             RequestOption::MaxCones,
+            RequestOption::CutsTolerance,
         ],
         nway: false,
         explorer: false,

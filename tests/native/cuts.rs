@@ -143,3 +143,26 @@ fn guided_by_the_certified_rule_the_gap_closes_and_proves_the_optimum() {
     assert!(plain.converged && !plain.gap_closed && plain.certified_trace.is_none());
     assert!((plain.fused.trace() - 2.0).abs() < 1e-6);
 }
+
+#[test]
+fn the_requests_cuts_tolerance_is_the_loops() {
+    // The same three-state request at a loose and a tight tolerance: the loop stops on its
+    // tolerance in both, the tight one after more iterations and with a smaller violation,
+    // and each violation is below its own tolerance (times max(tr P̄, 1)).
+    let run = |tol: f64| {
+        let r = fuse_json(&format!(
+            r#"{{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]], "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]], "method": "sdp_cuts", "cuts_tolerance": {tol:e}}}"#
+        ))
+        .unwrap();
+        let v: serde_json::Value = serde_json::from_str(&r).unwrap();
+        let (it, viol, trace) = (
+            v["iterations"].as_u64().unwrap(),
+            v["violation"].as_f64().unwrap(),
+            v["trace"].as_f64().unwrap(),
+        );
+        assert!(viol <= tol * trace.max(1.0), "{tol}: {v}");
+        (it, viol)
+    };
+    let (loose, tight) = (run(1e-2), run(1e-10));
+    assert!(loose.0 < tight.0, "{loose:?} {tight:?}");
+}

@@ -81,6 +81,7 @@ fn the_options_a_rule_lists_are_the_ones_a_request_may_set() {
         RequestOption::Sectors => json!(8),
         RequestOption::Cones => json!(4),
         RequestOption::MaxCones => json!(8),
+        RequestOption::CutsTolerance => json!(1e-6),
     };
     for rule in &RULES {
         for option in RequestOption::ALL {

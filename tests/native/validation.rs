@@ -283,7 +283,7 @@ fn run(json: &str) -> Result<String, String> {
 fn request_errors() {
     let ok = r#""pa": [[1, 0], [0, 1]], "pb": [[2, 0], [0, 2]]"#;
     assert!(run(&format!(r#"{{{ok}, "method": "ci"}}"#)).is_ok());
-    let cases: [(&str, &str, Option<&str>); 30] = [
+    let cases: [(&str, &str, Option<&str>); 33] = [
         (r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "extra": 1}"#,
             "unknown field `extra`", Some("extra")),
         (r#"{"pa": [[1]], "pb": [[1]]}"#, "missing field `method`", Some("method")),
@@ -337,6 +337,12 @@ fn request_errors() {
             "`cones` applies to methods", Some("cones")),
         (&format!(r#"{{{ok}, "method": "nmci", "max_cones": 16}}"#),
             "`max_cones` applies to methods", Some("max_cones")),
+        (&format!(r#"{{{ok}, "method": "sdp", "cuts_tolerance": 1e-9}}"#),
+            "`cuts_tolerance` applies to method \"sdp_cuts\" only", Some("cuts_tolerance")),
+        (&format!(r#"{{{ok}, "method": "sdp_cuts", "cuts_tolerance": 0}}"#),
+            "`cuts_tolerance` must be positive and finite (got 0)", Some("cuts_tolerance")),
+        (&format!(r#"{{{ok}, "method": "sdp_cuts", "cuts_tolerance": -1e-9}}"#),
+            "`cuts_tolerance` must be positive and finite (got -0.000000001)", Some("cuts_tolerance")),
         (r#"{"pa": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "pb": [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,2]], "pab_unknown": [[true,true,true,true],[true,true,true,true],[true,true,true,true],[true,true,true,false]], "method": "certified", "level": 4}"#,
             "the level-4 certificate of a 4-state block needs a PSD cone of 300 rows, above the limit of 90 (max_cone)", None),
         (r#"{"pa": [[3,1,0],[1,2,0.5],[0,0.5,1]], "pb": [[2,0,0.3],[0,1,0],[0.3,0,2]], "pab_unknown": [[true,false,true],[true,true,false],[false,true,true]], "method": "certified", "level": 3, "time_limit": 0.001}"#,
@@ -429,6 +435,7 @@ fn unknown_fields_are_named_and_the_known_ones_listed() {
         "sectors",
         "cones",
         "max_cones",
+        "cuts_tolerance",
         "estimates",
         "patterns",
     ]
