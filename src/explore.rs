@@ -103,7 +103,7 @@ pub struct Gap {
 }
 
 impl Gap {
-    /// The gap of a proven bracket, with the certificates of its certified upper end.
+    /// The gap of a proven bracket, with the certified rule's certificates (when computed).
     fn of(b: &Bracket, certificates: Option<Certificates>) -> Gap {
         Gap {
             lower: b.lower,
@@ -251,8 +251,8 @@ pub fn explore_with_memo(
 /// The explorer's second stage: the cutting-plane SDP (`sdp_cuts`, exactly as [`fuse`] runs it,
 /// with the request's options that apply to it: `seed`, `time_limit`, the certificate's) on
 /// the same state, for its proven bracket. Its
-/// lower end is the loop's Lagrangian bound, which at convergence sits at the robust optimum
-/// to the loop's tolerance, far above the sampled SDP's; on one block of three states its
+/// lower end is the Lagrangian bound of the loop's constraints (worst cases found, not drawn
+/// at random); on one block of three states its
 /// upper end is the loop's own rule, proven on cones of directions
 /// ([`crate::certify::certify_rule`]). The page runs it after [`explore`] when the bracket is
 /// open at `n ≤ 3`, where it can close it. `None` when the loop has no bracket.
