@@ -12,10 +12,12 @@
 //!
 //! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--cones 16,64] [--adaptive 32] [--own-rule 64] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--tolerance 1e-10] [--verbose]`
 //!
-//! `--own-rule 64` (three states) adds the upper end `sdp_cuts` reports: the default certified
-//! rule's (the loop's guide), and where that leaves the bracket open the loop's own rule proven
-//! on at most that many cones (`certify_rule`); its times are the proof's alone, where it ran,
-//! and the notes give the cutting planes' median time.
+//! `--own-rule 64` (three or four states) adds the upper end of the default certified rule
+//! (the cutting planes' guide) and, where that leaves the bracket open, the loop's own rule
+//! proven on at most that many cones (`certify_rule`): what `sdp_cuts` reports at three
+//! states (at four it stops at the guide; `fusion::cuts`, "Its own rule, proven"). Its times
+//! are the proof's alone, where it ran, and the notes give the cutting planes' and the end to
+//! end times.
 //!
 //! Pattern classes (`P_ab[i][j]` unknown where listed, known zero elsewhere):
 //! - `anti-diagonal`: `j = n − 1 − i`;
@@ -190,7 +192,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 cuts_times.push(cuts_start.elapsed().as_secs_f64());
                 let nm = non_monolithic_ci(&p, Criterion::Trace)?;
                 let nm_upper = nmci_upper_bound(&p, &nm).unwrap_or(f64::INFINITY);
-                if let Some(budget) = own_rule.filter(|_| n == 3) {
+                if let Some(budget) = own_rule.filter(|_| (3..=4).contains(&n)) {
                     let guide = cuts.certified_trace.unwrap_or(f64::INFINITY).min(nm_upper);
                     let gap = |upper| {
                         Bracket {
@@ -304,7 +306,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     ("–".into(), "–".into())
                 };
                 println!(
-                    "| {n} | {class} | level 2, else the cuts' rule (cutting planes to {cuts_tol:.0e}) on ≤ {budget} cones | {:.1e} | {:.1e} | {closed}/{count} | {median} | {worst} | proof run on {ran}; cutting planes {:.0} ms median, {:.0} ms worst; end to end {:.0} ms median, {:.0} ms worst |",
+                    "| {n} | {class} | level {}, else the cuts' rule (cutting planes to {cuts_tol:.0e}) on ≤ {budget} cones | {:.1e} | {:.1e} | {closed}/{count} | {median} | {worst} | proof run on {ran}; cutting planes {:.0} ms median, {:.0} ms worst; end to end {:.0} ms median, {:.0} ms worst |",
+                    CertifySettings::auto_level(n),
                     quantile(&mut own_gaps, 0.5),
                     quantile(&mut own_gaps, 1.0),
                     1e3 * quantile(&mut cuts_times, 0.5),

@@ -9,6 +9,7 @@ Sections (each one command, run in order on an otherwise idle machine):
   rust      criterion benches of benches/fusion.rs (a chosen set, shortened measurement)
   brackets  examples/certify_levels: proven brackets at 2 and 3 states, the default certificate
             and, at 3 states, the cutting planes' own rule proven on cones where it leaves them open
+  brackets4 the same at 4 states, 5 problems per class (each takes minutes)
   study     `nmci track` (release), the paper's 16-agent study, and its headline result
   python    scripts/python.sh bench: nmci from Python against numpy, scipy and cvxpy
   stack     scripts/python.sh bench-stack: k pairs by CI, nmci's stack against numpy, a loop, Stone Soup
@@ -128,6 +129,15 @@ def brackets():
     return " ; ".join(cmds), "\n\n".join(parts)
 
 
+def brackets4():
+    # Four states: the default certificate (level 1), and the cutting planes' own rule proven
+    # by `certify_rule` on at most 64 cones of ℝ⁴ where it leaves the bracket open (what
+    # `sdp_cuts` does at three states; at four it stops at the guide).
+    cmd = "cargo run --quiet --release --example certify_levels -- --dims 4 --count 5 --levels 1 --own-rule 64"
+    out = sh(cmd)
+    return cmd, "\n".join(l for l in out.splitlines() if l.startswith("|"))
+
+
 def study():
     sh("cargo build --quiet --release -p nmci-cli")
     with tempfile.TemporaryDirectory() as out:
@@ -184,6 +194,7 @@ def browser():
 SECTIONS = {
     "rust": ("Rust (criterion)", rust),
     "brackets": ("Proven brackets (the certified rule, and the cutting planes' own rule proven, against the cutting planes' lower end)", brackets),
+    "brackets4": ("Proven brackets at four states (the cutting planes' own rule proven on cones of ℝ⁴)", brackets4),
     "study": ("The 16-agent tracking study", study),
     "python": ("From Python, beside numpy, scipy and cvxpy", python),
     "stack": ("Stacks: k pairs by CI in one call, one thread", stack),

@@ -79,30 +79,98 @@ pub(crate) fn cone_multipliers(n: usize, count: u32) -> Result<Vec<Vec<DMatrix<f
     }
 }
 
-/// The multipliers of the cone spanned by the integer generators `u` (three states; see
-/// [`cone_multipliers`]): the products `q_ij(v) = (n_i·v)(n_j·v)`, `i < j`, of its facet
-/// normals `n_i = u_j × u_k`, each matrix scaled by a power of two to entries of order one
-/// (exact: [`bisect`] keeps the generators below `2¹²`, so the normals stay below `2²⁵` and
-/// the entries of `2 S` below `2⁵¹`).
+/// A cone of directions in `ℝᴺ`: the non-negative combinations of `N` integer generators
+/// (rows), linearly independent.
+pub(crate) type Cone<const N: usize> = [[i64; N]; N];
+
+/// Generators' entries stay below this in absolute value (three or four states; none
+/// otherwise), so that [`cone_piece`]'s multipliers are exact: the facet normals are
+/// `(N − 1) × (N − 1)` minors, below `2²⁵` for three states (generators below `2¹²`; `2·2²⁴`
+/// for a 2 × 2 minor) and below `6·2²¹ < 2²⁴` for four (generators below `2⁷`; `3!` terms
+/// of `2²¹`), so the integer entries of `2 S = a bᵀ + b aᵀ` stay below `2⁵¹` and `2⁴⁹`.
+pub(crate) const fn generator_limit(n: usize) -> i64 {
+    match n {
+        3 => 1 << 12,
+        4 => 1 << 7,
+        _ => 0,
+    }
+}
+
+/// The facet normals of the cone spanned by `u`: `n_i[c] = det U` with row `i` replaced by
+/// `e_c`, so `n_i·v = det U` with row `i` replaced by `v`. For `v = Σ_k λ_k u_k` that is
+/// `λ_i det U` (multilinearity; the other rows repeat), so on the cone and its negative all
+/// `n_i·v` share a sign, and `n_i·u_j = δ_ij det U`. For three states `n_i = u_j × u_k`
+/// (`i, j, k` cyclic).
+pub(crate) fn facet_normals<const N: usize>(u: &Cone<N>) -> [[i64; N]; N] {
+    std::array::from_fn(|i| {
+        std::array::from_fn(|c| {
+            let rows: Vec<Vec<i128>> = (0..N)
+                .map(|r| {
+                    (0..N)
+                        .map(|k| match r == i {
+                            true => i128::from(k == c),
+                            false => i128::from(u[r][k]),
+                        })
+                        .collect()
+                })
+                .collect();
+            i64::try_from(determinant(&rows)).expect("generators below generator_limit")
+        })
+    })
+}
+
+/// `det` of a small square integer matrix, exactly (Laplace expansion along the first row).
+fn determinant(rows: &[Vec<i128>]) -> i128 {
+    match rows.len() {
+        0 => 1,
+        1 => rows[0][0],
+        m => (0..m)
+            .filter(|&c| rows[0][c] != 0)
+            .map(|c| {
+                let minor: Vec<Vec<i128>> = rows[1..]
+                    .iter()
+                    .map(|r| (0..m).filter(|&k| k != c).map(|k| r[k]).collect())
+                    .collect();
+                let sign = if c % 2 == 0 { 1 } else { -1 };
+                sign * rows[0][c] * determinant(&minor)
+            })
+            .sum(),
+    }
+}
+
+/// The pairs `(i, j)`, `i < j`, of `N` generators or normals, nearest first: `(0, 1), (1, 2),
+/// …, (0, 2), …` (the order in which [`bisect`] breaks ties between equally wide edges).
+fn pairs(n: usize) -> impl Iterator<Item = (usize, usize)> {
+    (1..n).flat_map(move |gap| (0..n - gap).map(move |i| (i, i + gap)))
+}
+
+/// The multipliers of the cone spanned by the integer generators `u` (three or four states;
+/// see [`cone_multipliers`]): the products `q_ij(v) = (n_i·v)(n_j·v)`, `i < j` in
+/// lexicographic order, of its facet normals ([`facet_normals`]), each matrix scaled by a
+/// power of two to entries of order one (exact while the generators stay below
+/// [`generator_limit`], which [`bisect`] keeps).
 #[allow(non_snake_case)]
-pub(crate) fn cone_piece(u: &[[i64; 3]; 3]) -> Vec<DMatrix<f64>> {
-    let normals = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])];
-    [(0, 1), (0, 2), (1, 2)]
-        .iter()
-        .map(|&(i, j)| {
+pub(crate) fn cone_piece<const N: usize>(u: &Cone<N>) -> Vec<DMatrix<f64>> {
+    let normals = facet_normals(u);
+    let mut ordered: Vec<(usize, usize)> = pairs(N).collect();
+    ordered.sort_unstable();
+    ordered
+        .into_iter()
+        .map(|(i, j)| {
             let (a, b) = (normals[i], normals[j]);
             // 2 S = a bᵀ + b aᵀ in integers, then scaled by a power of two.
-            let twice: Vec<i64> = (0..9)
-                .map(|e| a[e / 3] * b[e % 3] + b[e / 3] * a[e % 3])
+            let twice: Vec<i64> = (0..N * N)
+                .map(|e| a[e / N] * b[e % N] + b[e / N] * a[e % N])
                 .collect();
             let largest = twice.iter().map(|v| v.abs()).max().unwrap_or(1).max(1);
             let scale = 0.5 / (largest as f64).log2().ceil().exp2();
-            DMatrix::from_iterator(3, 3, twice.iter().map(|&v| v as f64 * scale))
+            DMatrix::from_iterator(N, N, twice.iter().map(|&v| v as f64 * scale))
         })
         .collect()
 }
 
 /// `a × b` in integers.
+#[cfg(test)]
 pub(super) fn cross(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
@@ -112,25 +180,24 @@ pub(super) fn cross(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
 }
 
 /// The cone spanned by `u` cut in two at the midpoint of its widest edge (the largest angle
-/// between two generators): `[u_i, u_i + u_j, u_k]` and `[u_i + u_j, u_j, u_k]`. An exact
-/// subdivision: `v = λ_i u_i + λ_j u_j + λ_k u_k` with `λ ≥ 0` is
-/// `(λ_i − λ_j) u_i + λ_j (u_i + u_j) + λ_k u_k` when `λ_i ≥ λ_j`, else
-/// `(λ_j − λ_i) u_j + λ_i (u_i + u_j) + λ_k u_k`, in the first or the second cone; so a cover
-/// of space by cones and their negatives stays one. `None` when the new generator's entries
-/// would leave the range in which [`cone_piece`]'s multipliers are exact (`|u_i| < 2¹²`).
-pub(crate) fn bisect(u: &[[i64; 3]; 3]) -> Option<[[[i64; 3]; 3]; 2]> {
-    let angle = |a: [i64; 3], b: [i64; 3]| {
-        let f = |v: [i64; 3]| v.map(|x| x as f64);
-        let (a, b) = (f(a), f(b));
-        let dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        (dot / (norm(a) * norm(b))).clamp(-1.0, 1.0).acos()
+/// between two generators; ties to the last in [`pairs`]' order): `u_i` replaced by
+/// `u_i + u_j` in one half, `u_j` in the other. An exact subdivision:
+/// `v = Σ_k λ_k u_k` with `λ ≥ 0` is `(λ_i − λ_j) u_i + λ_j (u_i + u_j) + …` when
+/// `λ_i ≥ λ_j`, else `(λ_j − λ_i) u_j + λ_i (u_i + u_j) + …`, in the first or the second
+/// cone; so a cover of space by cones and their negatives stays one. `None` when the new
+/// generator's entries would reach [`generator_limit`], beyond which [`cone_piece`]'s
+/// multipliers are not exact.
+pub(crate) fn bisect<const N: usize>(u: &Cone<N>) -> Option<[Cone<N>; 2]> {
+    let angle = |a: [i64; N], b: [i64; N]| {
+        let (a, b) = (a.map(|x| x as f64), b.map(|x| x as f64));
+        let dot = |x: &[f64; N], y: &[f64; N]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
+        (dot(&a, &b) / (dot(&a, &a).sqrt() * dot(&b, &b).sqrt()))
+            .clamp(-1.0, 1.0)
+            .acos()
     };
-    let (i, j) = [(0, 1), (1, 2), (0, 2)]
-        .into_iter()
-        .max_by(|&(a, b), &(c, d)| angle(u[a], u[b]).total_cmp(&angle(u[c], u[d])))?;
-    let mid = [u[i][0] + u[j][0], u[i][1] + u[j][1], u[i][2] + u[j][2]];
-    if mid.iter().any(|x| x.abs() >= 1 << 12) {
+    let (i, j) = pairs(N).max_by(|&(a, b), &(c, d)| angle(u[a], u[b]).total_cmp(&angle(u[c], u[d])))?;
+    let mid: [i64; N] = std::array::from_fn(|e| u[i][e] + u[j][e]);
+    if mid.iter().any(|x| x.abs() >= generator_limit(N)) {
         return None;
     }
     // Each child keeps the parent's orientation (generator order), so its normals point
@@ -142,8 +209,26 @@ pub(crate) fn bisect(u: &[[i64; 3]; 3]) -> Option<[[[i64; 3]; 3]; 2]> {
     Some([first, second])
 }
 
+/// The `2^{N−1}` orthants of the half-space `v_N ≥ 0`, spanned by `±e_1, …, ±e_{N−1}, e_N`
+/// (signs in Gray-code order): every `v` with `v_N ≥ 0` lies in the one of its signs, so
+/// they and their negatives cover space.
+pub(crate) fn orthants<const N: usize>() -> Vec<Cone<N>> {
+    (0..1usize << (N - 1))
+        .map(|k| {
+            let gray = k ^ (k >> 1);
+            std::array::from_fn(|r| {
+                std::array::from_fn(|c| match (r == c, r + 1 < N && gray >> r & 1 == 1) {
+                    (false, _) => 0,
+                    (true, true) => -1,
+                    (true, false) => 1,
+                })
+            })
+        })
+        .collect()
+}
+
 /// The integer generators of the cones of [`cone_multipliers`] for three states.
-pub(crate) fn cone_generators(count: u32) -> Result<Vec<[[i64; 3]; 3]>, SolveError> {
+pub(crate) fn cone_generators(count: u32) -> Result<Vec<Cone<3>>, SolveError> {
     let splits = match count {
         4 => 0,
         16 => 1,
@@ -154,10 +239,7 @@ pub(crate) fn cone_generators(count: u32) -> Result<Vec<[[i64; 3]; 3]>, SolveErr
             )))
         }
     };
-    let mut cones: Vec<[[i64; 3]; 3]> = [(1, 1), (-1, 1), (-1, -1), (1, -1)]
-        .iter()
-        .map(|&(x, y)| [[x, 0, 0], [0, y, 0], [0, 0, 1]])
-        .collect();
+    let mut cones: Vec<Cone<3>> = orthants();
     let add = |a: [i64; 3], b: [i64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
     for _ in 0..splits {
         cones = cones

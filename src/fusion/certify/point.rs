@@ -12,7 +12,7 @@ use crate::fusion::scale::Pow2;
 use crate::fusion::upper::trace_upper_bound;
 use crate::fusion::{Fused, FusionProblem};
 
-use super::geometry::{bisect, cone_generators, cone_piece};
+use super::geometry::{bisect, cone_piece, orthants, Cone};
 use super::layout::Layout;
 use super::rule::{certification_blocks, CertifiedResult};
 use super::settings::{CertifySettings, MAX_CONES};
@@ -79,7 +79,7 @@ pub fn certify_rule(
             "rtol must be in (0, 1) (got {rtol})"
         )));
     }
-    if n != 3 || certification_blocks(problem, Some(&rule.K_a)).len() != 1 {
+    if !(3..=4).contains(&n) || certification_blocks(problem, Some(&rule.K_a)).len() != 1 {
         return Ok(None);
     }
     // At unit scale, as every certificate (`block::certify_one_block`): the covariances and
@@ -88,7 +88,10 @@ pub fn certify_rule(
     let (scaled, scale) = Pow2::normalising(problem).scaled_problem(problem);
     let at_scale = |p: &FusionProblem, bound: &DMatrix<f64>| {
         let target = rtol * bound.trace().abs() / (8.0 * n as f64);
-        certify_point(p, &rule.K_a, bound, target, budget as usize, settings)
+        match n {
+            3 => certify_point::<3>(p, &rule.K_a, bound, target, budget as usize, settings),
+            _ => certify_point::<4>(p, &rule.K_a, bound, target, budget as usize, settings),
+        }
     };
     let mut proven = None;
     if scale != Pow2::ONE {
@@ -121,8 +124,8 @@ pub fn certify_rule(
 }
 
 /// One cone of the cover: its generators, its certificate and the `t` it needs.
-struct Leaf {
-    cone: [[i64; 3]; 3],
+struct Leaf<const N: usize> {
+    cone: Cone<N>,
     raw: RawPiece,
     t: f64,
     settled: bool,
@@ -134,7 +137,7 @@ struct Leaf {
 /// given rule"); its `iterations` are summed over every program solved, its status
 /// `AlmostSolved` if any ended so.
 #[allow(non_snake_case)]
-pub(super) fn certify_point(
+pub(super) fn certify_point<const N: usize>(
     problem: &FusionProblem,
     K_a: &DMatrix<f64>,
     Q0: &DMatrix<f64>,
@@ -148,7 +151,7 @@ pub(super) fn certify_point(
         time_limit: settings.time_limit.map(|_| deadline.remaining()),
         ..*settings
     };
-    let pieces = |cones: &[[[i64; 3]; 3]]| -> Vec<Piece> {
+    let pieces = |cones: &[Cone<N>]| -> Vec<Piece> {
         cones
             .iter()
             .map(|u| Piece {
@@ -169,7 +172,7 @@ pub(super) fn certify_point(
     // A cone's t: the solver's, plus what proving its certificate at Q₀ + tI adds (a cone
     // the solver meets only to reduced accuracy needs a large repair, and is cut like one
     // where Q₀ is short).
-    let solve = |cone: [[i64; 3]; 3]| -> Result<Leaf, SolveError> {
+    let solve = |cone: Cone<N>| -> Result<Leaf<N>, SolveError> {
         let one = pieces(&[cone]);
         let solved = solve_pieces(problem, Some(K_a), Base::Shift(Q0), 1, &one, &round())?;
         count(&solved);
@@ -188,11 +191,11 @@ pub(super) fn certify_point(
     };
     // A cone the solver fails on is cut in two and its halves tried instead, a few times at
     // most (the cover must be complete before anything is proven).
-    fn solve_or_cut(
-        solve: &dyn Fn([[i64; 3]; 3]) -> Result<Leaf, SolveError>,
-        cone: [[i64; 3]; 3],
+    fn solve_or_cut<const N: usize>(
+        solve: &dyn Fn(Cone<N>) -> Result<Leaf<N>, SolveError>,
+        cone: Cone<N>,
         depth: u32,
-    ) -> Result<Vec<Leaf>, SolveError> {
+    ) -> Result<Vec<Leaf<N>>, SolveError> {
         match solve(cone) {
             Ok(leaf) => Ok(vec![leaf]),
             Err(SolveError::SolverFailed { .. } | SolveError::NotProven { .. })
@@ -210,8 +213,8 @@ pub(super) fn certify_point(
         }
     }
     let mut leaves = Vec::new();
-    for octant in cone_generators(4)? {
-        leaves.extend(solve_or_cut(&solve, octant, 0)?);
+    for orthant in orthants::<N>() {
+        leaves.extend(solve_or_cut(&solve, orthant, 0)?);
     }
     while leaves.len() < budget && !deadline.passed() {
         let Some(worst) = (0..leaves.len())
@@ -262,7 +265,7 @@ pub(super) fn certify_point(
     // Where that program fails, runs out of time or ends with the larger bound after the
     // repair, every cone is proven at Q₀ + tI, t the largest of all.
     let t_all = leaves.iter().map(|l| l.t).fold(f64::NEG_INFINITY, f64::max);
-    let (open, within): (Vec<&Leaf>, Vec<&Leaf>) = leaves.iter().partition(|l| l.t > target);
+    let (open, within): (Vec<&Leaf<N>>, Vec<&Leaf<N>>) = leaves.iter().partition(|l| l.t > target);
     let tau = within.iter().map(|l| l.t).fold(0.0, f64::max);
     let proven = |start: DMatrix<f64>, raws: &mut dyn Iterator<Item = &RawPiece>| {
         let mut Q = start.clone();

@@ -384,3 +384,155 @@ fn adaptive_cones_never_looser_than_their_first_round_and_stop_at_the_budget() {
     // Without the limit, 256 cones take minutes.
     assert!(start.elapsed().as_secs_f64() < 10.0);
 }
+
+/// `det` of `N × N` integer rows by the Leibniz formula (a sum over permutations), written
+/// apart from `geometry`'s Laplace expansion.
+fn leibniz<const N: usize>(rows: &[[i64; N]; N]) -> i128 {
+    fn permutations(rest: Vec<usize>) -> Vec<Vec<usize>> {
+        if rest.len() <= 1 {
+            return vec![rest];
+        }
+        (0..rest.len())
+            .flat_map(|k| {
+                let mut others = rest.clone();
+                let first = others.remove(k);
+                permutations(others).into_iter().map(move |mut p| {
+                    p.insert(0, first);
+                    p
+                })
+            })
+            .collect()
+    }
+    permutations((0..N).collect())
+        .into_iter()
+        .map(|p| {
+            let inversions = (0..N)
+                .flat_map(|i| (i + 1..N).map(move |j| (i, j)))
+                .filter(|&(i, j)| p[i] > p[j])
+                .count();
+            let product: i128 = (0..N).map(|r| i128::from(rows[r][p[r]])).product();
+            if inversions % 2 == 0 {
+                product
+            } else {
+                -product
+            }
+        })
+        .sum()
+}
+
+/// `v` in the closed cone spanned by the rows of `u` or its negative, exactly (Cramer: the
+/// coordinates `λ_i = det(u with row i replaced by v) / det u` share a sign).
+fn in_cone_n<const N: usize>(u: &[[i64; N]; N], v: [i64; N]) -> bool {
+    let d: Vec<i128> = (0..N)
+        .map(|i| {
+            let mut w = *u;
+            w[i] = v;
+            leibniz(&w)
+        })
+        .collect();
+    d.iter().all(|&t| t >= 0) || d.iter().all(|&t| t <= 0)
+}
+
+#[test]
+#[allow(non_snake_case)]
+fn four_state_cones_cover_space_and_their_multipliers_stay_exact() {
+    // `certify_rule` on four states needs what three need: the eight orthants of `v₄ ≥ 0`
+    // and their negatives cover ℝ⁴, every bisection is an exact subdivision, and each cone's
+    // six multipliers are exactly its normals' products (up to a power of two) while
+    // `bisect` accepts it, refusing only at the limit of exact multipliers (2⁷). Checked in
+    // integers with a determinant written here, on random directions and a grid.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    let mut cones = orthants::<4>();
+    assert_eq!(cones.len(), 8);
+    assert!(cones.iter().all(|u| leibniz(u) != 0));
+    let (mut depth, mut refused) = (0, 0);
+    for step in 0..150 {
+        let k = if step % 3 == 0 {
+            0
+        } else {
+            (step * 37) % cones.len()
+        };
+        let Some([a, b]) = bisect(&cones[k]) else {
+            let u = cones[k];
+            assert!(
+                (0..4).any(|i| (i + 1..4).any(|j| (0..4).any(|e| (u[i][e] + u[j][e]).abs() >= 128))),
+                "{u:?} refused below the limit"
+            );
+            refused += 1;
+            continue;
+        };
+        let parent = cones[k];
+        assert!(leibniz(&a) != 0 && leibniz(&b) != 0);
+        for _ in 0..300 {
+            let v = [0; 4].map(|_| rng.random_range(-3000i64..=3000));
+            let in_child = in_cone_n(&a, v) || in_cone_n(&b, v);
+            assert_eq!(in_cone_n(&parent, v), in_child, "{parent:?} → {a:?}, {b:?} at {v:?}");
+        }
+        cones[k] = a;
+        cones.push(b);
+        if k == 0 {
+            depth += 1;
+        }
+    }
+    // One cone cut again and again (always its first half) until `bisect` refuses it.
+    let mut thin = orthants::<4>()[5];
+    for _ in 0..10_000 {
+        match bisect(&thin) {
+            Some([a, _]) => thin = a,
+            None => {
+                refused += 1;
+                break;
+            }
+        }
+    }
+    assert!(depth >= 8 && refused > 0, "depth {depth}, refused {refused}");
+    let u = thin;
+    assert!(
+        (0..4).any(|i| (i + 1..4).any(|j| (0..4).any(|e| (u[i][e] + u[j][e]).abs() >= 128))),
+        "{u:?} refused below the limit"
+    );
+    let range = -4i64..=4;
+    for x in range.clone() {
+        for y in range.clone() {
+            for z in range.clone() {
+                for w in range.clone() {
+                    let v = [x, y, z, w];
+                    if v != [0; 4] {
+                        assert!(cones.iter().any(|u| in_cone_n(u, v)), "{v:?} uncovered");
+                    }
+                }
+            }
+        }
+    }
+    for u in &cones {
+        let normals: Vec<[i128; 4]> = (0..4)
+            .map(|i| {
+                std::array::from_fn(|c| {
+                    let mut w = *u;
+                    w[i] = std::array::from_fn(|e| i64::from(e == c));
+                    leibniz(&w)
+                })
+            })
+            .collect();
+        let pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
+        let pieces = cone_piece(u);
+        assert_eq!(pieces.len(), pairs.len());
+        for (S, (i, j)) in pieces.iter().zip(pairs) {
+            let twice = |r: usize, c: usize| {
+                normals[i][r] * normals[j][c] + normals[j][r] * normals[i][c]
+            };
+            assert!((0..16).all(|e| twice(e / 4, e % 4).abs() < 1 << 53));
+            let (r0, c0) = (0..16)
+                .map(|e| (e / 4, e % 4))
+                .find(|&(r, c)| twice(r, c) != 0)
+                .expect("two independent normals");
+            let ratio = S[(r0, c0)] / twice(r0, c0) as f64;
+            assert_eq!(ratio, ratio.log2().round().exp2(), "{u:?}");
+            for r in 0..4 {
+                for c in 0..4 {
+                    assert_eq!(S[(r, c)], twice(r, c) as f64 * ratio, "{u:?} ({r}, {c})");
+                }
+            }
+        }
+    }
+}
