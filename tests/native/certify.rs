@@ -692,8 +692,9 @@ fn own_rule_cones_out_of_range_is_a_typed_error() {
 #[test]
 #[allow(non_snake_case)]
 fn certify_rule_refuses_bad_rules_and_leaves_other_shapes_alone() {
-    // Bad input is a typed error naming it; a problem that is not one block of three states
-    // (here two states, and three states in independent blocks) gives `None`, not an error.
+    // Bad input is a typed error naming it; a problem that is not one block of three or four
+    // states (here two and five states, and three in independent blocks) gives `None`, not an
+    // error.
     let p = random_problem(3, CrossPattern::from_fn(3, |i, j| i + j != 2), &mut rng(3));
     let nm = non_monolithic_ci(&p, Criterion::Trace).unwrap().fused;
     let settings = CertifySettings::default();
@@ -737,4 +738,56 @@ fn certify_rule_refuses_bad_rules_and_leaves_other_shapes_alone() {
     assert!(certify_rule(&diagonal, &diagonal_rule, 64, 1e-6, &settings)
         .unwrap()
         .is_none());
+    let five = random_problem(5, CrossPattern::from_fn(5, |i, j| i != j), &mut rng(6));
+    let five_rule = non_monolithic_ci(&five, Criterion::Trace).unwrap().fused;
+    assert!(certify_rule(&five, &five_rule, 64, 1e-6, &settings)
+        .unwrap()
+        .is_none());
+}
+
+#[test]
+#[allow(non_snake_case)]
+fn four_state_rules_proven_on_cones_of_directions_are_conservative() {
+    // `certify_rule` on four states (cones of ℝ⁴): the cutting planes' rule on random problems
+    // with known zeros on the anti-diagonal and off a chain. The bound keeps the gain, is no
+    // lower than the proven lower end, and is conservative against the independent
+    // worst-case search written here (from random directions and P̄'s eigenvectors). The same
+    // search finds the violation of the bound lowered below the lower end, so it can fail.
+    use rand::Rng;
+    let mut r = rng(40);
+    let settings = CertifySettings::default();
+    for pattern in [
+        CrossPattern::from_fn(4, |i, j| i + j != 3),
+        CrossPattern::from_fn(4, |i, j| j == i || j == i + 1),
+    ] {
+        let p = random_problem(4, pattern, &mut r);
+        let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+        assert!(
+            !cuts.own_rule_proven,
+            "sdp_cuts proves its own rule at three states only"
+        );
+        let proven = certify_rule(&p, &cuts.fused, 12, CLOSED_RTOL, &settings)
+            .unwrap()
+            .expect("one block of four states");
+        assert_eq!(proven.fused.K_a, cuts.fused.K_a);
+        assert_eq!(proven.blocks, vec![vec![0, 1, 2, 3]]);
+        assert!(
+            (8..=12).contains(&proven.sectors[0]),
+            "{:?}",
+            proven.sectors
+        );
+        let upper = trace_upper_bound(&proven.fused.P);
+        assert!(upper >= cuts.lower_bound, "{upper} < {}", cuts.lower_bound);
+        let mut starts: Vec<nalgebra::DVector<f64>> = (0..120)
+            .map(|_| nalgebra::DVector::from_fn(4, |_, _| r.random_range(-1.0..1.0)))
+            .collect();
+        let eig = nalgebra::SymmetricEigen::new(proven.fused.P.clone());
+        starts.extend(eig.eigenvectors.column_iter().map(|c| c.into_owned()));
+        let violation = worst_violation_by_hand(&p, &proven.fused.K_a, &proven.fused.P, &starts);
+        assert!(violation <= 1e-9 * upper, "violation {violation:e}");
+        let eps = (upper - cuts.lower_bound) / 4.0 + 1e-6;
+        let lowered = &proven.fused.P - DMatrix::identity(4, 4) * eps;
+        let found = worst_violation_by_hand(&p, &proven.fused.K_a, &lowered, &starts);
+        assert!(found > 0.0, "the search missed {found:e}");
+    }
 }

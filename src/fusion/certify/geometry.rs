@@ -195,7 +195,8 @@ pub(crate) fn bisect<const N: usize>(u: &Cone<N>) -> Option<[Cone<N>; 2]> {
             .clamp(-1.0, 1.0)
             .acos()
     };
-    let (i, j) = pairs(N).max_by(|&(a, b), &(c, d)| angle(u[a], u[b]).total_cmp(&angle(u[c], u[d])))?;
+    let (i, j) =
+        pairs(N).max_by(|&(a, b), &(c, d)| angle(u[a], u[b]).total_cmp(&angle(u[c], u[d])))?;
     let mid: [i64; N] = std::array::from_fn(|e| u[i][e] + u[j][e]);
     if mid.iter().any(|x| x.abs() >= generator_limit(N)) {
         return None;

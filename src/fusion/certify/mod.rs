@@ -119,14 +119,15 @@
 //! 4-cone certificate (exactly; tested). The choice of cones decides only how tight the bound
 //! is, never whether it is proven. docs/methods.md measures how far it closes the brackets.
 //!
-//! **At a given rule** ([`certify_rule`], three states; `fusion::certify::point`). The
+//! **At a given rule** ([`certify_rule`], three or four states; `fusion::certify::point`). The
 //! families above choose the gain and the bound together. The cutting planes
 //! (`fusion::cuts`) end with a rule `(K, P̄)` whose trace is within their tolerance of the
 //! proven lower end, but `P̄ ⪰ K J Kᵀ` is known there only for the cuts they found.
 //! `certify_rule` proves a bound for that `K` near `P̄`. With `K` fixed the pieces' conditions
 //! share only `Q`, so each cone is certified on its own at `Q = P̄ + t_k I`, with the
 //! smallest `t_k` (of either sign) of the cone's level-1 program with its three multipliers
-//! — one PSD cone of 19 rows, not one program over every cone. From the four octants, the cone
+//! — one PSD cone of 19 rows, not one program over every cone. From the four octants (for four
+//! states the eight orthants, below), the cone
 //! with the largest `t_k` above the target is cut in two ([`bisect`](geometry), an exact
 //! subdivision, so the cones and their negatives always cover space) and both halves are
 //! certified; a cone the solver fails on (an octant or a half) is cut in two in its place,
@@ -147,6 +148,20 @@
 //! `λ_max(K J Kᵀ − P̄)` over the admissible `J`, where `P̄` is short of dominating. For the
 //! cutting planes' `P̄` that is their stopping tolerance, plus the shrink of their cuts
 //! (`CUT_SHRINK`). docs/methods.md measures how often this closes the brackets.
+//!
+//! *Four states* (`geometry`, generic in the dimension `N`): the cover starts from the eight
+//! orthants of `v₄ ≥ 0`, spanned by `±e₁, ±e₂, ±e₃, e₄`; they and their negatives cover ℝ⁴.
+//! A cone spanned by the rows `u_1, …, u_4` of an integer `U` has the facet normals
+//! `n_i[c] = det U` with row `i` replaced by `e_c`, so `n_i·v = det U` with row `i` replaced by
+//! `v`, which for `v = Σ_k λ_k u_k` is `λ_i det U` (for three states `n_i = u_j × u_k`). On the
+//! cone and its negative all `n_i·v` share a sign, so the six products `q_ij = (n_i·v)(n_j·v)`
+//! are non-negative there, and the argument of "Three states" holds with six multipliers per
+//! cone. `bisect` is the same exact subdivision at the widest edge. The multipliers stay exact
+//! while the generators' entries stay below `2⁷` (the normals, `3 × 3` minors, below `2²⁴`;
+//! `2 S` below `2⁴⁹`), where `bisect` stops cutting. The cover, the subdivisions and the
+//! multipliers are checked exactly in integers (unit tests, with a determinant written apart).
+//! The cone budget counts the eight orthants, so it is at least 8 cones. `sdp_cuts` does not
+//! run this proof at four states (`fusion::cuts`, "Its own rule, proven", says why).
 //!
 //! ## Exact in floating point, whatever the solver's accuracy
 //! The solver's point satisfies 1–4 only to its tolerance. The reported bound is made to

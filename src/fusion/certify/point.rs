@@ -1,5 +1,5 @@
-//! Three states: a given rule `(K, Q₀)` — the cutting planes' — proven on cones of directions
-//! cut where `Q₀` is short (the parent's module docs, "At a given rule": the argument, the
+//! Three or four states: a given rule `(K, Q₀)` — the cutting planes' — proven on cones of
+//! directions cut where `Q₀` is short (the parent's module docs, "At a given rule": the argument, the
 //! rule for cutting and how the cones' certificates are joined into one bound).
 
 use std::cell::Cell;
@@ -29,13 +29,13 @@ const STALLS: u32 = 4;
 /// How many times an octant the solver fails on is cut before the proof gives up.
 const FAILED_CUTS: u32 = 3;
 
-/// A given rule `rule = (K, P̄)` of a three-state problem — e.g. the cutting planes' — proven
-/// on at most `budget` cones of directions (module docs of `fusion::certify`, "At a given
-/// rule"): the certificate of `K` with a bound near `P̄`, the cones cut until each adds at
-/// most `rtol · tr P̄ / 8` to the trace (`budget` in `4..=`[`MAX_CONES`], `rtol` in
-/// `(0, 1)`, a finite gain and a finite symmetric bound; otherwise
-/// [`SolveError::InvalidSettings`]). `None` where the problem with this gain is not one block
-/// of three states. The bound is proven whatever `P̄` is; how close to `P̄` it ends
+/// A given rule `rule = (K, P̄)` of a three- or four-state problem — e.g. the cutting
+/// planes' — proven on at most `budget` cones of directions (module docs of
+/// `fusion::certify`, "At a given rule"; at four states at least the eight orthants): the
+/// certificate of `K` with a bound near `P̄`, the cones cut until each adds at most
+/// `rtol · tr P̄ / 8` to the trace (`budget` in `4..=`[`MAX_CONES`], `rtol` in `(0, 1)`, a
+/// finite gain and a finite symmetric bound; otherwise [`SolveError::InvalidSettings`]).
+/// `None` where the problem with this gain is not one block of three or four states. The bound is proven whatever `P̄` is; how close to `P̄` it ends
 /// depends on how close `P̄` is to dominating `K P' Kᵀ` for every admissible `P'`.
 ///
 /// ```

@@ -455,7 +455,8 @@ fn four_state_cones_cover_space_and_their_multipliers_stay_exact() {
         let Some([a, b]) = bisect(&cones[k]) else {
             let u = cones[k];
             assert!(
-                (0..4).any(|i| (i + 1..4).any(|j| (0..4).any(|e| (u[i][e] + u[j][e]).abs() >= 128))),
+                (0..4)
+                    .any(|i| (i + 1..4).any(|j| (0..4).any(|e| (u[i][e] + u[j][e]).abs() >= 128))),
                 "{u:?} refused below the limit"
             );
             refused += 1;
@@ -466,7 +467,11 @@ fn four_state_cones_cover_space_and_their_multipliers_stay_exact() {
         for _ in 0..300 {
             let v = [0; 4].map(|_| rng.random_range(-3000i64..=3000));
             let in_child = in_cone_n(&a, v) || in_cone_n(&b, v);
-            assert_eq!(in_cone_n(&parent, v), in_child, "{parent:?} → {a:?}, {b:?} at {v:?}");
+            assert_eq!(
+                in_cone_n(&parent, v),
+                in_child,
+                "{parent:?} → {a:?}, {b:?} at {v:?}"
+            );
         }
         cones[k] = a;
         cones.push(b);
@@ -485,7 +490,10 @@ fn four_state_cones_cover_space_and_their_multipliers_stay_exact() {
             }
         }
     }
-    assert!(depth >= 8 && refused > 0, "depth {depth}, refused {refused}");
+    assert!(
+        depth >= 8 && refused > 0,
+        "depth {depth}, refused {refused}"
+    );
     let u = thin;
     assert!(
         (0..4).any(|i| (i + 1..4).any(|j| (0..4).any(|e| (u[i][e] + u[j][e]).abs() >= 128))),
@@ -518,9 +526,8 @@ fn four_state_cones_cover_space_and_their_multipliers_stay_exact() {
         let pieces = cone_piece(u);
         assert_eq!(pieces.len(), pairs.len());
         for (S, (i, j)) in pieces.iter().zip(pairs) {
-            let twice = |r: usize, c: usize| {
-                normals[i][r] * normals[j][c] + normals[j][r] * normals[i][c]
-            };
+            let twice =
+                |r: usize, c: usize| normals[i][r] * normals[j][c] + normals[j][r] * normals[i][c];
             assert!((0..16).all(|e| twice(e / 4, e % 4).abs() < 1 << 53));
             let (r0, c0) = (0..16)
                 .map(|e| (e / 4, e % 4))
