@@ -54,9 +54,20 @@
 //! rule's as `certified` when its proven trace is smaller (`own_rule_proven`); the gain is
 //! the loop's, so `sdp_cuts`' own gain is then proven to the bracket's upper end. A proof the
 //! solver fails on, or that runs out of time, leaves the result as it was. `certify_rule`
-//! also proves four-state rules, but on 64 cones of ℝ⁴ it takes about three times as long as
-//! the loop itself and closes none of the measured brackets (docs/benchmarks.md), so the loop
-//! runs it at three states only.
+//! also proves four-state rules, but on 64 cones of ℝ⁴ it takes about a minute, four to five
+//! times the loop's own time, and closed one more of the 20 measured brackets than the
+//! default certificate (docs/methods.md, "Four states"), so the loop runs it at three states
+//! only.
+//!
+//! (7) The proof finds what the search missed. The search is local, so the loop can stop on
+//! "no violation found" with `P̄` short of a bound in a narrow set of directions; the proof
+//! then needs a large `t` on the cones there, and cutting them does not lower it (module docs
+//! of `fusion::certify`, "At a given rule"). A cone's `t` bounds the violation of `P̄` on it
+//! from above, so where the proof leaves the bracket open the search runs again from the
+//! centres of the cones with the largest `t` (at most 8). If it finds violations above the
+//! tolerance, they are added as cuts and the loop goes on (at most twice); the result with
+//! the narrower proven bracket is returned, with the larger of the proven lower ends (both
+//! bound the same optimum). Past the time limit the earlier round's result stands.
 //!
 //! `converged: false` reports an iteration or time limit (`stop` says which); a solver
 //! failure is returned as an error. Measurements: docs/methods.md (`examples/cuts_probe.rs`).
@@ -69,7 +80,8 @@ use rand_chacha::ChaCha8Rng;
 
 use super::bracket::CLOSED_RTOL;
 use super::certify::{
-    certification_blocks, certified_fusion, certify_rule, Certificates, CertifySettings, MAX_CONES,
+    certification_blocks, certified_fusion, certify_rule_short, Certificates, CertifySettings,
+    MAX_CONES,
 };
 use super::check::{error_covariance, lowest_margin, margin};
 use super::nmci::non_monolithic_ci;
@@ -241,6 +253,9 @@ pub struct CutsResult {
     pub lower_bound: f64,
     /// The cross-covariances of the last program.
     pub cross: Vec<DMatrix<f64>>,
+    /// Rounds in which the proof's short directions found violations and restarted the loop
+    /// (module docs, (7); at most 2).
+    pub proof_rounds: usize,
 }
 
 /// The robust-optimal bound by cutting planes (see the module docs).
@@ -384,10 +399,17 @@ fn cuts_at_scale(
         dual_objective: opt.dual_objective,
         lower_bound,
         cross,
+        proof_rounds: 0,
     };
     // The last finished program (its result, its number of cuts, the violation found at it):
     // what a solve stopped by the time limit falls back to.
     let mut previous: Option<(SdpResult, usize, f64)> = None;
+    // Rounds the proof's short directions restarted the loop (module docs, (7)), and the
+    // result of the round before.
+    let mut rounds = 0;
+    let mut earlier: Option<CutsResult> = None;
+    // Constraints generated in the rounds before, not carried into this one.
+    let mut earlier_generated = 0;
     loop {
         iterations += 1;
         let set = CrossSamples {
@@ -397,6 +419,14 @@ fn cuts_at_scale(
         };
         let opt = match solve_samples(problem, &set, &sdp, &deadline) {
             Ok(o) => o,
+            // Past the deadline in a round the proof started: that round's result stands.
+            Err(SolveError::TimeLimit { .. }) if earlier.is_some() => {
+                let mut result = earlier.take().expect("checked above");
+                result.iterations = iterations - 1;
+                result.constraints_generated = earlier_generated + cross.len();
+                result.proof_rounds = rounds;
+                return Ok(result);
+            }
             Err(SolveError::TimeLimit { .. }) if previous.is_some() => {
                 let (opt, len, violation) = previous.take().expect("checked above");
                 let generated = cross.len();
@@ -504,8 +534,53 @@ fn cuts_at_scale(
                 }
             }
             let lower = best_lower.max(opt.lower_bound);
-            let result = finish(opt, cross, generated, iterations, violation, stop, lower);
-            return prove_own_rule(problem, result, settings, &deadline);
+            let generated = earlier_generated + generated;
+            let latest = finish(opt, cross, generated, iterations, violation, stop, lower);
+            let (latest, short) = prove_own_rule(problem, latest, settings, &deadline)?;
+            // Module docs, (7): the proof's short directions, searched for cuts at this
+            // round's rule; the cuts found restart the loop from this round's cuts.
+            if converged && rounds < PROOF_ROUNDS && iterations < settings.max_iterations {
+                let mut new = Vec::new();
+                let mut in_time = true;
+                for v in short {
+                    match worst_case_search(problem, &latest.fused, v, settings, &deadline) {
+                        Ok((found, P_ab)) if found > threshold => new.push(P_ab),
+                        Ok(_) => {}
+                        Err(SolveError::TimeLimit { .. }) => {
+                            in_time = false;
+                            break;
+                        }
+                        Err(e) => return Err(e),
+                    }
+                }
+                if !new.is_empty() && in_time && !deadline.passed() {
+                    rounds += 1;
+                    cross = latest.cross.clone();
+                    // The cuts carried over are counted once, in the next round.
+                    earlier_generated = generated - cross.len();
+                    for P_ab in new {
+                        if !cross
+                            .iter()
+                            .any(|c| (c - &P_ab).amax() <= 1e-12 * P_ab.amax().max(1.0))
+                        {
+                            cross.push(P_ab);
+                        }
+                    }
+                    earlier = Some(match earlier.take() {
+                        Some(before) => tighter(before, latest, settings.tolerance),
+                        None => latest,
+                    });
+                    previous = None;
+                    continue;
+                }
+            }
+            let mut result = match earlier.take() {
+                Some(before) => tighter(before, latest, settings.tolerance),
+                None => latest,
+            };
+            (result.iterations, result.constraints_generated) = (iterations, generated);
+            result.proof_rounds = rounds;
+            return Ok(result);
         }
         previous = Some((opt.clone(), set.cross.len(), violation));
         // In-out separation: cut at a point between the relaxation's optimum and a feasible
@@ -555,14 +630,17 @@ fn cuts_at_scale(
 /// rule proven on cones of directions (module docs, "Its own rule, proven"), kept when its
 /// proven trace is smaller; past the time limit, or where the solver fails on it, the result
 /// as it is.
+///
+/// Also returns, where the proof ran and left the bracket open, the directions where the
+/// loop's rule is short (`certify_rule_short`).
 fn prove_own_rule(
     problem: &FusionProblem,
     mut result: CutsResult,
     settings: &CutsSettings,
     deadline: &Deadline,
-) -> Result<CutsResult, SolveError> {
+) -> Result<(CutsResult, Vec<DVector<f64>>), SolveError> {
     let Some(upper) = result.certified_trace else {
-        return Ok(result);
+        return Ok((result, Vec::new()));
     };
     // The time left, read once (a limit of zero would be refused as a setting).
     let left = deadline.remaining();
@@ -572,13 +650,13 @@ fn prove_own_rule(
         || result.stop == CutsStop::TimeLimit
         || left <= 0.0
     {
-        return Ok(result);
+        return Ok((result, Vec::new()));
     }
     let certify_settings = CertifySettings {
         time_limit: settings.time_limit.map(|_| left),
         ..settings.certify_settings
     };
-    let proven = match certify_rule(
+    let (proven, short) = match certify_rule_short(
         problem,
         &result.fused,
         settings.own_rule_cones,
@@ -591,7 +669,7 @@ fn prove_own_rule(
             SolveError::TimeLimit { .. }
             | SolveError::SolverFailed { .. }
             | SolveError::NotProven { .. },
-        ) => return Ok(result),
+        ) => return Ok((result, Vec::new())),
         Err(e) => return Err(e),
     };
     let trace = trace_upper_bound(&proven.fused.P);
@@ -602,7 +680,21 @@ fn prove_own_rule(
         result.own_rule_proven = true;
         result.gap_closed = result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
     }
-    Ok(result)
+    let short = if result.gap_closed { Vec::new() } else { short };
+    Ok((result, short))
+}
+
+/// Of two results of the loop on one problem, the one whose proven bracket is narrower, with
+/// the larger of their proven lower ends (both bound the same robust optimum).
+fn tighter(a: CutsResult, b: CutsResult, tolerance: f64) -> CutsResult {
+    let lower = a.lower_bound.max(b.lower_bound);
+    let upper = |r: &CutsResult| r.certified_trace.unwrap_or(f64::INFINITY);
+    let mut kept = if upper(&a) < upper(&b) { a } else { b };
+    kept.lower_bound = lower;
+    if let Some(trace) = kept.certified_trace {
+        kept.gap_closed |= lower >= trace - tolerance * trace.max(1.0);
+    }
+    kept
 }
 
 /// The program on the active cuts alone (margin `λ_min(P̄ − K P' Kᵀ) ≤ 10⁻⁶ max(tr P̄, 1)` at
@@ -723,6 +815,9 @@ fn direction_grid(n: usize) -> Vec<DVector<f64>> {
 
 /// The number of directions of [`direction_grid`].
 const GRID_DIRECTIONS: usize = 64;
+
+/// Most rounds the proof's short directions restart the loop (module docs, (7)).
+const PROOF_ROUNDS: usize = 2;
 
 /// Extra random starting directions (times `restarts`) of the worst-case search when the
 /// local search finds no violation but the proven bracket is open.

@@ -231,6 +231,7 @@ mod tests;
 pub use geometry::MAX_SECTORS;
 pub use memo::{CertificateMemo, MEMO_BLOCKS};
 pub use point::certify_rule;
+pub(crate) use point::certify_rule_short;
 pub(crate) use rule::certification_blocks;
 pub use rule::{
     certified_fusion, certified_fusion_memo, certify_gain, Certificates, CertifiedResult,

@@ -4,7 +4,7 @@
 
 use std::cell::Cell;
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 
 use crate::error::SolveError;
 use crate::fusion::program::{Deadline, SdpStatus};
@@ -61,6 +61,21 @@ pub fn certify_rule(
     rtol: f64,
     settings: &CertifySettings,
 ) -> Result<Option<CertifiedResult>, SolveError> {
+    Ok(certify_rule_short(problem, rule, budget, rtol, settings)?.map(|(proven, _)| proven))
+}
+
+/// [`certify_rule`], with the directions where the rule is short: the centres of the cones
+/// whose `t` stayed above the target (module docs, "At a given rule"), largest `t` first, at
+/// most [`SHORT_DIRECTIONS`]. `t` bounds the largest violation of `P̄` in its cone from above,
+/// so these are where a violation may sit (the cutting planes search there,
+/// `fusion::cuts`).
+pub(crate) fn certify_rule_short(
+    problem: &FusionProblem,
+    rule: &Fused,
+    budget: u32,
+    rtol: f64,
+    settings: &CertifySettings,
+) -> Result<Option<(CertifiedResult, Vec<DVector<f64>>)>, SolveError> {
     settings.validate()?;
     let n = problem.dim();
     let square = |m: &DMatrix<f64>| m.shape() == (n, n) && m.iter().all(|x| x.is_finite());
@@ -95,33 +110,40 @@ pub fn certify_rule(
     };
     let mut proven = None;
     if scale != Pow2::ONE {
-        let outcome = at_scale(&scaled, &scale.scale(&rule.P))?;
+        let (outcome, short) = at_scale(&scaled, &scale.scale(&rule.P))?;
         if let Some(bound) = scale.unscale_dominating(&outcome.P) {
-            proven = Some(BlockCertificate {
+            let outcome = BlockCertificate {
                 P: bound,
                 repair: scale.unscale_value(outcome.repair),
                 ..outcome
-            });
+            };
+            proven = Some((outcome, short));
         }
     }
-    let proven = match proven {
+    let (proven, short) = match proven {
         Some(p) => p,
         None => at_scale(problem, &rule.P)?,
     };
-    Ok(Some(CertifiedResult {
-        fused: Fused {
-            P: proven.P,
-            ..rule.clone()
+    Ok(Some((
+        CertifiedResult {
+            fused: Fused {
+                P: proven.P,
+                ..rule.clone()
+            },
+            status: proven.status,
+            iterations: proven.iterations,
+            repair: proven.repair,
+            blocks: vec![(0..n).collect()],
+            levels: vec![1],
+            sectors: vec![proven.pieces],
+            ci_blocks: vec![false],
         },
-        status: proven.status,
-        iterations: proven.iterations,
-        repair: proven.repair,
-        blocks: vec![(0..n).collect()],
-        levels: vec![1],
-        sectors: vec![proven.pieces],
-        ci_blocks: vec![false],
-    }))
+        short,
+    )))
 }
+
+/// Most directions [`certify_rule_short`] returns.
+pub(crate) const SHORT_DIRECTIONS: usize = 8;
 
 /// One cone of the cover: its generators, its certificate and the `t` it needs.
 struct Leaf<const N: usize> {
@@ -144,7 +166,7 @@ pub(super) fn certify_point<const N: usize>(
     target: f64,
     budget: usize,
     settings: &CertifySettings,
-) -> Result<BlockCertificate, SolveError> {
+) -> Result<(BlockCertificate, Vec<DVector<f64>>), SolveError> {
     let n = problem.dim();
     let deadline = Deadline::after(settings.time_limit);
     let round = || CertifySettings {
@@ -310,7 +332,23 @@ pub(super) fn certify_point<const N: usize>(
         }
     }
     let (Q, repair) = best?;
-    Ok(BlockCertificate {
+    let mut short: Vec<&Leaf<N>> = open.clone();
+    short.sort_by(|a, b| b.t.total_cmp(&a.t));
+    // A cone's centre: the sum of its unit generators.
+    let centre = |cone: &Cone<N>| {
+        DVector::from_fn(N, |r, _| {
+            cone.iter()
+                .map(|u| u[r] as f64 / u.iter().map(|&x| (x * x) as f64).sum::<f64>().sqrt())
+                .sum::<f64>()
+        })
+        .normalize()
+    };
+    let short = short
+        .iter()
+        .take(SHORT_DIRECTIONS)
+        .map(|l| centre(&l.cone))
+        .collect();
+    let certificate = BlockCertificate {
         K_a: K_a.clone(),
         P: Q,
         status: if almost.get() {
@@ -321,5 +359,6 @@ pub(super) fn certify_point<const N: usize>(
         iterations: iterations.get(),
         repair,
         pieces: leaves.len() as u32,
-    })
+    };
+    Ok((certificate, short))
 }
