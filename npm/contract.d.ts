@@ -140,6 +140,8 @@ export interface FuseResponse {
   gap_closed?: boolean;
   /** `sdp_cuts`: the certified upper end is the loop's own rule proven on cones of directions. */
   own_rule_proven?: boolean;
+  /** `sdp_cuts`: rounds in which the own rule's proof found cuts the search had missed and the loop went on (at most 2). */
+  proof_rounds?: number;
   guarantee: Guarantee;
   structure?: StructureDetails;
 }

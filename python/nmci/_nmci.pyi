@@ -57,6 +57,7 @@ class Fused:
     converged: Optional[bool]
     gap_closed: Optional[bool]
     own_rule_proven: Optional[bool]
+    proof_rounds: Optional[int]
     guarantee: str
     structure: Optional[Dict[str, Any]]
 

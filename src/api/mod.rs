@@ -204,6 +204,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
                 certificates: cuts.certificates,
                 gain_certified_trace,
                 own_rule_proven: cuts.own_rule_proven,
+                proof_rounds: cuts.proof_rounds,
             });
             Ok::<_, RequestError>(response(
                 Method::SdpCuts,

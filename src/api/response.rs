@@ -189,6 +189,9 @@ pub struct CutsDetails {
     /// directions (`CutsResult::own_rule_proven`; then `certificates` gives level 1 and the
     /// number of cones).
     pub own_rule_proven: bool,
+    /// Rounds in which the own rule's proof pointed the search to violations it had missed and
+    /// the loop went on (`CutsResult::proof_rounds`, at most 2).
+    pub proof_rounds: usize,
 }
 
 /// The certified rule's report.
@@ -340,6 +343,8 @@ struct ResponseWire {
     gap_closed: Option<bool>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     own_rule_proven: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    proof_rounds: Option<usize>,
     guarantee: Guarantee,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     structure: Option<StructureDetails>,
@@ -418,6 +423,7 @@ impl From<FuseResponse> for ResponseWire {
             converged: None,
             gap_closed: None,
             own_rule_proven: None,
+            proof_rounds: None,
             guarantee,
             structure: r.structure,
         };
@@ -461,6 +467,7 @@ impl From<FuseResponse> for ResponseWire {
                 w.gain_certified_trace = d.gain_certified_trace;
                 w.gap_closed = Some(d.gap_closed);
                 w.own_rule_proven = Some(d.own_rule_proven);
+                w.proof_rounds = Some(d.proof_rounds);
                 w.set_certificates(d.certificates.as_ref());
                 w.set_bracket(d.bracket.as_ref());
             }
@@ -534,6 +541,7 @@ impl TryFrom<ResponseWire> for FuseResponse {
                 certificates: w.certificates(),
                 gain_certified_trace: w.gain_certified_trace,
                 own_rule_proven: need(w.own_rule_proven, "own_rule_proven", m)?,
+                proof_rounds: need(w.proof_rounds, "proof_rounds", m)?,
             }),
             Method::Certified => Details::Certified(CertifiedDetails {
                 status: need(w.status, "status", m)?,

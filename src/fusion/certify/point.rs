@@ -75,7 +75,7 @@ pub(crate) fn certify_rule_short(
     budget: u32,
     rtol: f64,
     settings: &CertifySettings,
-) -> Result<Option<(CertifiedResult, Vec<DVector<f64>>)>, SolveError> {
+) -> Result<Option<ShortRule>, SolveError> {
     settings.validate()?;
     let n = problem.dim();
     let square = |m: &DMatrix<f64>| m.shape() == (n, n) && m.iter().all(|x| x.is_finite());
@@ -141,6 +141,9 @@ pub(crate) fn certify_rule_short(
         short,
     )))
 }
+
+/// A proven rule and the directions where it is short ([`certify_rule_short`]).
+pub(crate) type ShortRule = (CertifiedResult, Vec<DVector<f64>>);
 
 /// Most directions [`certify_rule_short`] returns.
 pub(crate) const SHORT_DIRECTIONS: usize = 8;
