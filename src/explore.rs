@@ -131,6 +131,9 @@ pub struct Proof {
     pub stop: CutsStop,
     /// The loop's outer iterations.
     pub iterations: u32,
+    /// Rounds in which the own rule's proof pointed the loop to cuts its search had missed
+    /// ([`crate::sdp::CutsResult::proof_rounds`]).
+    pub proof_rounds: usize,
 }
 
 /// The conservativeness index of one rule over the region's cross-covariances:
@@ -279,6 +282,7 @@ pub fn prove(request: &ExploreRequest) -> Result<Option<Proof>, RequestError> {
         own_rule_proven: d.own_rule_proven,
         stop: d.stop,
         iterations: d.iterations,
+        proof_rounds: d.proof_rounds,
     }))
 }
 

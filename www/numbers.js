@@ -172,7 +172,10 @@ function secondStage(second, first) {
   const narrower = p.relative < first.relative
     ? `narrowed the bracket ${(first.relative / Math.max(p.relative, Number.MIN_VALUE)).toPrecision(2)} times`
     : "did not narrow the bracket";
-  return el("div", { id: "proof-status" }, key("second stage:"), ` the cutting planes (${p.iterations} iterations, stopped by ${stop}) ${narrower}`);
+  const pointed = p.proof_rounds > 0
+    ? `; the proof pointed them to cuts their search had missed (${p.proof_rounds === 1 ? "once" : "twice"})`
+    : "";
+  return el("div", { id: "proof-status" }, key("second stage:"), ` the cutting planes (${p.iterations} iterations, stopped by ${stop}) ${narrower}${pointed}`);
 }
 
 /** An element with attributes and children (strings become text nodes). */
