@@ -47,7 +47,8 @@
 //! `constraints` counts the final program, `constraints_generated` the whole run.
 //!
 //! (6) Its own rule, proven. The certified rule is the loop's guide and its upper end. Where
-//! that leaves the bracket open on a problem of one block of three states, the loop's own
+//! that leaves the bracket open (not closed to the loop's tolerance, as in (2): at the default
+//! `10⁻⁷` a stricter test than the bracket's `10⁻⁶`) on a problem of one block of three states, the loop's own
 //! final rule `(K, P̄)` — a relaxation's, with a trace near the lower end — is proven after
 //! the loop (`certify_rule`; module docs of `fusion::certify`, "At a given rule") on at most
 //! `own_rule_cones` cones of directions in the time left. Its bound replaces the certified
