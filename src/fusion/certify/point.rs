@@ -1,6 +1,6 @@
 //! Three or four states: a given rule `(K, Q₀)` — the cutting planes' — proven on cones of
-//! directions cut where `Q₀` is short (the parent's module docs, "At a given rule": the argument, the
-//! rule for cutting and how the cones' certificates are joined into one bound).
+//! directions cut where `Q₀` is short (the parent's module docs, "At a given rule": the
+//! argument, the rule for cutting and how the cones' certificates are joined into one bound).
 
 use std::cell::Cell;
 
@@ -35,8 +35,9 @@ const FAILED_CUTS: u32 = 3;
 /// certificate of `K` with a bound near `P̄`, the cones cut until each adds at most
 /// `rtol · tr P̄ / 8` to the trace (`budget` in `4..=`[`MAX_CONES`], `rtol` in `(0, 1)`, a
 /// finite gain and a finite symmetric bound; otherwise [`SolveError::InvalidSettings`]).
-/// `None` where the problem with this gain is not one block of three or four states. The bound is proven whatever `P̄` is; how close to `P̄` it ends
-/// depends on how close `P̄` is to dominating `K P' Kᵀ` for every admissible `P'`.
+/// `None` where the problem with this gain is not one block of three or four states. The
+/// bound is proven whatever `P̄` is; how close to `P̄` it ends depends on how close `P̄` is to
+/// dominating `K P' Kᵀ` for every admissible `P'`.
 ///
 /// ```
 /// use nalgebra::DMatrix;
