@@ -12,12 +12,13 @@
 //!
 //! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--cones 16,64] [--adaptive 32] [--own-rule 64] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--tolerance 1e-10] [--verbose]`
 //!
-//! `--own-rule 64` (three or four states) adds the upper end of the default certified rule
-//! (the cutting planes' guide) and, where that leaves the bracket open, the loop's own rule
-//! proven on at most that many cones (`certify_rule`): what `sdp_cuts` reports at three
-//! states (at four it stops at the guide; `fusion::cuts`, "Its own rule, proven"). Its times
-//! are the proof's alone, where it ran, and the notes give the cutting planes' and the end to
-//! end times.
+//! `--own-rule 64` (three or four states) adds a row for the cutting planes' proven upper end.
+//! At three states it is `sdp_cuts` itself, run with `own_rule_cones` 64 (its guide, the
+//! default certified rule, else its own rule proven on at most that many cones, restarts
+//! from the proof's directions included), timed end to end. At four states, where `sdp_cuts`
+//! stops at its guide (`fusion::cuts`, "Its own rule, proven"), the loop's rule is proven by
+//! `certify_rule` where the guide leaves the bracket open: the row's times are the proof's
+//! alone, where it ran, and the notes give the cutting planes' and the end-to-end times.
 //!
 //! Pattern classes (`P_ab[i][j]` unknown where listed, known zero elsewhere):
 //! - `anti-diagonal`: `j = n − 1 − i`;
