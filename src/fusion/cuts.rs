@@ -963,4 +963,41 @@ mod tests {
         assert!(matches!(err, SolveError::TimeLimit { .. }), "{err}");
         assert!(err.to_string().contains("worst-case search"), "{err}");
     }
+
+    /// Of two rounds' results, the one with the smaller proven upper end is kept, whichever
+    /// came first, with the larger of the two lower ends; the closed flag follows the kept
+    /// bracket.
+    #[test]
+    fn of_two_rounds_the_narrower_bracket_is_kept_with_the_larger_lower_end() {
+        let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+        let p = FusionProblem::from_covariances(
+            d(&[3.0, 1.0]),
+            d(&[1.0, 4.0]),
+            CrossPattern::diagonal(2),
+        )
+        .unwrap();
+        let base = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+        let with = |lower: f64, upper: Option<f64>, iterations: usize| CutsResult {
+            lower_bound: lower,
+            certified_trace: upper,
+            gap_closed: false,
+            iterations,
+            ..base.clone()
+        };
+        for swap in [false, true] {
+            let (a, b) = (with(1.0, Some(1.2), 1), with(1.1, Some(1.3), 2));
+            let kept = if swap {
+                tighter(b, a, 1e-7)
+            } else {
+                tighter(a, b, 1e-7)
+            };
+            assert_eq!(kept.iterations, 1);
+            assert_eq!((kept.lower_bound, kept.certified_trace), (1.1, Some(1.2)));
+            assert!(!kept.gap_closed);
+        }
+        // The later round's lower end reaches the earlier one's upper end: closed.
+        let kept = tighter(with(1.0, Some(1.2), 1), with(1.2, None, 2), 1e-7);
+        assert_eq!((kept.iterations, kept.lower_bound), (1, 1.2));
+        assert!(kept.gap_closed);
+    }
 }
