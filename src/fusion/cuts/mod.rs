@@ -73,191 +73,34 @@
 //! `converged: false` reports an iteration or time limit (`stop` says which); a solver
 //! failure is returned as an error. Measurements: docs/methods.md (`examples/cuts_probe.rs`).
 
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::SupportedConeT;
+mod own_rule;
+mod result;
+mod search;
+mod settings;
+
+pub use result::CutsResult;
+pub use settings::{CutsSettings, CutsStop};
+
+use own_rule::{prove_own_rule, tighter, PROOF_ROUNDS};
+use search::{
+    direction_grid, random_starts, top_eigen, violation_matrix, worst_case_search,
+    OPEN_BRACKET_STARTS,
+};
+
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::bracket::CLOSED_RTOL;
-use super::certify::{
-    certification_blocks, certified_fusion, certify_rule_short, Certificates, CertifySettings,
-    MAX_CONES,
-};
-use super::check::{error_covariance, lowest_margin, margin};
+use super::certify::{certification_blocks, certified_fusion, Certificates, CertifySettings};
+use super::check::{lowest_margin, margin};
 use super::nmci::non_monolithic_ci;
-use super::program::{check_time_limit, solve_program, svec_index, Deadline, Kkt, SdpStatus};
+use super::program::Deadline;
 use super::sample::{sample_cross_covariances, CrossSamples, SamplerSettings};
 use super::scale::Pow2;
 use super::sdp::{solve_samples, SdpResult, SdpSettings};
 use super::upper::trace_upper_bound;
 use super::{Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
-use crate::linalg::symmetrize;
-
-/// A cut found on the boundary of the admissible set is pulled inside by this factor
-/// (`P_ab ← (1 − CUT_SHRINK) P_ab`; the set is convex and contains `P_ab = 0`), so that its
-/// joint covariance stays positive definite and its LMI well conditioned: exact boundary
-/// cuts made Clarabel stop with `NumericalError` on 6-D cases. The constraint moves by at
-/// most `CUT_SHRINK` times its cross term, below the loop's tolerance.
-const CUT_SHRINK: f64 = 1e-7;
-
-/// Settings of the cutting-plane loop.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CutsSettings {
-    /// Random admissible cross-covariances to start from (default 4, hit-and-run).
-    pub initial_samples: usize,
-    /// Seed of the starting samples and of the random search directions (default 0).
-    pub seed: u64,
-    /// Outer iterations (one solve and one search each; default 60).
-    pub max_iterations: usize,
-    /// Starting directions of the worst-case search per iteration (default 4).
-    pub restarts: usize,
-    /// Stop when the worst violation is below `tolerance · max(tr P̄, 1)` (default `1e-7`).
-    pub tolerance: f64,
-    /// Settings of each SDP solve (its sample and working-set fields are ignored).
-    pub sdp: SdpSettings,
-    /// Guide the loop with the certified rule (default `true`; blocks of at most
-    /// [`CertifySettings::max_block_dim`] states): seed it with the worst cases at the
-    /// certified bound, and stop as soon as the lower bound reaches the certified upper bound
-    /// within `tolerance` — a proven optimum.
-    pub certify: bool,
-    /// In-out separation weight `α ∈ [0, 1)` (default 0.5; 0 = cut at the relaxation's
-    /// optimum only): the search also runs at `α·(K, P̄)_out + (1 − α)·(K, P̄)_in` between the
-    /// relaxation's optimum and a feasible point (the certified rule, else nmCI); its cuts
-    /// replace the optimum's when it finds a violation, otherwise it becomes the new
-    /// feasible point.
-    pub in_out: f64,
-    /// Settings of the certified rule that guides the loop and closes its gap.
-    pub certify_settings: CertifySettings,
-    /// Wall-clock limit in seconds (default none) of the whole loop: past it (checked between
-    /// iterations and inside each solve) the loop returns the last finished program's result
-    /// and its proven bracket with `converged: false` and `stop: TimeLimit` — an error only if
-    /// the first program did not finish in time. The guiding certificate gets half of the
-    /// limit and is left out if it does not finish.
-    pub time_limit: Option<f64>,
-    /// Three-state problems whose bracket the certified rule leaves open: the loop's own rule
-    /// is proven on at most this many cones of directions (module docs, "Its own rule,
-    /// proven"; default 64, 0: off, else at least 4 and at most
-    /// [`MAX_CONES`](super::certify::MAX_CONES)).
-    pub own_rule_cones: u32,
-}
-
-/// Why the cutting-plane loop stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum CutsStop {
-    /// The worst violation found was below the tolerance.
-    Tolerance,
-    /// The proven lower bound reached the certified rule's proven trace within the tolerance.
-    GapClosed,
-    /// `max_iterations` ran out.
-    MaxIterations,
-    /// `time_limit` ran out.
-    TimeLimit,
-}
-
-impl Default for CutsSettings {
-    fn default() -> Self {
-        Self {
-            initial_samples: 4,
-            seed: 0,
-            max_iterations: 60,
-            restarts: 4,
-            tolerance: 1e-7,
-            sdp: SdpSettings::default(),
-            certify: true,
-            in_out: 0.5,
-            certify_settings: CertifySettings::default(),
-            time_limit: None,
-            own_rule_cones: 64,
-        }
-    }
-}
-
-impl CutsSettings {
-    /// Checks the settings.
-    pub fn validate(&self) -> Result<(), SolveError> {
-        if self.initial_samples == 0 || self.max_iterations == 0 || self.restarts == 0 {
-            return Err(SolveError::InvalidSettings(
-                "sdp_cuts needs initial_samples, max_iterations and restarts of at least 1".into(),
-            ));
-        }
-        if !(0.0..1.0).contains(&self.in_out) {
-            return Err(SolveError::InvalidSettings(format!(
-                "in_out must be in [0, 1) (got {})",
-                self.in_out
-            )));
-        }
-        self.certify_settings.validate()?;
-        check_time_limit(self.time_limit)?;
-        if self.own_rule_cones != 0 && !(4..=MAX_CONES).contains(&self.own_rule_cones) {
-            return Err(SolveError::InvalidSettings(format!(
-                "own_rule_cones must be 0 or in 4..={MAX_CONES} (got {})",
-                self.own_rule_cones
-            )));
-        }
-        if !(self.tolerance > 0.0 && self.tolerance.is_finite()) {
-            return Err(SolveError::InvalidSettings(format!(
-                "tolerance must be positive and finite (got {})",
-                self.tolerance
-            )));
-        }
-        Ok(())
-    }
-}
-
-/// The cutting-plane result.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CutsResult {
-    /// Fused estimate, bound `P̄` and gains of the last program.
-    pub fused: Fused,
-    /// Status of the last solve.
-    pub status: SdpStatus,
-    /// Outer iterations run.
-    pub iterations: usize,
-    /// Constraints (cross-covariances) in the last program: after convergence the active
-    /// ones only (see [`CutsResult::constraints_generated`]).
-    pub constraints: usize,
-    /// Constraints generated over the run: the starting samples and every cut.
-    pub constraints_generated: usize,
-    /// The worst `λ_max(K P' Kᵀ − P̄)` the search found at the end (≤ the stopping threshold
-    /// when `converged`).
-    pub violation: f64,
-    /// Whether the loop stopped on the tolerance or a closed gap (otherwise on
-    /// `max_iterations` or `time_limit`).
-    pub converged: bool,
-    /// Why the loop stopped.
-    pub stop: CutsStop,
-    /// `tr P̄` of `certified` rounded up (a proven upper bound on the robust optimum), when
-    /// computed.
-    pub certified_trace: Option<f64>,
-    /// The certificate of `certified` on each block, when computed.
-    pub certificates: Option<Certificates>,
-    /// A proven rule (gain and bound), when computed: the certified rule, or where
-    /// `own_rule_proven` the loop's own gain with a proven bound.
-    pub certified: Option<Fused>,
-    /// Whether `certified` is the loop's own rule proven on cones of directions (module docs,
-    /// "Its own rule, proven"): its gain is `fused`'s, its bound proven and tighter than the
-    /// certified rule's.
-    pub own_rule_proven: bool,
-    /// Whether `lower_bound` reached `certified_trace` within the tolerance: the optimum is
-    /// then proven to that relative accuracy, and `certified` attains it to that accuracy.
-    /// The loop stops there (`stop: GapClosed`), or the own rule proven after the loop
-    /// closed it.
-    pub gap_closed: bool,
-    /// Clarabel's dual objective of the last program (a lower bound only up to the solver's
-    /// tolerance).
-    pub dual_objective: f64,
-    /// A proven lower bound on the robust optimum: the best over the programs solved
-    /// (`fusion::bracket`).
-    pub lower_bound: f64,
-    /// The cross-covariances of the last program.
-    pub cross: Vec<DMatrix<f64>>,
-    /// Rounds in which the proof's short directions found violations and restarted the loop
-    /// (module docs, (7); at most 2).
-    pub proof_rounds: usize,
-}
 
 /// The robust-optimal bound by cutting planes (see the module docs).
 ///
@@ -627,77 +470,6 @@ fn cuts_at_scale(
     }
 }
 
-/// Where the certified rule left the bracket of a three-state problem open, the loop's own
-/// rule proven on cones of directions (module docs, "Its own rule, proven"), kept when its
-/// proven trace is smaller; past the time limit, or where the solver fails on it, the result
-/// as it is.
-///
-/// Also returns, where the proof ran and left the bracket open, the directions where the
-/// loop's rule is short (`certify_rule_short`).
-fn prove_own_rule(
-    problem: &FusionProblem,
-    mut result: CutsResult,
-    settings: &CutsSettings,
-    deadline: &Deadline,
-) -> Result<(CutsResult, Vec<DVector<f64>>), SolveError> {
-    let Some(upper) = result.certified_trace else {
-        return Ok((result, Vec::new()));
-    };
-    // The time left, read once (a limit of zero would be refused as a setting).
-    let left = deadline.remaining();
-    if result.gap_closed
-        || problem.dim() != 3
-        || settings.own_rule_cones == 0
-        || result.stop == CutsStop::TimeLimit
-        || left <= 0.0
-    {
-        return Ok((result, Vec::new()));
-    }
-    let certify_settings = CertifySettings {
-        time_limit: settings.time_limit.map(|_| left),
-        ..settings.certify_settings
-    };
-    let (proven, short) = match certify_rule_short(
-        problem,
-        &result.fused,
-        settings.own_rule_cones,
-        CLOSED_RTOL,
-        &certify_settings,
-    ) {
-        Ok(Some(proven)) => proven,
-        Ok(None)
-        | Err(
-            SolveError::TimeLimit { .. }
-            | SolveError::SolverFailed { .. }
-            | SolveError::NotProven { .. },
-        ) => return Ok((result, Vec::new())),
-        Err(e) => return Err(e),
-    };
-    let trace = trace_upper_bound(&proven.fused.P);
-    if trace < upper {
-        result.certified_trace = Some(trace);
-        result.certificates = Some(Certificates::of(&proven));
-        result.certified = Some(proven.fused);
-        result.own_rule_proven = true;
-        result.gap_closed = result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
-    }
-    let short = if result.gap_closed { Vec::new() } else { short };
-    Ok((result, short))
-}
-
-/// Of two results of the loop on one problem, the one whose proven bracket is narrower, with
-/// the larger of their proven lower ends (both bound the same robust optimum).
-fn tighter(a: CutsResult, b: CutsResult, tolerance: f64) -> CutsResult {
-    let lower = a.lower_bound.max(b.lower_bound);
-    let upper = |r: &CutsResult| r.certified_trace.unwrap_or(f64::INFINITY);
-    let mut kept = if upper(&a) < upper(&b) { a } else { b };
-    kept.lower_bound = lower;
-    if let Some(trace) = kept.certified_trace {
-        kept.gap_closed |= lower >= trace - tolerance * trace.max(1.0);
-    }
-    kept
-}
-
 /// The program on the active cuts alone (margin `λ_min(P̄ − K P' Kᵀ) ≤ 10⁻⁶ max(tr P̄, 1)` at
 /// the converged solution), accepted when its optimum is no lower (beyond `threshold`),
 /// every dropped cut holds at its solution (beyond `threshold`), and the worst-case search
@@ -753,181 +525,6 @@ fn prune(
         return Ok(None);
     }
     Ok(Some((reduced, kept, violation.max(found))))
-}
-
-/// Admissible cross-covariances drawn at random (hit-and-run, [`RANDOM_SEARCH_SAMPLES`]):
-/// the top eigenvectors of the violations of the most violated ones, the starting directions
-/// of the worst-case search (at most `restarts`; empty when none is violated beyond
-/// `threshold`).
-#[allow(non_snake_case)]
-fn random_starts(
-    problem: &FusionProblem,
-    fused: &Fused,
-    settings: &CutsSettings,
-    round: u64,
-    threshold: f64,
-) -> Result<Vec<DVector<f64>>, SolveError> {
-    let drawn = sample_cross_covariances(
-        problem,
-        RANDOM_SEARCH_SAMPLES,
-        settings.seed ^ (0xC0FFEE + round),
-        SamplerSettings::hit_and_run(),
-    )?;
-    let mut scored: Vec<(f64, usize)> = drawn
-        .cross
-        .iter()
-        .enumerate()
-        .map(|(i, P_ab)| (-margin(problem, fused, P_ab), i))
-        .filter(|(v, _)| *v > threshold)
-        .collect();
-    scored.sort_by(|a, b| b.0.total_cmp(&a.0));
-    Ok(scored
-        .iter()
-        .take(settings.restarts)
-        .map(|&(_, i)| top_eigen(&violation_matrix(problem, fused, &drawn.cross[i])).1)
-        .collect())
-}
-
-/// [`GRID_DIRECTIONS`] directions spread evenly over the half circle (`n = 2`) or the half
-/// sphere (`n = 3`, a Fibonacci lattice); none for larger `n`. Extra starting directions of the
-/// worst-case search when the bracket is open: random ones can all miss a narrow violation
-/// (a 2-D case left open by 1.8e-6 in `examples/certify_levels.rs` until these were added).
-fn direction_grid(n: usize) -> Vec<DVector<f64>> {
-    let count = GRID_DIRECTIONS;
-    match n {
-        2 => (0..count)
-            .map(|k| {
-                let t = std::f64::consts::PI * k as f64 / count as f64;
-                DVector::from_vec(vec![t.cos(), t.sin()])
-            })
-            .collect(),
-        3 => (0..count)
-            .map(|k| {
-                // z in (0, 1]: the upper half sphere (−v gives the same constraint).
-                let z = (k as f64 + 0.5) / count as f64;
-                let r = (1.0 - z * z).sqrt();
-                let t = k as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
-                DVector::from_vec(vec![r * t.cos(), r * t.sin(), z])
-            })
-            .collect(),
-        _ => Vec::new(),
-    }
-}
-
-/// The number of directions of [`direction_grid`].
-const GRID_DIRECTIONS: usize = 64;
-
-/// Most rounds the proof's short directions restart the loop (module docs, (7)).
-const PROOF_ROUNDS: usize = 2;
-
-/// Extra random starting directions (times `restarts`) of the worst-case search when the
-/// local search finds no violation but the proven bracket is open.
-const OPEN_BRACKET_STARTS: usize = 4;
-
-/// Random admissible points tried when the local search finds no violation but the proven
-/// bracket is open.
-const RANDOM_SEARCH_SAMPLES: usize = 2000;
-
-/// `K P' Kᵀ − P̄` for one cross-covariance.
-#[allow(non_snake_case)]
-fn violation_matrix(problem: &FusionProblem, fused: &Fused, P_ab: &DMatrix<f64>) -> DMatrix<f64> {
-    symmetrize(&(error_covariance(problem, &fused.K_a, &fused.K_b, P_ab) - &fused.P))
-}
-
-/// Largest eigenvalue and its unit eigenvector.
-fn top_eigen(m: &DMatrix<f64>) -> (f64, DVector<f64>) {
-    let eig = SymmetricEigen::new(m.clone());
-    let k = eig.eigenvalues.imax();
-    (eig.eigenvalues[k], eig.eigenvectors.column(k).into_owned())
-}
-
-/// Alternates the direction SDP with the top eigenvector until the violation stops growing.
-#[allow(non_snake_case)]
-fn worst_case_search(
-    problem: &FusionProblem,
-    fused: &Fused,
-    mut v: DVector<f64>,
-    settings: &CutsSettings,
-    deadline: &Deadline,
-) -> Result<(f64, DMatrix<f64>), SolveError> {
-    let mut best = (
-        f64::NEG_INFINITY,
-        DMatrix::zeros(problem.dim(), problem.dim()),
-    );
-    for _ in 0..10 {
-        let P_ab = worst_cross_for_direction(problem, fused, &v, settings, deadline)?;
-        let (violation, next) = top_eigen(&violation_matrix(problem, fused, &P_ab));
-        let improved = violation > best.0 + 1e-12 * violation.abs().max(1.0);
-        if violation > best.0 {
-            best = (violation, P_ab);
-        }
-        if !improved || next.dot(&v).abs() > 1.0 - 1e-12 {
-            break;
-        }
-        v = next;
-    }
-    Ok(best)
-}
-
-/// `argmax_{P_ab} 2 (K_aᵀv)ᵀ P_ab (K_bᵀv)` over `[[P_a, P_ab], [P_abᵀ, P_b]] ⪰ 0` with the
-/// known zeros: one PSD cone of size `2n` over the free entries of `P_ab`.
-#[allow(non_snake_case)]
-fn worst_cross_for_direction(
-    problem: &FusionProblem,
-    fused: &Fused,
-    v: &DVector<f64>,
-    settings: &CutsSettings,
-    deadline: &Deadline,
-) -> Result<DMatrix<f64>, SolveError> {
-    let n = problem.dim();
-    let (u_a, u_b) = (fused.K_a.tr_mul(v), fused.K_b.tr_mul(v));
-    let free: Vec<(usize, usize)> = (0..n)
-        .flat_map(|i| (0..n).map(move |j| (i, j)))
-        .filter(|&(i, j)| problem.cross_pattern.is_unknown(i, j))
-        .collect();
-    if free.is_empty() {
-        return Ok(DMatrix::zeros(n, n));
-    }
-    let m = 2 * n;
-    let svec = |r: usize, c: usize| svec_index(r.min(c), r.max(c));
-    let sqrt2 = std::f64::consts::SQRT_2;
-    // s = b − A y = svec(joint(y)) ∈ PSD cone.
-    let mut b = vec![0.0; m * (m + 1) / 2];
-    for c in 0..n {
-        for r in 0..=c {
-            let scale = if r == c { 1.0 } else { sqrt2 };
-            b[svec(r, c)] = scale * problem.P_a[(r, c)];
-            b[svec(n + r, n + c)] = scale * problem.P_b[(r, c)];
-        }
-    }
-    let (mut rows, mut cols, mut vals) = (Vec::new(), Vec::new(), Vec::new());
-    let mut q = vec![0.0; free.len()];
-    for (k, &(i, j)) in free.iter().enumerate() {
-        rows.push(svec(i, n + j));
-        cols.push(k);
-        vals.push(-sqrt2);
-        q[k] = -2.0 * u_a[i] * u_b[j]; // minimise the negated objective
-    }
-    let A = CscMatrix::new_from_triplets(b.len(), free.len(), rows, cols, vals);
-    let P = CscMatrix::zeros((free.len(), free.len()));
-    let cones = [SupportedConeT::PSDTriangleConeT(m)];
-    let (solver, _) = solve_program(
-        &P,
-        &q,
-        &A,
-        &b,
-        &cones,
-        Kkt::Qdldl,
-        (settings.sdp.max_iter, settings.sdp.tolerance),
-        deadline,
-        "the cutting planes' worst-case search",
-    )?;
-    let sol = &solver.solution;
-    let mut P_ab = DMatrix::zeros(n, n);
-    for (k, &(i, j)) in free.iter().enumerate() {
-        P_ab[(i, j)] = sol.x[k];
-    }
-    Ok(P_ab * (1.0 - CUT_SHRINK))
 }
 
 #[cfg(test)]

@@ -1,0 +1,87 @@
+//! The loop's own rule, proven after the loop (the parent's module docs, (6) and (7)): the
+//! proof, the directions where the rule is short, and the choice between two rounds' results.
+
+use nalgebra::DVector;
+
+use super::result::CutsResult;
+use super::settings::{CutsSettings, CutsStop};
+use crate::error::SolveError;
+use crate::fusion::bracket::CLOSED_RTOL;
+use crate::fusion::certify::{certify_rule_short, Certificates, CertifySettings};
+use crate::fusion::program::Deadline;
+use crate::fusion::upper::trace_upper_bound;
+use crate::fusion::FusionProblem;
+
+/// Where the certified rule left the bracket of a three-state problem open, the loop's own
+/// rule proven on cones of directions (module docs, "Its own rule, proven"), kept when its
+/// proven trace is smaller; past the time limit, or where the solver fails on it, the result
+/// as it is.
+///
+/// Also returns, where the proof ran and left the bracket open, the directions where the
+/// loop's rule is short (`certify_rule_short`).
+pub(super) fn prove_own_rule(
+    problem: &FusionProblem,
+    mut result: CutsResult,
+    settings: &CutsSettings,
+    deadline: &Deadline,
+) -> Result<(CutsResult, Vec<DVector<f64>>), SolveError> {
+    let Some(upper) = result.certified_trace else {
+        return Ok((result, Vec::new()));
+    };
+    // The time left, read once (a limit of zero would be refused as a setting).
+    let left = deadline.remaining();
+    if result.gap_closed
+        || problem.dim() != 3
+        || settings.own_rule_cones == 0
+        || result.stop == CutsStop::TimeLimit
+        || left <= 0.0
+    {
+        return Ok((result, Vec::new()));
+    }
+    let certify_settings = CertifySettings {
+        time_limit: settings.time_limit.map(|_| left),
+        ..settings.certify_settings
+    };
+    let (proven, short) = match certify_rule_short(
+        problem,
+        &result.fused,
+        settings.own_rule_cones,
+        CLOSED_RTOL,
+        &certify_settings,
+    ) {
+        Ok(Some(proven)) => proven,
+        Ok(None)
+        | Err(
+            SolveError::TimeLimit { .. }
+            | SolveError::SolverFailed { .. }
+            | SolveError::NotProven { .. },
+        ) => return Ok((result, Vec::new())),
+        Err(e) => return Err(e),
+    };
+    let trace = trace_upper_bound(&proven.fused.P);
+    if trace < upper {
+        result.certified_trace = Some(trace);
+        result.certificates = Some(Certificates::of(&proven));
+        result.certified = Some(proven.fused);
+        result.own_rule_proven = true;
+        result.gap_closed = result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
+    }
+    let short = if result.gap_closed { Vec::new() } else { short };
+    Ok((result, short))
+}
+
+/// Of two results of the loop on one problem, the one whose proven bracket is narrower, with
+/// the larger of their proven lower ends (both bound the same robust optimum).
+pub(super) fn tighter(a: CutsResult, b: CutsResult, tolerance: f64) -> CutsResult {
+    let lower = a.lower_bound.max(b.lower_bound);
+    let upper = |r: &CutsResult| r.certified_trace.unwrap_or(f64::INFINITY);
+    let mut kept = if upper(&a) < upper(&b) { a } else { b };
+    kept.lower_bound = lower;
+    if let Some(trace) = kept.certified_trace {
+        kept.gap_closed |= lower >= trace - tolerance * trace.max(1.0);
+    }
+    kept
+}
+
+/// Most rounds the proof's short directions restart the loop (module docs, (7)).
+pub(super) const PROOF_ROUNDS: usize = 2;
