@@ -225,21 +225,6 @@ fn cone_sizes_and_monomials() {
     assert_eq!(multinomial(&[2, 1]), 3.0);
 }
 
-/// `v` in the closed cone spanned by `u` or its negative, exactly: the three facet normals'
-/// products with `v` share a sign.
-fn in_cone(u: &[[i64; 3]; 3], v: [i64; 3]) -> bool {
-    let cross = |a: [i64; 3], b: [i64; 3]| {
-        [
-            a[1] as i128 * b[2] as i128 - a[2] as i128 * b[1] as i128,
-            a[2] as i128 * b[0] as i128 - a[0] as i128 * b[2] as i128,
-            a[0] as i128 * b[1] as i128 - a[1] as i128 * b[0] as i128,
-        ]
-    };
-    let d = [cross(u[1], u[2]), cross(u[2], u[0]), cross(u[0], u[1])]
-        .map(|n| n[0] * v[0] as i128 + n[1] * v[1] as i128 + n[2] * v[2] as i128);
-    d.iter().all(|&t| t >= 0) || d.iter().all(|&t| t <= 0)
-}
-
 #[test]
 #[allow(non_snake_case)]
 fn bisected_cones_still_cover_space_and_their_multipliers_stay_exact() {
@@ -250,49 +235,15 @@ fn bisected_cones_still_cover_space_and_their_multipliers_stay_exact() {
     // `bisect` accepts the cone. Checked in integers on random directions and a grid, over a
     // refinement that cuts cones in a fixed scattered order and one cone down to the limit.
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(44);
-    let mut cones = cone_generators(4).unwrap();
-    let mut depth = 0;
-    for step in 0..120 {
-        // Most steps cut the first cone (deep, thin cones), the others a scattered one.
-        let k = if step % 3 == 0 {
-            0
-        } else {
-            (step * 37) % cones.len()
-        };
-        let Some([a, b]) = bisect(&cones[k]) else {
-            // Refused only at the limit of exact multipliers.
-            let u = cones[k];
-            assert!(
-                [(0, 1), (1, 2), (0, 2)]
-                    .iter()
-                    .any(|&(i, j)| (0..3).any(|e| (u[i][e] + u[j][e]).abs() >= 1 << 12)),
-                "{u:?} refused below the limit"
-            );
-            continue;
-        };
-        let parent = cones[k];
-        for _ in 0..300 {
-            let v = [0; 3].map(|_| rng.random_range(-5000i64..=5000));
-            let in_child = in_cone(&a, v) || in_cone(&b, v);
-            assert_eq!(
-                in_cone(&parent, v),
-                in_child,
-                "{parent:?} → {a:?}, {b:?} at {v:?}"
-            );
-        }
-        cones[k] = a;
-        cones.push(b);
-        if k == 0 {
-            depth += 1;
-        }
-    }
+    let (cones, depth, _) =
+        refine_checked(cone_generators(4).unwrap(), 120, 1 << 12, 5000, &mut rng);
     assert!(depth >= 12, "cut the first cone {depth} times");
     for x in -8i64..=8 {
         for y in -8i64..=8 {
             for z in -8i64..=8 {
                 let v = [x, y, z];
                 if v != [0, 0, 0] {
-                    assert!(cones.iter().any(|u| in_cone(u, v)), "{v:?} uncovered");
+                    assert!(cones.iter().any(|u| in_cone_n(u, v)), "{v:?} uncovered");
                 }
             }
         }
@@ -442,43 +393,10 @@ fn four_state_cones_cover_space_and_their_multipliers_stay_exact() {
     // `bisect` accepts it, refusing only at the limit of exact multipliers (2⁷). Checked in
     // integers with a determinant written here, on random directions and a grid.
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
-    let mut cones = orthants::<4>();
+    let cones = orthants::<4>();
     assert_eq!(cones.len(), 8);
     assert!(cones.iter().all(|u| leibniz(u) != 0));
-    let (mut depth, mut refused) = (0, 0);
-    for step in 0..150 {
-        let k = if step % 3 == 0 {
-            0
-        } else {
-            (step * 37) % cones.len()
-        };
-        let Some([a, b]) = bisect(&cones[k]) else {
-            let u = cones[k];
-            assert!(
-                (0..4)
-                    .any(|i| (i + 1..4).any(|j| (0..4).any(|e| (u[i][e] + u[j][e]).abs() >= 128))),
-                "{u:?} refused below the limit"
-            );
-            refused += 1;
-            continue;
-        };
-        let parent = cones[k];
-        assert!(leibniz(&a) != 0 && leibniz(&b) != 0);
-        for _ in 0..300 {
-            let v = [0; 4].map(|_| rng.random_range(-3000i64..=3000));
-            let in_child = in_cone_n(&a, v) || in_cone_n(&b, v);
-            assert_eq!(
-                in_cone_n(&parent, v),
-                in_child,
-                "{parent:?} → {a:?}, {b:?} at {v:?}"
-            );
-        }
-        cones[k] = a;
-        cones.push(b);
-        if k == 0 {
-            depth += 1;
-        }
-    }
+    let (cones, depth, mut refused) = refine_checked(cones, 150, 128, 3000, &mut rng);
     // One cone cut again and again (always its first half) until `bisect` refuses it.
     let mut thin = orthants::<4>()[5];
     for _ in 0..10_000 {
@@ -542,4 +460,53 @@ fn four_state_cones_cover_space_and_their_multipliers_stay_exact() {
             }
         }
     }
+}
+
+/// Cuts `cones` `steps` times — most steps the first cone (deep, thin cones), the others a
+/// scattered one — and checks each cut: the halves are non-degenerate and exactly subdivide
+/// the parent (on 300 random integer directions with entries up to `spread`), and `bisect`
+/// refuses a cone only where a new generator would reach `limit`. Returns the cones, how
+/// often the first one was cut and how many cuts were refused.
+fn refine_checked<const N: usize>(
+    mut cones: Vec<[[i64; N]; N]>,
+    steps: usize,
+    limit: i64,
+    spread: i64,
+    rng: &mut rand_chacha::ChaCha8Rng,
+) -> (Vec<[[i64; N]; N]>, usize, usize) {
+    let (mut depth, mut refused) = (0, 0);
+    for step in 0..steps {
+        let k = if step % 3 == 0 {
+            0
+        } else {
+            (step * 37) % cones.len()
+        };
+        let Some([a, b]) = bisect(&cones[k]) else {
+            let u = cones[k];
+            assert!(
+                (0..N).any(|i| (i + 1..N)
+                    .any(|j| (0..N).any(|e| (u[i][e] + u[j][e]).abs() >= limit))),
+                "{u:?} refused below the limit"
+            );
+            refused += 1;
+            continue;
+        };
+        let parent = cones[k];
+        assert!(leibniz(&a) != 0 && leibniz(&b) != 0);
+        for _ in 0..300 {
+            let v = [0; N].map(|_| rng.random_range(-spread..=spread));
+            let in_child = in_cone_n(&a, v) || in_cone_n(&b, v);
+            assert_eq!(
+                in_cone_n(&parent, v),
+                in_child,
+                "{parent:?} → {a:?}, {b:?} at {v:?}"
+            );
+        }
+        cones[k] = a;
+        cones.push(b);
+        if k == 0 {
+            depth += 1;
+        }
+    }
+    (cones, depth, refused)
 }
