@@ -10,7 +10,7 @@
 //! the smaller of nmCI's proven trace and that certified rule's. Both are rigorous, so the gap
 //! is too.
 //!
-//! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--cones 16,64] [--adaptive 32] [--own-rule 64] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--tolerance 1e-10] [--verbose]`
+//! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--cones 16,64] [--adaptive 32] [--own-rule 64] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--time-limit 30] [--tolerance 1e-10] [--verbose]`
 //!
 //! `--own-rule 64` (three or four states) adds a row for the cutting planes' proven upper end.
 //! At three states it is `sdp_cuts` itself, run with `own_rule_cones` 64 (its guide, the
@@ -19,6 +19,8 @@
 //! stops at its guide (`fusion::cuts`, "Its own rule, proven"), the loop's rule is proven by
 //! `certify_rule` where the guide leaves the bracket open: the row's times are the proof's
 //! alone, where it ran, and the notes give the cutting planes' and the end-to-end times.
+//! At three states a last row sums up `sdp_cuts` over the classes run: closed, the median
+//! and worst end-to-end time, and how many problems stopped at `--time-limit`.
 //!
 //! Pattern classes (`P_ab[i][j]` unknown where listed, known zero elsewhere):
 //! - `anti-diagonal`: `j = n − 1 − i`;
@@ -118,6 +120,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(i) => args[i + 1].parse()?,
         None => 1e-10,
     };
+    // `--time-limit 30`: the cutting planes' time limit in seconds (`CutsSettings::time_limit`;
+    // none by default; the explorer's second stage runs with 30).
+    let time_limit = match args.iter().position(|a| a == "--time-limit") {
+        Some(i) => Some(args[i + 1].parse::<f64>()?),
+        None => None,
+    };
     // The certificate's solver tolerance (`CertifySettings::tolerance`; default the library's).
     let tolerance = match args.iter().position(|a| a == "--tolerance") {
         Some(i) => args[i + 1].parse()?,
@@ -125,7 +133,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     println!("| n | pattern | certificate | median gap | worst gap | closed (≤ 1e-6) | median time | worst time | notes |");
     println!("|---|---|---|---|---|---|---|---|---|");
+    // `sdp_cuts` at three states: its row's name, and the note on the time limit.
+    let cuts_row = |budget: u32| {
+        let limit = time_limit.map_or(String::new(), |t| format!(", time limit {t} s"));
+        format!(
+            "`sdp_cuts`: level {}, else its own rule proven on ≤ {budget} cones (cutting planes to {cuts_tol:.0e}{limit})",
+            CertifySettings::auto_level(3)
+        )
+    };
+    let limit_note = |timed_out: usize| match time_limit {
+        Some(_) => format!("; stopped at the time limit: {timed_out}"),
+        None => String::new(),
+    };
     for &n in &dims {
+        // Per class at three states: closed, count, stopped by the time limit, times.
+        let mut all: Vec<(usize, usize, usize, Vec<f64>)> = Vec::new();
         for (c, class) in ["anti-diagonal", "chain", "random 0.6", "one zero"]
             .into_iter()
             .enumerate()
@@ -147,7 +169,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 (Vec::new(), Vec::new(), Vec::new(), Vec::new());
             // Three states: problems whose bound is the loop's own rule, and whose loop the
             // proof restarted.
-            let (mut proven_in_loop, mut restarted) = (0, 0);
+            let (mut proven_in_loop, mut restarted, mut timed_out) = (0, 0, 0);
             while done < count {
                 let pat = pattern(class, n, &mut rng);
                 let p = FusionProblem::from_covariances(
@@ -166,6 +188,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     &CutsSettings {
                         tolerance: cuts_tol,
                         max_iterations: 200,
+                        time_limit,
                         certify_settings: CertifySettings {
                             tolerance,
                             ..CertifySettings::default()
@@ -216,6 +239,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     if n == 3 {
                         proven_in_loop += usize::from(cuts.own_rule_proven);
                         restarted += usize::from(cuts.proof_rounds > 0);
+                        timed_out += usize::from(cuts.stop == CutsStop::TimeLimit);
                     } else if gap(guide) > CLOSED_RTOL {
                         let start = Instant::now();
                         let settings = CertifySettings {
@@ -309,13 +333,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if let (Some(budget), false) = (own_rule, own_gaps.is_empty()) {
                 let closed = own_gaps.iter().filter(|&&g| g <= CLOSED_RTOL).count();
                 if n == 3 {
+                    all.push((closed, count, timed_out, cuts_times.clone()));
                     println!(
-                        "| {n} | {class} | `sdp_cuts`: level {}, else its own rule proven on ≤ {budget} cones (cutting planes to {cuts_tol:.0e}) | {:.1e} | {:.1e} | {closed}/{count} | {:.0} ms | {:.0} ms | end to end; own rule the upper end on {proven_in_loop}; loop restarted from the proof's directions on {restarted} |",
-                        CertifySettings::auto_level(n),
+                        "| {n} | {class} | {} | {:.1e} | {:.1e} | {closed}/{count} | {:.0} ms | {:.0} ms | end to end; own rule the upper end on {proven_in_loop}; loop restarted from the proof's directions on {restarted}{} |",
+                        cuts_row(budget),
                         quantile(&mut own_gaps, 0.5),
                         quantile(&mut own_gaps, 1.0),
                         1e3 * quantile(&mut cuts_times, 0.5),
                         1e3 * quantile(&mut cuts_times, 1.0),
+                        limit_note(timed_out),
                     );
                 }
                 let ran = own_times.len();
@@ -362,6 +388,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     notes.join("; "),
                 );
             }
+        }
+        if let (Some(budget), true) = (own_rule, all.len() > 1) {
+            let closed: usize = all.iter().map(|a| a.0).sum();
+            let count: usize = all.iter().map(|a| a.1).sum();
+            let timed_out: usize = all.iter().map(|a| a.2).sum();
+            let mut times: Vec<f64> = all.iter().flat_map(|a| a.3.iter().copied()).collect();
+            println!(
+                "| {n} | all {} classes | {} | | | **{closed}/{count}** | **{:.0} ms** | {:.0} ms | end to end{} |",
+                all.len(),
+                cuts_row(budget),
+                1e3 * quantile(&mut times, 0.5),
+                1e3 * quantile(&mut times, 1.0),
+                limit_note(timed_out),
+            );
         }
     }
     Ok(())

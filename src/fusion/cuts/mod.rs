@@ -47,28 +47,29 @@
 //! `constraints` counts the final program, `constraints_generated` the whole run.
 //!
 //! (6) Its own rule, proven. The certified rule is the loop's guide and its upper end. Where
-//! that leaves the bracket open (not closed to the loop's tolerance, as in (2): at the default
-//! `10⁻⁷` a stricter test than the bracket's `10⁻⁶`) on a problem of one block of three states, the loop's own
+//! that leaves the bracket open wider than `CLOSED_RTOL` (`10⁻⁶`, the proof's own target; a
+//! bracket closed to that is not proven again where the loop's tolerance is stricter, as at
+//! the default `10⁻⁷`) on a problem of one block of three states, the loop's own
 //! final rule `(K, P̄)` — a relaxation's, with a trace near the lower end — is proven after
 //! the loop (`certify_rule`; module docs of `fusion::certify`, "At a given rule") on at most
 //! `own_rule_cones` cones of directions in the time left. Its bound replaces the certified
 //! rule's as `certified` when its proven trace is smaller (`own_rule_proven`); the gain is
 //! the loop's, so `sdp_cuts`' own gain is then proven to the bracket's upper end. A proof the
 //! solver fails on, or that runs out of time, leaves the result as it was. `certify_rule`
-//! also proves four-state rules, but on 64 cones of ℝ⁴ it takes about a minute, four to five
-//! times the loop's own time, and closed one more of the 20 measured brackets than the
-//! default certificate (docs/methods.md, "Four states"), so the loop runs it at three states
-//! only.
+//! also proves four-state rules, but on 64 cones of ℝ⁴ it takes several times the loop's own
+//! time and closes few more brackets than the default certificate (docs/methods.md, "Four
+//! states", measures both), so the loop runs it at three states only.
 //!
 //! (7) The proof finds what the search missed. The search is local, so the loop can stop on
 //! "no violation found" with `P̄` short of a bound in a narrow set of directions; the proof
 //! then needs a large `t` on the cones there, and cutting them does not lower it (module docs
 //! of `fusion::certify`, "At a given rule"). A cone's `t` bounds the violation of `P̄` on it
-//! from above, so where the proof leaves the bracket open the search runs again from the
-//! centres of the cones with the largest `t` (at most 8). If it finds violations above the
-//! tolerance, they are added as cuts and the loop goes on (at most twice); the result with
-//! the narrower proven bracket is returned, with the larger of the proven lower ends (both
-//! bound the same optimum). Past the time limit the earlier round's result stands.
+//! from above, so where the proof leaves the bracket open (wider than `CLOSED_RTOL`) the
+//! search runs again from the centres of the cones with the largest `t` (at most 8). If it
+//! finds violations above the tolerance, they are added as cuts and the loop goes on (at most
+//! twice); the result with the narrower proven bracket is returned, with the larger of the
+//! proven lower ends (both bound the same optimum). Past the time limit the earlier round's
+//! result stands.
 //!
 //! `converged: false` reports an iteration or time limit (`stop` says which); a solver
 //! failure is returned as an error. Measurements: docs/methods.md (`examples/cuts_probe.rs`).

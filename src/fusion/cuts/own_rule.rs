@@ -6,19 +6,19 @@ use nalgebra::DVector;
 use super::result::CutsResult;
 use super::settings::{CutsSettings, CutsStop};
 use crate::error::SolveError;
-use crate::fusion::bracket::CLOSED_RTOL;
+use crate::fusion::bracket::{Bracket, UpperRule, CLOSED_RTOL};
 use crate::fusion::certify::{certify_rule_short, Certificates, CertifySettings};
 use crate::fusion::program::Deadline;
 use crate::fusion::upper::trace_upper_bound;
 use crate::fusion::FusionProblem;
 
-/// Where the certified rule left the bracket of a three-state problem open, the loop's own
-/// rule proven on cones of directions (module docs, "Its own rule, proven"), kept when its
-/// proven trace is smaller; past the time limit, or where the solver fails on it, the result
-/// as it is.
+/// Where the certified rule left the bracket of a three-state problem open (wider than
+/// [`CLOSED_RTOL`], the proof's own target), the loop's own rule proven on cones of
+/// directions (module docs, "Its own rule, proven"), kept when its proven trace is smaller;
+/// past the time limit, or where the solver fails on it, the result as it is.
 ///
-/// Also returns, where the proof ran and left the bracket open, the directions where the
-/// loop's rule is short (`certify_rule_short`).
+/// Also returns, where the proof ran and left the bracket open wider than [`CLOSED_RTOL`],
+/// the directions where the loop's rule is short (`certify_rule_short`).
 pub(super) fn prove_own_rule(
     problem: &FusionProblem,
     mut result: CutsResult,
@@ -31,6 +31,7 @@ pub(super) fn prove_own_rule(
     // The time left, read once (a limit of zero would be refused as a setting).
     let left = deadline.remaining();
     if result.gap_closed
+        || closed(result.lower_bound, upper)
         || problem.dim() != 3
         || settings.own_rule_cones == 0
         || result.stop == CutsStop::TimeLimit
@@ -66,8 +67,23 @@ pub(super) fn prove_own_rule(
         result.own_rule_proven = true;
         result.gap_closed = result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
     }
-    let short = if result.gap_closed { Vec::new() } else { short };
+    let short = match result.certified_trace {
+        Some(t) if !result.gap_closed && !closed(result.lower_bound, t) => short,
+        _ => Vec::new(),
+    };
     Ok((result, short))
+}
+
+/// Whether the proven bracket `[lower, upper]` is closed to [`CLOSED_RTOL`], as the bracket
+/// reports it.
+fn closed(lower: f64, upper: f64) -> bool {
+    let upper_rule = UpperRule::Certified;
+    Bracket {
+        lower,
+        upper,
+        upper_rule,
+    }
+    .closed(CLOSED_RTOL)
 }
 
 /// Of two results of the loop on one problem, the one whose proven bracket is narrower, with
