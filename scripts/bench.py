@@ -10,6 +10,8 @@ Sections (each one command, run in order on an otherwise idle machine):
   brackets  examples/certify_levels: proven brackets at 2 and 3 states, the default certificate
             and, at 3 states, the cutting planes' own rule proven on cones where it leaves them open
   brackets4 the same at 4 states, 5 problems per class (each takes minutes)
+  families  examples/certify_levels at 3 states: the certificate families (levels 2 and 3, 64
+            uniform cones, adaptive cones up to 32) on the brackets' 200 problems
   study     `nmci track` (release), the paper's 16-agent study, and its headline result
   python    scripts/python.sh bench: nmci from Python against numpy, scipy and cvxpy
   stack     scripts/python.sh bench-stack: k pairs by CI, nmci's stack against numpy, a loop, Stone Soup
@@ -139,6 +141,14 @@ def brackets4():
     return cmd, "\n".join(l for l in out.splitlines() if l.startswith("|"))
 
 
+def families():
+    # The certified rule's families at three states, beside level 2 (the default): level 3,
+    # 64 uniform cones and at most 32 adaptive cones (docs/methods.md, "How tight").
+    cmd = "cargo run --quiet --release --example certify_levels -- --dims 3 --count 50 --levels 2,3 --cones 64 --adaptive 32"
+    out = sh(cmd)
+    return cmd, "\n".join(l for l in out.splitlines() if l.startswith("|"))
+
+
 def study():
     sh("cargo build --quiet --release -p nmci-cli")
     with tempfile.TemporaryDirectory() as out:
@@ -196,6 +206,7 @@ SECTIONS = {
     "rust": ("Rust (criterion)", rust),
     "brackets": ("Proven brackets (the certified rule, and the cutting planes' own rule proven, against the cutting planes' lower end)", brackets),
     "brackets4": ("Proven brackets at four states (the cutting planes' own rule proven on cones of ℝ⁴)", brackets4),
+    "families": ("Certificate families at three states (levels, uniform and adaptive cones)", families),
     "study": ("The 16-agent tracking study", study),
     "python": ("From Python, beside numpy, scipy and cvxpy", python),
     "stack": ("Stacks: k pairs by CI in one call, one thread", stack),
