@@ -119,11 +119,13 @@ def brackets():
     # The defaults: two states, 24 sectors (level 1 beside it); three states, level 2, and
     # what `sdp_cuts` reports: level 2, else its own rule proven on at most 64 cones, with the
     # cutting planes at 1e-10, and as the explorer's second stage runs them: their default
-    # tolerance (1e-7) and a time limit of 30 s (`PROVE_SECONDS`, www/prove-client.js).
+    # tolerance (1e-7) and a time limit of 30 s (`PROVE_SECONDS`, www/prove-client.js), with
+    # the default budget of 64 cones and with 16 (closed fraction against the cone budget).
     for args in [
         "--dims 2 --count 50 --levels 1 --sectors 24",
         "--dims 3 --count 50 --levels 2 --own-rule 64",
         "--dims 3 --count 50 --levels 2 --own-rule 64 --cuts-tol 1e-7 --time-limit 30",
+        "--dims 3 --count 50 --levels 2 --own-rule 16 --cuts-tol 1e-7 --time-limit 30",
     ]:
         cmd = f"cargo run --quiet --release --example certify_levels -- {args}"
         cmds.append(cmd)
