@@ -10,8 +10,8 @@ Sections (each one command, run in order on an otherwise idle machine):
   brackets  examples/certify_levels: proven brackets at 2 and 3 states, the default certificate
             and, at 3 states, the cutting planes' own rule proven on cones where it leaves them open
   brackets4 the same at 4 states, 5 problems per class (each takes minutes)
-  families  examples/certify_levels at 3 states: the certificate families (levels 2 and 3, 64
-            uniform cones, adaptive cones up to 32) on the brackets' 200 problems
+  families  examples/certify_levels: the certificate families on the brackets' problems (2 states:
+            levels 1-5, 16/24/32 sectors; 3 states: levels 1-3, 64 cones, adaptive up to 32)
   study     `nmci track` (release), the paper's 16-agent study, and its headline result
   python    scripts/python.sh bench: nmci from Python against numpy, scipy and cvxpy
   stack     scripts/python.sh bench-stack: k pairs by CI, nmci's stack against numpy, a loop, Stone Soup
@@ -144,11 +144,20 @@ def brackets4():
 
 
 def families():
-    # The certified rule's families at three states, beside level 2 (the default): level 3,
-    # 64 uniform cones and at most 32 adaptive cones (docs/methods.md, "How tight").
-    cmd = "cargo run --quiet --release --example certify_levels -- --dims 3 --count 50 --levels 2,3 --cones 64 --adaptive 32"
-    out = sh(cmd)
-    return cmd, "\n".join(l for l in out.splitlines() if l.startswith("|"))
+    # The certified rule's families on the brackets' problems (docs/methods.md, "How tight"):
+    # at two states levels 1-5 and 16, 24 (the default) and 32 sectors; at three, level 1,
+    # level 2 (the default), level 3, 64 uniform cones and at most 32 adaptive cones.
+    parts = []
+    cmds = []
+    for args in [
+        "--dims 2 --count 50 --levels 1,2,3,4,5 --sectors 16,24,32",
+        "--dims 3 --count 50 --levels 1,2,3 --cones 64 --adaptive 32",
+    ]:
+        cmd = f"cargo run --quiet --release --example certify_levels -- {args}"
+        cmds.append(cmd)
+        out = sh(cmd)
+        parts.append("\n".join(l for l in out.splitlines() if l.startswith("|")))
+    return " ; ".join(cmds), "\n\n".join(parts)
 
 
 def study():
