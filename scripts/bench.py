@@ -217,7 +217,7 @@ SECTIONS = {
     "rust": ("Rust (criterion)", rust),
     "brackets": ("Proven brackets (the certified rule, and the cutting planes' own rule proven, against the cutting planes' lower end)", brackets),
     "brackets4": ("Proven brackets at four states (the cutting planes' own rule proven on cones of ℝ⁴)", brackets4),
-    "families": ("Certificate families at three states (levels, uniform and adaptive cones)", families),
+    "families": ("Certificate families at two and three states (levels, sectors, uniform and adaptive cones)", families),
     "study": ("The 16-agent tracking study", study),
     "python": ("From Python, beside numpy, scipy and cvxpy", python),
     "stack": ("Stacks: k pairs by CI in one call, one thread", stack),
