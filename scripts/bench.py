@@ -9,6 +9,7 @@ Sections (each one command, run in order on an otherwise idle machine):
   rust      criterion benches of benches/fusion.rs (a chosen set, shortened measurement)
   brackets  examples/certify_levels: proven brackets at 2 and 3 states, the default certificate
             and, at 3 states, the cutting planes' own rule proven on cones where it leaves them open
+  explorer  the same at 3 states as the explorer's second stage runs sdp_cuts (1e-7, 30 s; 64 and 16 cones)
   brackets4 the same at 4 states, 5 problems per class (each takes minutes)
   families  examples/certify_levels: the certificate families on the brackets' problems (2 states:
             levels 1-5, 16/24/32 sectors; 3 states: levels 1-3, 64 cones, adaptive up to 32)
@@ -114,19 +115,30 @@ def rust():
 
 
 def brackets():
-    parts = []
-    cmds = []
     # The defaults: two states, 24 sectors (level 1 beside it); three states, level 2, and
     # what `sdp_cuts` reports: level 2, else its own rule proven on at most 64 cones, with the
-    # cutting planes at 1e-10, and as the explorer's second stage runs them: their default
-    # tolerance (1e-7) and a time limit of 30 s (`PROVE_SECONDS`, www/prove-client.js), with
-    # the default budget of 64 cones and with 16 (closed fraction against the cone budget).
-    for args in [
+    # cutting planes at 1e-10.
+    return certify_levels([
         "--dims 2 --count 50 --levels 1 --sectors 24",
         "--dims 3 --count 50 --levels 2 --own-rule 64",
+    ])
+
+
+def explorer():
+    # Three states as the explorer's second stage runs `sdp_cuts`: the loop's default tolerance
+    # (1e-7) and a time limit of 30 s (`PROVE_SECONDS`, www/prove-client.js), with the default
+    # budget of 64 cones and with 16 (closed fraction against the cone budget).
+    return certify_levels([
         "--dims 3 --count 50 --levels 2 --own-rule 64 --cuts-tol 1e-7 --time-limit 30",
         "--dims 3 --count 50 --levels 2 --own-rule 16 --cuts-tol 1e-7 --time-limit 30",
-    ]:
+    ])
+
+
+def certify_levels(runs):
+    """`examples/certify_levels` once per argument list: the commands and their tables."""
+    parts = []
+    cmds = []
+    for args in runs:
         cmd = f"cargo run --quiet --release --example certify_levels -- {args}"
         cmds.append(cmd)
         out = sh(cmd)
@@ -147,17 +159,10 @@ def families():
     # The certified rule's families on the brackets' problems (docs/methods.md, "How tight"):
     # at two states levels 1-5 and 16, 24 (the default) and 32 sectors; at three, level 1,
     # level 2 (the default), level 3, 64 uniform cones and at most 32 adaptive cones.
-    parts = []
-    cmds = []
-    for args in [
+    return certify_levels([
         "--dims 2 --count 50 --levels 1,2,3,4,5 --sectors 16,24,32",
         "--dims 3 --count 50 --levels 1,2,3 --cones 64 --adaptive 32",
-    ]:
-        cmd = f"cargo run --quiet --release --example certify_levels -- {args}"
-        cmds.append(cmd)
-        out = sh(cmd)
-        parts.append("\n".join(l for l in out.splitlines() if l.startswith("|")))
-    return " ; ".join(cmds), "\n\n".join(parts)
+    ])
 
 
 def study():
@@ -216,6 +221,7 @@ def browser():
 SECTIONS = {
     "rust": ("Rust (criterion)", rust),
     "brackets": ("Proven brackets (the certified rule, and the cutting planes' own rule proven, against the cutting planes' lower end)", brackets),
+    "explorer": ("Proven brackets as the explorer's second stage runs them (cutting planes to 1e-7, 30 s)", explorer),
     "brackets4": ("Proven brackets at four states (the cutting planes' own rule proven on cones of ℝ⁴)", brackets4),
     "families": ("Certificate families at two and three states (levels, sectors, uniform and adaptive cones)", families),
     "study": ("The 16-agent tracking study", study),

@@ -71,6 +71,14 @@
 //! proven lower ends (both bound the same optimum). Past the time limit the earlier round's
 //! result stands.
 //!
+//! (8) Still open, a finer loop. How tight the proof can be is set by `P̄`: where `P̄` is short
+//! of a bound by up to the loop's tolerance (times `tr P̄`) in the directions it stopped at,
+//! the proof has to add that back. So where the proof leaves the bracket open (wider than
+//! `CLOSED_RTOL`) and (7) finds no cuts to go on with, the loop goes on once from the
+//! round's cuts to `REFINED_TOLERANCE` (`10⁻¹⁰`) and the proof runs again at its end; the
+//! narrower bracket is kept as in (7). Brackets that close at the loop's own tolerance never
+//! pay for it.
+//!
 //! `converged: false` reports an iteration or time limit (`stop` says which); a solver
 //! failure is returned as an error. Measurements: docs/methods.md (`examples/cuts_probe.rs`).
 
@@ -82,7 +90,7 @@ mod settings;
 pub use result::CutsResult;
 pub use settings::{CutsSettings, CutsStop};
 
-use own_rule::{prove_own_rule, tighter, PROOF_ROUNDS};
+use own_rule::{prove_own_rule, still_open, tighter, PROOF_ROUNDS, REFINED_TOLERANCE};
 use search::{
     direction_grid, random_starts, top_eigen, violation_matrix, worst_case_search,
     OPEN_BRACKET_STARTS,
@@ -255,6 +263,9 @@ fn cuts_at_scale(
     let mut earlier: Option<CutsResult> = None;
     // Constraints generated in the rounds before, not carried into this one.
     let mut earlier_generated = 0;
+    // The loop's tolerance: the setting's, then `REFINED_TOLERANCE` once where the proof left
+    // the bracket open (module docs, (8)).
+    let mut tolerance = settings.tolerance;
     loop {
         iterations += 1;
         let set = CrossSamples {
@@ -289,7 +300,7 @@ fn cuts_at_scale(
             Err(e) => return Err(e),
         };
         best_lower = best_lower.max(opt.lower_bound);
-        let threshold = settings.tolerance * opt.fused.trace().max(1.0);
+        let threshold = tolerance * opt.fused.trace().max(1.0);
         // Worst-case search from the top eigenvector of the worst current constraint and
         // from random directions.
         let mut starts: Vec<DVector<f64>> = Vec::with_capacity(settings.restarts);
@@ -328,8 +339,8 @@ fn cuts_at_scale(
             found.extend(search(&opt.fused, start)?);
         }
         let mut violation = found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
-        let gap_closed = certified_trace
-            .is_some_and(|upper| best_lower >= upper - settings.tolerance * upper.max(1.0));
+        let gap_closed =
+            certified_trace.is_some_and(|upper| best_lower >= upper - tolerance * upper.max(1.0));
         if violation <= threshold && !gap_closed && certified_trace.is_some() {
             // The local search found nothing but the proven bracket is still open: before
             // stopping, look for violations from random admissible points too (module docs).
@@ -381,7 +392,11 @@ fn cuts_at_scale(
             let lower = best_lower.max(opt.lower_bound);
             let generated = earlier_generated + generated;
             let latest = finish(opt, cross, generated, iterations, violation, stop, lower);
-            let (latest, short) = prove_own_rule(problem, latest, settings, &deadline)?;
+            let now = CutsSettings {
+                tolerance,
+                ..*settings
+            };
+            let (latest, short) = prove_own_rule(problem, latest, &now, &deadline)?;
             // Module docs, (7): the proof's short directions, searched for cuts at this
             // round's rule; the cuts found restart the loop from this round's cuts.
             if converged && rounds < PROOF_ROUNDS && iterations < settings.max_iterations {
@@ -412,15 +427,35 @@ fn cuts_at_scale(
                         }
                     }
                     earlier = Some(match earlier.take() {
-                        Some(before) => tighter(before, latest, settings.tolerance),
+                        Some(before) => tighter(before, latest, tolerance),
                         None => latest,
                     });
                     previous = None;
                     continue;
                 }
             }
+            // Module docs, (8): still open after the proof, the loop goes on from this round's
+            // cuts to `REFINED_TOLERANCE`, once, and the proof runs again at its end.
+            if converged
+                && tolerance > REFINED_TOLERANCE
+                && settings.own_rule_cones > 0
+                && problem.dim() == 3
+                && still_open(&latest)
+                && iterations < settings.max_iterations
+                && !deadline.passed()
+            {
+                tolerance = REFINED_TOLERANCE;
+                cross = latest.cross.clone();
+                earlier_generated = generated - cross.len();
+                earlier = Some(match earlier.take() {
+                    Some(before) => tighter(before, latest, tolerance),
+                    None => latest,
+                });
+                previous = None;
+                continue;
+            }
             let mut result = match earlier.take() {
-                Some(before) => tighter(before, latest, settings.tolerance),
+                Some(before) => tighter(before, latest, tolerance),
                 None => latest,
             };
             (result.iterations, result.constraints_generated) = (iterations, generated);
@@ -597,5 +632,44 @@ mod tests {
         let kept = tighter(with(1.0, Some(1.2), 1), with(1.2, None, 2), 1e-7);
         assert_eq!((kept.iterations, kept.lower_bound), (1, 1.2));
         assert!(kept.gap_closed);
+    }
+
+    /// The own rule's proof runs where the bracket is open wider than `CLOSED_RTOL`, and not
+    /// where it is closed to that, even when the loop's tolerance is stricter (module docs,
+    /// (6)). Seen through a rule the proof refuses: a two-state rule on a three-state problem
+    /// is an error from the proof, and returned as one, only where the proof runs.
+    #[test]
+    fn the_own_rule_is_proven_only_where_the_bracket_is_open_wider_than_closed_rtol() {
+        let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+        let two = FusionProblem::from_covariances(
+            d(&[3.0, 1.0]),
+            d(&[1.0, 4.0]),
+            CrossPattern::diagonal(2),
+        )
+        .unwrap();
+        let three = FusionProblem::from_covariances(
+            d(&[3.0, 1.0, 2.0]),
+            d(&[1.0, 4.0, 2.0]),
+            CrossPattern::from_fn(3, |i, j| i + j != 2),
+        )
+        .unwrap();
+        let base = optimal_fusion_cuts(&two, &CutsSettings::default()).unwrap();
+        let settings = CutsSettings {
+            tolerance: 1e-10,
+            ..CutsSettings::default()
+        };
+        let at = |rtol: f64| CutsResult {
+            lower_bound: 5.0 * (1.0 - rtol),
+            certified_trace: Some(5.0),
+            gap_closed: false,
+            stop: CutsStop::Tolerance,
+            ..base.clone()
+        };
+        let deadline = Deadline::after(None);
+        let err = prove_own_rule(&three, at(1e-5), &settings, &deadline).unwrap_err();
+        assert!(err.to_string().contains("3×3"), "{err}");
+        let (kept, short) = prove_own_rule(&three, at(5e-7), &settings, &deadline).unwrap();
+        assert_eq!(kept, at(5e-7));
+        assert!(short.is_empty());
     }
 }

@@ -67,9 +67,10 @@ pub(super) fn prove_own_rule(
         result.own_rule_proven = true;
         result.gap_closed = result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
     }
-    let short = match result.certified_trace {
-        Some(t) if !result.gap_closed && !closed(result.lower_bound, t) => short,
-        _ => Vec::new(),
+    let short = if still_open(&result) {
+        short
+    } else {
+        Vec::new()
     };
     Ok((result, short))
 }
@@ -101,3 +102,16 @@ pub(super) fn tighter(a: CutsResult, b: CutsResult, tolerance: f64) -> CutsResul
 
 /// Most rounds the proof's short directions restart the loop (module docs, (7)).
 pub(super) const PROOF_ROUNDS: usize = 2;
+
+/// The tolerance the loop goes on to where the proof of its rule left the bracket open
+/// (module docs, (8)).
+pub(super) const REFINED_TOLERANCE: f64 = 1e-10;
+
+/// Whether a result's proven bracket is open: not closed to the loop's tolerance and wider
+/// than [`CLOSED_RTOL`] (no upper end: open).
+pub(super) fn still_open(result: &CutsResult) -> bool {
+    match result.certified_trace {
+        Some(t) => !result.gap_closed && !closed(result.lower_bound, t),
+        None => true,
+    }
+}
