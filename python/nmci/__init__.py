@@ -354,7 +354,8 @@ def sdp_cuts(
     """The robust SDP by cutting planes: worst-case cross-covariances as constraints, with a
     proven bracket on the robust optimum (``lower_bound``, ``upper_bound``, ``gap_closed``,
     ``stop``). The loop stops when the worst violation it finds is below ``cuts_tolerance``
-    times ``max(tr P̄, 1)`` (default ``1e-7``).
+    times ``max(tr P̄, 1)`` (default ``1e-7``); where the proof of its own rule leaves a
+    three-state bracket open, it goes on once to ``1e-10`` and proves again.
 
     ``blocks`` declares a partition of the states into blocks with independent errors (it
     implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up

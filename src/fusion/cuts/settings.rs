@@ -17,7 +17,9 @@ pub struct CutsSettings {
     pub max_iterations: usize,
     /// Starting directions of the worst-case search per iteration (default 4).
     pub restarts: usize,
-    /// Stop when the worst violation is below `tolerance · max(tr P̄, 1)` (default `1e-7`).
+    /// Stop when the worst violation is below `tolerance · max(tr P̄, 1)` (default `1e-7`);
+    /// where the own rule's proof leaves a three-state bracket open, the loop goes on once to
+    /// `10⁻¹⁰` (module docs of `fusion::cuts`, (8)).
     pub tolerance: f64,
     /// Settings of each SDP solve (its sample and working-set fields are ignored).
     pub sdp: SdpSettings,
