@@ -217,3 +217,57 @@ fn the_proofs_short_directions_find_the_cuts_the_search_missed() {
     let closed = gap(cuts.certified_trace.unwrap(), cuts.lower_bound);
     assert!(closed <= CLOSED_RTOL, "{closed:e}");
 }
+
+#[test]
+fn still_open_after_the_proof_the_loop_goes_on_to_a_finer_tolerance() {
+    // docs/benchmarks.md's second three-state anti-diagonal problem (`certify_levels`' draw,
+    // seed 3000): at the default tolerance the proof of the loop's rule leaves the bracket
+    // open (asserted), and the proof's short directions give no cuts (`proof_rounds` 0).
+    // `sdp_cuts` then goes on once to 10⁻¹⁰ from its cuts and proves again (module docs of
+    // `fusion::cuts`, (8)): the bracket closes to 10⁻⁶.
+    use nmci::bounds::{trace_upper_bound, CLOSED_RTOL};
+    use nmci::certify::{certify_rule, CertifySettings};
+    use rand::Rng;
+    let mut r = rng(3000);
+    let mut draw = || {
+        // The example draws a pattern's random parts first, whatever the class.
+        let _one_zero = (r.random_range(0..3), r.random_range(0..3));
+        let _coins = nalgebra::DMatrix::from_fn(3, 3, |_, _| r.random_bool(0.6));
+        FusionProblem::from_covariances(
+            random_spd(3, &mut r),
+            random_spd(3, &mut r),
+            CrossPattern::from_fn(3, |i, j| j == 2 - i),
+        )
+        .unwrap()
+    };
+    let _first = draw();
+    let p = draw();
+    let gap = |upper: f64, lower: f64| (upper - lower) / upper;
+    let plain = optimal_fusion_cuts(
+        &p,
+        &CutsSettings {
+            own_rule_cones: 0,
+            ..CutsSettings::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(plain.stop, CutsStop::Tolerance);
+    let alone = certify_rule(
+        &p,
+        &plain.fused,
+        64,
+        CLOSED_RTOL,
+        &CertifySettings::default(),
+    )
+    .unwrap()
+    .unwrap();
+    let open = gap(trace_upper_bound(&alone.fused.P), plain.lower_bound);
+    assert!(open > CLOSED_RTOL, "{open:e}");
+    let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+    assert_eq!(cuts.proof_rounds, 0);
+    assert!(cuts.own_rule_proven);
+    assert!(cuts.iterations > plain.iterations);
+    assert!(cuts.lower_bound >= plain.lower_bound);
+    let closed = gap(cuts.certified_trace.unwrap(), cuts.lower_bound);
+    assert!(closed <= CLOSED_RTOL, "{closed:e}");
+}

@@ -108,10 +108,9 @@ pub(super) const PROOF_ROUNDS: usize = 2;
 pub(super) const REFINED_TOLERANCE: f64 = 1e-10;
 
 /// Whether a result's proven bracket is open: not closed to the loop's tolerance and wider
-/// than [`CLOSED_RTOL`] (no upper end: open).
+/// than [`CLOSED_RTOL`] (without a certified upper end there is no bracket to close: no).
 pub(super) fn still_open(result: &CutsResult) -> bool {
-    match result.certified_trace {
-        Some(t) => !result.gap_closed && !closed(result.lower_bound, t),
-        None => true,
-    }
+    result
+        .certified_trace
+        .is_some_and(|t| !result.gap_closed && !closed(result.lower_bound, t))
 }
