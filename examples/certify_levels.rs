@@ -42,6 +42,14 @@ use std::time::Instant;
 mod common;
 use common::random_spd;
 
+/// `sdp_cuts` end to end on one class at three states: problems, how many stopped at the time
+/// limit, and (gap, time) per problem.
+struct ClassRuns {
+    count: usize,
+    timed_out: usize,
+    runs: Vec<(f64, f64)>,
+}
+
 fn arg_list(args: &[String], name: &str, default: &[usize]) -> Vec<usize> {
     match args.iter().position(|a| a == name) {
         Some(i) => args[i + 1]
@@ -147,8 +155,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => String::new(),
     };
     for &n in &dims {
-        // Per class at three states: count, stopped by the time limit, (gap, time) per problem.
-        let mut all: Vec<(usize, usize, Vec<(f64, f64)>)> = Vec::new();
+        // Per class at three states: `sdp_cuts` end to end.
+        let mut all: Vec<ClassRuns> = Vec::new();
         for (c, class) in ["anti-diagonal", "chain", "random 0.6", "one zero"]
             .into_iter()
             .enumerate()
@@ -335,7 +343,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let closed = own_gaps.iter().filter(|&&g| g <= CLOSED_RTOL).count();
                 if n == 3 {
                     let runs = own_gaps.iter().copied().zip(cuts_times.iter().copied());
-                    all.push((count, timed_out, runs.collect()));
+                    all.push(ClassRuns {
+                        count,
+                        timed_out,
+                        runs: runs.collect(),
+                    });
                     println!(
                         "| {n} | {class} | {} | {:.1e} | {:.1e} | {closed}/{count} | {:.0} ms | {:.0} ms | end to end; own rule the upper end on {proven_in_loop}; loop restarted from the proof's directions on {restarted}{} |",
                         cuts_row(budget),
@@ -392,9 +404,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
         if let (Some(budget), true) = (own_rule, all.len() > 1) {
-            let count: usize = all.iter().map(|a| a.0).sum();
-            let timed_out: usize = all.iter().map(|a| a.1).sum();
-            let runs: Vec<(f64, f64)> = all.iter().flat_map(|a| a.2.iter().copied()).collect();
+            let count: usize = all.iter().map(|a| a.count).sum();
+            let timed_out: usize = all.iter().map(|a| a.timed_out).sum();
+            let runs: Vec<(f64, f64)> = all.iter().flat_map(|a| a.runs.iter().copied()).collect();
             let closed_within = |limit: f64| {
                 runs.iter()
                     .filter(|&&(gap, time)| gap <= CLOSED_RTOL && time <= limit)
