@@ -1,4 +1,4 @@
-//! The "how tight" table of docs/methods.md: the proven bracket `[lower, upper]` around the robust
+//! The bracket tables of docs/benchmarks.md (read in docs/methods.md): the proven bracket `[lower, upper]` around the robust
 //! optimum, per state dimension, pattern class and certificate (a level, or for two states a
 //! number of sectors), over random problems (fixed seeds): median and worst relative gap,
 //! fraction closed (`gap ≤ 10⁻⁶ · upper`), median and worst time of the certificate, and how

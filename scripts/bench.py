@@ -156,7 +156,7 @@ def brackets4():
 
 
 def families():
-    # The certified rule's families on the brackets' problems (docs/methods.md, "How tight"):
+    # The certified rule's families on the brackets' problems (docs/methods.md, "How closed the brackets are"):
     # at two states levels 1-5 and 16, 24 (the default) and 32 sectors; at three, level 1,
     # level 2 (the default), level 3, 64 uniform cones and at most 32 adaptive cones.
     return certify_levels([
