@@ -1,7 +1,7 @@
-//! The bracket tables of docs/benchmarks.md (read in docs/methods.md): the proven bracket `[lower, upper]` around the robust
-//! optimum, per state dimension, pattern class and certificate (a level, or for two states a
-//! number of sectors), over random problems (fixed seeds): median and worst relative gap,
-//! fraction closed (`gap ≤ 10⁻⁶ · upper`), median and worst time of the certificate, and how
+//! The bracket tables of docs/benchmarks.md (read in docs/methods.md): the proven bracket
+//! `[lower, upper]` around the robust optimum, per state dimension, pattern class and
+//! certificate (a level, or for two states a number of sectors), over random problems (fixed
+//! seeds): median and worst relative gap, fraction closed (`gap ≤ 10⁻⁶ · upper`), median and worst time of the certificate, and how
 //! many blocks the certified rule certified with a lower family (its fallback when a solve
 //! fails, or ends `AlmostSolved` with a large repair and the lower family's bound is smaller).
 //!
@@ -15,11 +15,11 @@
 //! `--own-rule 64` (three or four states) adds a row for the cutting planes' proven upper end.
 //! At three states it is `sdp_cuts` itself, run with `own_rule_cones` 64 (its guide, the
 //! default certified rule, else its own rule proven on at most that many cones, restarts
-//! from the proof's directions included), timed end to end. At four states, where `sdp_cuts`
-//! stops at its guide (`fusion::cuts`, "Its own rule, proven"), the loop's rule is proven by
-//! `certify_rule` where the guide leaves the bracket open: the row's times are the proof's
-//! alone, where it ran, and the notes give the cutting planes' and the end-to-end times.
-//! At three states a last row sums up `sdp_cuts` over the classes run: closed, the median
+//! from the proof's directions and the finer loop included), timed end to end. At four
+//! states, where `sdp_cuts` stops at its guide (`fusion::cuts`, "Its own rule, proven"), the
+//! loop's rule is proven by `certify_rule` where the guide leaves the bracket open: the row's
+//! times are the proof's alone, where it ran, and the notes give the cutting planes' and the
+//! end-to-end times. At three states a last row sums up `sdp_cuts` over the classes run: closed, the median
 //! and worst end-to-end time, how many closed within 0.5, 1, 2, 5, 10 and 30 s, and how
 //! many problems stopped at `--time-limit`.
 //!
