@@ -19,9 +19,9 @@
 //! states, where `sdp_cuts` stops at its guide (`fusion::cuts`, "Its own rule, proven"), the
 //! loop's rule is proven by `certify_rule` where the guide leaves the bracket open: the row's
 //! times are the proof's alone, where it ran, and the notes give the cutting planes' and the
-//! end-to-end times. At three states a last row sums up `sdp_cuts` over the classes run: closed, the median
-//! and worst end-to-end time, how many closed within 0.5, 1, 2, 5, 10 and 30 s, and how
-//! many problems stopped at `--time-limit`.
+//! end-to-end times. At three states a last row sums up `sdp_cuts` over the classes run:
+//! closed, the median and worst end-to-end time, how many closed within 0.5, 1, 2, 5, 10 and
+//! 30 s, and how many problems stopped at `--time-limit`.
 //!
 //! Pattern classes (`P_ab[i][j]` unknown where listed, known zero elsewhere):
 //! - `anti-diagonal`: `j = n − 1 − i`;
