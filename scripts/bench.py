@@ -13,6 +13,7 @@ Sections (each one command, run in order on an otherwise idle machine):
   brackets4 the same at 4 states, 5 problems per class (each takes minutes)
   families  examples/certify_levels: the certificate families on the brackets' problems (2 states:
             levels 1-5, 16/24/32 sectors; 3 states: levels 1-3, 64 cones, adaptive up to 32)
+  cuts      examples/cuts_probe: sdp_cuts at 3 to 6 states, its bracket and fresh margins
   study     `nmci track` (release), the paper's 16-agent study, and its headline result
   python    scripts/python.sh bench: nmci from Python against numpy, scipy and cvxpy
   stack     scripts/python.sh bench-stack: k pairs by CI, nmci's stack against numpy, a loop, Stone Soup
@@ -165,6 +166,14 @@ def families():
     ])
 
 
+def cuts():
+    # The cutting planes, guided by the certified rule (the default), at 3 to 6 states
+    # (docs/methods.md, "Worst-case constraints").
+    cmd = "PROBE_GUIDED_ONLY=1 cargo run --quiet --release --example cuts_probe -- 3 4 5 6"
+    out = sh(cmd)
+    return cmd, "\n".join(l for l in out.splitlines() if l.startswith("|"))
+
+
 def study():
     sh("cargo build --quiet --release -p nmci-cli")
     with tempfile.TemporaryDirectory() as out:
@@ -224,6 +233,7 @@ SECTIONS = {
     "explorer": ("Proven brackets as the explorer's second stage runs them (cutting planes to 1e-7, 30 s)", explorer),
     "brackets4": ("Proven brackets at four states (the cutting planes' own rule proven on cones of ℝ⁴)", brackets4),
     "families": ("Certificate families at two and three states (levels, sectors, uniform and adaptive cones)", families),
+    "cuts": ("The cutting planes (`sdp_cuts`) at 3 to 6 states", cuts),
     "study": ("The 16-agent tracking study", study),
     "python": ("From Python, beside numpy, scipy and cvxpy", python),
     "stack": ("Stacks: k pairs by CI in one call, one thread", stack),
