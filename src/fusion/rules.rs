@@ -407,7 +407,7 @@ pub const RULES: [RuleInfo; 8] = [
         nway: false,
         explorer: false,
         limits: Limits {
-            // The cuts table of docs/methods.md reaches 6-state blocks; an 8-state one did not
+            // The cuts table of docs/benchmarks.md reaches 6-state blocks; an 8-state one did not
             // finish in 120 s.
             max_dim: 12,
             max_block: 6,

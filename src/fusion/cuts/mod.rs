@@ -80,7 +80,8 @@
 //! pay for it.
 //!
 //! `converged: false` reports an iteration or time limit (`stop` says which); a solver
-//! failure is returned as an error. Measurements: docs/methods.md (`examples/cuts_probe.rs`).
+//! failure is returned as an error. Measurements: docs/benchmarks.md ("The cutting planes",
+//! `examples/cuts_probe.rs`).
 
 mod own_rule;
 mod result;
