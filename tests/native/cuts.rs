@@ -167,64 +167,11 @@ fn the_requests_cuts_tolerance_is_the_loops() {
     assert!(loose.0 < tight.0, "{loose:?} {tight:?}");
 }
 
-#[test]
-fn the_proofs_short_directions_find_the_cuts_the_search_missed() {
-    // docs/benchmarks.md's first three-state anti-diagonal problem (`certify_levels`' draw,
-    // seed 3000): at the default tolerance the loop stops on "no violation found" while its
-    // P̄ is short in a narrow set of directions, and the proof of its rule alone leaves the
-    // bracket open (asserted). `sdp_cuts` then searches from the centres of the cones where
-    // the proof needed the largest shift, finds those violations, cuts them and goes on once
-    // (module docs of `fusion::cuts`, (7)): its own rule, proven, closes the bracket to 10⁻⁶.
-    use nmci::bounds::{trace_upper_bound, CLOSED_RTOL};
-    use nmci::certify::{certify_rule, CertifySettings};
-    use rand::Rng;
-    let mut r = rng(3000);
-    // The example draws a pattern's random parts first, whatever the class.
-    let _one_zero = (r.random_range(0..3), r.random_range(0..3));
-    let _coins = nalgebra::DMatrix::from_fn(3, 3, |_, _| r.random_bool(0.6));
-    let p = FusionProblem::from_covariances(
-        random_spd(3, &mut r),
-        random_spd(3, &mut r),
-        CrossPattern::from_fn(3, |i, j| j == 2 - i),
-    )
-    .unwrap();
-    let gap = |upper: f64, lower: f64| (upper - lower) / upper;
-    let plain = optimal_fusion_cuts(
-        &p,
-        &CutsSettings {
-            own_rule_cones: 0,
-            ..CutsSettings::default()
-        },
-    )
-    .unwrap();
-    assert_eq!(plain.stop, CutsStop::Tolerance);
-    let alone = certify_rule(
-        &p,
-        &plain.fused,
-        64,
-        CLOSED_RTOL,
-        &CertifySettings::default(),
-    )
-    .unwrap()
-    .unwrap();
-    let open = gap(trace_upper_bound(&alone.fused.P), plain.lower_bound);
-    assert!(open > CLOSED_RTOL, "{open:e}");
-    let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
-    assert_eq!(cuts.proof_rounds, 1);
-    assert!(cuts.own_rule_proven);
-    assert!(cuts.constraints_generated > plain.constraints_generated);
-    assert!(cuts.lower_bound >= plain.lower_bound);
-    let closed = gap(cuts.certified_trace.unwrap(), cuts.lower_bound);
-    assert!(closed <= CLOSED_RTOL, "{closed:e}");
-}
-
-#[test]
-fn still_open_after_the_proof_the_loop_goes_on_to_a_finer_tolerance() {
-    // docs/benchmarks.md's second three-state anti-diagonal problem (`certify_levels`' draw,
-    // seed 3000): at the default tolerance the proof of the loop's rule leaves the bracket
-    // open (asserted), and the proof's short directions give no cuts (`proof_rounds` 0).
-    // `sdp_cuts` then goes on once to 10⁻¹⁰ from its cuts and proves again (module docs of
-    // `fusion::cuts`, (8)): the bracket closes to 10⁻⁶.
+/// docs/benchmarks.md's `k`-th three-state anti-diagonal problem (`certify_levels`' draw, seed
+/// 3000), and the loop on it at the default tolerance without its own proof. Asserted: that
+/// loop stops on its tolerance, and the proof of its rule alone (64 cones) leaves the bracket
+/// open wider than `CLOSED_RTOL`.
+fn open_at_the_default_tolerance(k: usize) -> (FusionProblem, CutsResult) {
     use nmci::bounds::{trace_upper_bound, CLOSED_RTOL};
     use nmci::certify::{certify_rule, CertifySettings};
     use rand::Rng;
@@ -240,9 +187,7 @@ fn still_open_after_the_proof_the_loop_goes_on_to_a_finer_tolerance() {
         )
         .unwrap()
     };
-    let _first = draw();
-    let p = draw();
-    let gap = |upper: f64, lower: f64| (upper - lower) / upper;
+    let p = (0..k).map(|_| draw()).last().unwrap();
     let plain = optimal_fusion_cuts(
         &p,
         &CutsSettings {
@@ -261,13 +206,42 @@ fn still_open_after_the_proof_the_loop_goes_on_to_a_finer_tolerance() {
     )
     .unwrap()
     .unwrap();
-    let open = gap(trace_upper_bound(&alone.fused.P), plain.lower_bound);
+    let upper = trace_upper_bound(&alone.fused.P);
+    let open = (upper - plain.lower_bound) / upper;
     assert!(open > CLOSED_RTOL, "{open:e}");
+    (p, plain)
+}
+
+#[test]
+fn the_proofs_short_directions_find_the_cuts_the_search_missed() {
+    // The first problem: at the default tolerance the loop stops on "no violation found"
+    // while its P̄ is short in a narrow set of directions, and the proof of its rule alone
+    // leaves the bracket open (asserted by the helper). `sdp_cuts` then searches from the
+    // centres of the cones where the proof needed the largest shift, finds those violations,
+    // cuts them and goes on once (module docs of `fusion::cuts`, (7)): its own rule, proven,
+    // closes the bracket to 10⁻⁶.
+    let (p, plain) = open_at_the_default_tolerance(1);
+    let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+    assert_eq!(cuts.proof_rounds, 1);
+    assert!(cuts.own_rule_proven);
+    assert!(cuts.constraints_generated > plain.constraints_generated);
+    assert!(cuts.lower_bound >= plain.lower_bound);
+    let closed = (cuts.certified_trace.unwrap() - cuts.lower_bound) / cuts.certified_trace.unwrap();
+    assert!(closed <= nmci::bounds::CLOSED_RTOL, "{closed:e}");
+}
+
+#[test]
+fn still_open_after_the_proof_the_loop_goes_on_to_a_finer_tolerance() {
+    // The second problem: the proof of the loop's rule at the default tolerance leaves the
+    // bracket open (asserted by the helper), and the proof's short directions give no cuts
+    // (`proof_rounds` 0). `sdp_cuts` then goes on once to 10⁻¹⁰ from its cuts and proves
+    // again (module docs of `fusion::cuts`, (8)): the bracket closes to 10⁻⁶.
+    let (p, plain) = open_at_the_default_tolerance(2);
     let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
     assert_eq!(cuts.proof_rounds, 0);
     assert!(cuts.own_rule_proven);
     assert!(cuts.iterations > plain.iterations);
     assert!(cuts.lower_bound >= plain.lower_bound);
-    let closed = gap(cuts.certified_trace.unwrap(), cuts.lower_bound);
-    assert!(closed <= CLOSED_RTOL, "{closed:e}");
+    let closed = (cuts.certified_trace.unwrap() - cuts.lower_bound) / cuts.certified_trace.unwrap();
+    assert!(closed <= nmci::bounds::CLOSED_RTOL, "{closed:e}");
 }

@@ -598,11 +598,9 @@ mod tests {
         assert!(err.to_string().contains("worst-case search"), "{err}");
     }
 
-    /// Of two rounds' results, the one with the smaller proven upper end is kept, whichever
-    /// came first, with the larger of the two lower ends; the closed flag follows the kept
-    /// bracket.
-    #[test]
-    fn of_two_rounds_the_narrower_bracket_is_kept_with_the_larger_lower_end() {
+    /// A result of the loop on a small two-state problem (`CrossPattern::diagonal`): the base
+    /// the tests below vary.
+    fn a_result() -> CutsResult {
         let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
         let p = FusionProblem::from_covariances(
             d(&[3.0, 1.0]),
@@ -610,7 +608,15 @@ mod tests {
             CrossPattern::diagonal(2),
         )
         .unwrap();
-        let base = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+        optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap()
+    }
+
+    /// Of two rounds' results, the one with the smaller proven upper end is kept, whichever
+    /// came first, with the larger of the two lower ends; the closed flag follows the kept
+    /// bracket.
+    #[test]
+    fn of_two_rounds_the_narrower_bracket_is_kept_with_the_larger_lower_end() {
+        let base = a_result();
         let with = |lower: f64, upper: Option<f64>, iterations: usize| CutsResult {
             lower_bound: lower,
             certified_trace: upper,
@@ -642,19 +648,13 @@ mod tests {
     #[test]
     fn the_own_rule_is_proven_only_where_the_bracket_is_open_wider_than_closed_rtol() {
         let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
-        let two = FusionProblem::from_covariances(
-            d(&[3.0, 1.0]),
-            d(&[1.0, 4.0]),
-            CrossPattern::diagonal(2),
-        )
-        .unwrap();
         let three = FusionProblem::from_covariances(
             d(&[3.0, 1.0, 2.0]),
             d(&[1.0, 4.0, 2.0]),
             CrossPattern::from_fn(3, |i, j| i + j != 2),
         )
         .unwrap();
-        let base = optimal_fusion_cuts(&two, &CutsSettings::default()).unwrap();
+        let base = a_result();
         let settings = CutsSettings {
             tolerance: 1e-10,
             ..CutsSettings::default()
