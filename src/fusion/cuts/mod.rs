@@ -52,7 +52,10 @@
 //! the default `10⁻⁷`) on a problem of one block of three states, the loop's own
 //! final rule `(K, P̄)` — a relaxation's, with a trace near the lower end — is proven after
 //! the loop (`certify_rule`; module docs of `fusion::certify`, "At a given rule") on at most
-//! `own_rule_cones` cones of directions in the time left. Its bound replaces the certified
+//! `own_rule_cones` cones of directions in the time left. The cones are cut until what they
+//! add to the trace fits in half of what the loop's own gap leaves of `CLOSED_RTOL · tr P̄`
+//! (`own_rule::proof_rtol`, with the argument that the bracket then closes); cutting further
+//! would only narrow a bracket already closed. Its bound replaces the certified
 //! rule's as `certified` when its proven trace is smaller (`own_rule_proven`); the gain is
 //! the loop's, so `sdp_cuts`' own gain is then proven to the bracket's upper end. A proof the
 //! solver fails on, or that runs out of time, leaves the result as it was. `certify_rule`

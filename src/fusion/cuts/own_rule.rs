@@ -47,7 +47,7 @@ pub(super) fn prove_own_rule(
         problem,
         &result.fused,
         settings.own_rule_cones,
-        CLOSED_RTOL,
+        proof_rtol(result.fused.P.trace(), result.lower_bound),
         &certify_settings,
     ) {
         Ok(Some(proven)) => proven,
@@ -73,6 +73,29 @@ pub(super) fn prove_own_rule(
         Vec::new()
     };
     Ok((result, short))
+}
+
+/// The `rtol` the proof of a rule with `tr P̄ = trace` is run at, where the proven lower end
+/// is `lower` (module docs, (6)): `4 · room / tr P̄`, where `room = CLOSED_RTOL · tr P̄ −
+/// (tr P̄ − lower)` is what closing the bracket leaves the proof; never below [`CLOSED_RTOL`]
+/// (and [`CLOSED_RTOL`] itself where there is no room), below 1.
+///
+/// Why: `certify_rule` cuts until each cone's `t` is at most `rtol · tr P̄ / (8n)` and then
+/// proves every cone at `P̄ + τI`, `τ` the largest `t`, a trace of at most `tr P̄ + rtol ·
+/// tr P̄ / 8 = tr P̄ + room / 2`. Each cone's `t` already includes its own repair, and a
+/// certificate proven at `Q` holds at every `Q' ⪰ Q`, so that last step repairs nothing but
+/// rounding; with it and the rounding up of the trace below the other half of the room, the
+/// proven upper end `U` has `U − lower ≤ (tr P̄ − lower) + room = CLOSED_RTOL · tr P̄ ≤
+/// CLOSED_RTOL · U`: closed. The bracket itself is what decides closed, never this
+/// estimate. Where the cones miss the target, they are cut as with a smaller `rtol`, worst
+/// `t` first; a looser target only stops the cutting sooner.
+fn proof_rtol(trace: f64, lower: f64) -> f64 {
+    let room = CLOSED_RTOL * trace - (trace - lower);
+    if trace > 0.0 && room > 0.0 {
+        (4.0 * room / trace).clamp(CLOSED_RTOL, 0.5)
+    } else {
+        CLOSED_RTOL
+    }
 }
 
 /// Whether the proven bracket `[lower, upper]` is closed to [`CLOSED_RTOL`], as the bracket
@@ -113,4 +136,35 @@ pub(super) fn still_open(result: &CutsResult) -> bool {
     result
         .certified_trace
         .is_some_and(|t| !result.gap_closed && !closed(result.lower_bound, t))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The proof's `rtol` leaves it half the room the loop's gap leaves in `CLOSED_RTOL`, so
+    /// a proof whose cones all meet their target (a trace of at most `tr P̄ · (1 + rtol / 8)`)
+    /// closes the bracket with the other half to spare; without room, and never stricter than
+    /// it, `CLOSED_RTOL`.
+    #[test]
+    fn the_proof_target_leaves_half_the_room_of_the_bracket() {
+        for trace in [1e-3, 1.0, 7.5, 1e4] {
+            for gap in [0.0, 1e-9, 1e-7, 5e-7, 7e-7] {
+                let lower = trace * (1.0 - gap);
+                let rtol = proof_rtol(trace, lower);
+                let room = CLOSED_RTOL * trace - (trace - lower);
+                assert!(
+                    (rtol * trace / 8.0 - room / 2.0).abs() <= 1e-9 * room,
+                    "{trace} {gap}"
+                );
+                let upper = trace * (1.0 + rtol / 8.0);
+                assert!(upper - lower <= CLOSED_RTOL * upper - room / 2.0 * (1.0 - 1e-9));
+            }
+            // Too little room for a target above `CLOSED_RTOL`, and none at all.
+            assert_eq!(proof_rtol(trace, trace * (1.0 - 0.9e-6)), CLOSED_RTOL);
+            assert_eq!(proof_rtol(trace, trace * (1.0 - 2e-6)), CLOSED_RTOL);
+        }
+        assert_eq!(proof_rtol(0.0, 0.0), CLOSED_RTOL);
+        assert_eq!(proof_rtol(-1.0, -1.0), CLOSED_RTOL);
+    }
 }
