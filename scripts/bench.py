@@ -17,6 +17,7 @@ Sections (each one command, run in order on an otherwise idle machine):
   study     `nmci track` (release), the paper's 16-agent study, and its headline result
   python    scripts/python.sh bench: nmci from Python against numpy, scipy and cvxpy
   stack     scripts/python.sh bench-stack: k pairs by CI, nmci's stack against numpy, a loop, Stone Soup
+  accuracy  scripts/python.sh accuracy: CI, ICI, EI and naive against 50-digit references, beside numpy
   browser   tests/e2e/bench-explore.mjs and bench-study.mjs in headless Chromium
 
 `scripts/bench.sh [SECTION ...]` runs the named sections only and keeps the others' last
@@ -217,6 +218,13 @@ def stack():
     return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
 
 
+def accuracy():
+    # CI, ICI, EI and naive against 50-digit references (docs/methods.md, "CI's accuracy").
+    cmd = "scripts/python.sh accuracy"
+    out = sh(f"bash {cmd}")
+    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
+
+
 def browser():
     sh("bash scripts/wasm.sh build")
     cmds, lines = [], []
@@ -237,6 +245,7 @@ SECTIONS = {
     "study": ("The 16-agent tracking study", study),
     "python": ("From Python, beside numpy, scipy and cvxpy", python),
     "stack": ("Stacks: k pairs by CI in one call, one thread", stack),
+    "accuracy": ("Accuracy of the closed-form rules against 50-digit references", accuracy),
     "browser": ("In the browser (wasm, headless Chromium)", browser),
 }
 
