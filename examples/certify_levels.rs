@@ -10,7 +10,7 @@
 //! the smaller of nmCI's proven trace and that certified rule's. Both are rigorous, so the gap
 //! is too.
 //!
-//! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--cones 16,64] [--adaptive 32] [--own-rule 64] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--time-limit 30] [--tolerance 1e-10] [--verbose]`
+//! `cargo run --release --example certify_levels -- [--dims 2,3] [--count 50] [--levels 1,2,3] [--sectors 16,32] [--cones 16,64] [--adaptive 32] [--own-rule 64] [--classes "chain,one zero"] [--cuts-tol 1e-10] [--time-limit 30] [--bracket-rtol 1e-6] [--tolerance 1e-10] [--verbose]`
 //!
 //! `--own-rule 64` (three or four states) adds a row for the cutting planes' proven upper end.
 //! At three states it is `sdp_cuts` itself, run with `own_rule_cones` 64 (its guide, the
@@ -135,6 +135,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(i) => Some(args[i + 1].parse::<f64>()?),
         None => None,
     };
+    // `--bracket-rtol 1e-6`: the cutting planes also stop as soon as the bracket is closed to
+    // this (`CutsSettings::bracket_rtol`; none by default; the explorer's second stage runs
+    // with `CLOSED_RTOL`).
+    let bracket_rtol = match args.iter().position(|a| a == "--bracket-rtol") {
+        Some(i) => Some(args[i + 1].parse::<f64>()?),
+        None => None,
+    };
     // The certificate's solver tolerance (`CertifySettings::tolerance`; default the library's).
     let tolerance = match args.iter().position(|a| a == "--tolerance") {
         Some(i) => args[i + 1].parse()?,
@@ -144,7 +151,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("|---|---|---|---|---|---|---|---|---|");
     // `sdp_cuts` at three states: its row's name, and the note on the time limit.
     let cuts_row = |budget: u32| {
-        let limit = time_limit.map_or(String::new(), |t| format!(", time limit {t} s"));
+        let limit = time_limit.map_or(String::new(), |t| format!(", time limit {t} s"))
+            + &bracket_rtol.map_or(String::new(), |r| {
+                format!(", stopped at a bracket of {r:.0e}")
+            });
         format!(
             "`sdp_cuts`: level {}, else its own rule proven on ≤ {budget} cones (cutting planes to {cuts_tol:.0e}{limit})",
             CertifySettings::auto_level(3)
@@ -198,6 +208,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         tolerance: cuts_tol,
                         max_iterations: 200,
                         time_limit,
+                        bracket_rtol,
                         certify_settings: CertifySettings {
                             tolerance,
                             ..CertifySettings::default()

@@ -9,9 +9,9 @@ use serde::de::IgnoredAny;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{
-    certificate_response, check_blocks, check_count, fuse, sdp_response, structured, unknown_field,
-    ClosedForm, CovarianceSummary, Details, FuseRequest, FuseResponse, Options, PairInput,
-    StructureDetails, Structured, MAX_SAMPLES,
+    certificate_response, check_blocks, check_count, fuse_planned, sdp_response, structured,
+    unknown_field, ClosedForm, CovarianceSummary, Details, FuseRequest, FuseResponse, Options,
+    PairInput, StructureDetails, Structured, MAX_SAMPLES,
 };
 use crate::error::RequestError;
 use crate::fusion::bracket::{
@@ -251,9 +251,11 @@ pub fn explore_with_memo(
     analyse(request, Some(memo))
 }
 
-/// The explorer's second stage: the cutting-plane SDP (`sdp_cuts`, exactly as [`fuse`] runs it,
-/// with the request's options that apply to it: `seed`, `time_limit`, the certificate's) on
-/// the same state, for its proven bracket. Its
+/// The explorer's second stage: the cutting-plane SDP (`sdp_cuts`, as `fuse` runs it, with the
+/// request's options that apply to it: `seed`, `time_limit`, the certificate's) on the same
+/// state, for its proven bracket, stopped as soon as that is closed to [`CLOSED_RTOL`]
+/// ([`crate::fusion::cuts::CutsSettings::bracket_rtol`]: the page wants the bracket, not the
+/// loop's `P̄`). Its
 /// lower end is the Lagrangian bound of the loop's constraints (worst cases found, not drawn
 /// at random); on one block of three states its
 /// upper end is the loop's own rule, proven on cones of directions
@@ -267,13 +269,17 @@ pub fn explore_with_memo(
 /// assert!(proof.gap.closed && proof.gap.lower <= proof.gap.upper);
 /// ```
 pub fn prove(request: &ExploreRequest) -> Result<Option<Proof>, RequestError> {
-    let response = fuse(&FuseRequest {
+    let fuse_request = FuseRequest {
         pair: request.pair.clone(),
         method: Method::SdpCuts,
         options: request.options.for_method(Method::SdpCuts),
         estimates: None,
         patterns: None,
-    })?;
+    };
+    // The page wants the bracket closed: the loop stops as soon as it is, to `CLOSED_RTOL`.
+    let mut plan = fuse_request.plan()?;
+    plan.cuts.bracket_rtol = Some(CLOSED_RTOL);
+    let response = fuse_planned(&fuse_request, &plan)?;
     let Details::SdpCuts(d) = response.details else {
         unreachable!("method sdp_cuts answers with its details")
     };

@@ -143,7 +143,15 @@ pub(crate) fn response(
 /// assert_eq!(res.trace, 2.0);
 /// ```
 pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
-    let plan = request.plan()?;
+    fuse_planned(request, &request.plan()?)
+}
+
+/// [`fuse`] with the request's options already validated into `plan` (the explorer's second
+/// stage adjusts its plan: `crate::explore::prove`).
+pub(crate) fn fuse_planned(
+    request: &FuseRequest,
+    plan: &Plan,
+) -> Result<FuseResponse, RequestError> {
     if let Some(estimates) = &request.estimates {
         return fuse_nway(
             estimates,
@@ -173,7 +181,7 @@ pub fn fuse(request: &FuseRequest) -> Result<FuseResponse, RequestError> {
         Method::Certified => Ok(certified_response(&problem, &plan.certify)?.0),
         Method::Sdp => {
             let upper = upper.as_ref().unwrap_or(&problem);
-            Ok(sdp_response(&problem, upper, &plan, None, true)?.0)
+            Ok(sdp_response(&problem, upper, plan, None, true)?.0)
         }
         Method::SdpCuts => {
             let cuts = optimal_fusion_cuts(&problem, &plan.cuts)?;

@@ -76,6 +76,16 @@ fn an_unconverged_loop_says_so() {
         optimal_fusion_cuts(&p, &in_out).unwrap_err().to_string(),
         "invalid SDP setting: in_out must be in [0, 1) (got 1)"
     );
+    for r in [0.0, 1.0, f64::NAN] {
+        let bracket = CutsSettings {
+            bracket_rtol: Some(r),
+            ..CutsSettings::default()
+        };
+        assert_eq!(
+            optimal_fusion_cuts(&p, &bracket).unwrap_err().to_string(),
+            format!("invalid SDP setting: bracket_rtol must be in (0, 1) (got {r})")
+        );
+    }
     let bad = CutsSettings {
         restarts: 0,
         ..CutsSettings::default()
@@ -167,15 +177,11 @@ fn the_requests_cuts_tolerance_is_the_loops() {
     assert!(loose.0 < tight.0, "{loose:?} {tight:?}");
 }
 
-/// docs/benchmarks.md's `k`-th three-state anti-diagonal problem (`certify_levels`' draw, seed
-/// 3000), the loop on it at the default tolerance without its own proof (`plain`), and its
-/// first round as `sdp_cuts` ends it (`first`): the same loop, given no iteration past the one
-/// where it converges, proves its rule once and goes no further ((7) and (8) need an
-/// iteration left). Asserted: the loop stops on its tolerance, and that proof leaves the
-/// bracket open wider than `CLOSED_RTOL`.
-fn open_at_the_default_tolerance(k: usize) -> (FusionProblem, CutsResult, CutsResult) {
+/// docs/benchmarks.md's `k`-th three-state problem of class `c` (0 anti-diagonal, 1 chain),
+/// whose unknown entries are `unknown` (`certify_levels`' draw, seed `3000 + c`).
+fn sweep_problem(c: u64, k: usize, unknown: fn(usize, usize) -> bool) -> FusionProblem {
     use rand::Rng;
-    let mut r = rng(3000);
+    let mut r = rng(3000 + c);
     let mut draw = || {
         // The example draws a pattern's random parts first, whatever the class.
         let _one_zero = (r.random_range(0..3), r.random_range(0..3));
@@ -183,11 +189,20 @@ fn open_at_the_default_tolerance(k: usize) -> (FusionProblem, CutsResult, CutsRe
         FusionProblem::from_covariances(
             random_spd(3, &mut r),
             random_spd(3, &mut r),
-            CrossPattern::from_fn(3, |i, j| j == 2 - i),
+            CrossPattern::from_fn(3, unknown),
         )
         .unwrap()
     };
-    let p = (0..k).map(|_| draw()).last().unwrap();
+    (0..k).map(|_| draw()).last().unwrap()
+}
+
+/// docs/benchmarks.md's `k`-th three-state anti-diagonal problem (`sweep_problem`), the loop
+/// on it at the default tolerance without its own proof (`plain`), and its first round as
+/// `sdp_cuts` ends it (`first`): the same loop, given no iteration past the one where it
+/// converges, proves its rule once and goes no further ((7) and (8) need an iteration left). Asserted: the loop stops on its tolerance, and that proof leaves the
+/// bracket open wider than `CLOSED_RTOL`.
+fn open_at_the_default_tolerance(k: usize) -> (FusionProblem, CutsResult, CutsResult) {
+    let p = sweep_problem(0, k, |i, j| j == 2 - i);
     let plain = optimal_fusion_cuts(
         &p,
         &CutsSettings {
@@ -263,5 +278,39 @@ fn still_open_after_the_proof_the_loop_goes_on_to_a_finer_tolerance() {
         "{:e} {:e}",
         open(&cuts),
         open(&first)
+    );
+}
+
+#[test]
+fn with_bracket_rtol_the_loop_stops_as_soon_as_the_bracket_is_closed_to_it() {
+    // The sweep's third chain problem: the default certificate and the loop's lower end close
+    // the bracket to 10⁻⁶ iterations before the loop meets its own tolerance. With
+    // `bracket_rtol` (as the explorer runs it) the loop stops there, `GapClosed`, its bracket
+    // closed to that as `Bracket::closed` tests it; without, it runs on.
+    use nmci::bounds::CLOSED_RTOL;
+    let p = sweep_problem(1, 3, |i, j| j == i || j == i + 1);
+    let full = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+    let early = optimal_fusion_cuts(
+        &p,
+        &CutsSettings {
+            bracket_rtol: Some(CLOSED_RTOL),
+            ..CutsSettings::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(early.stop, CutsStop::GapClosed);
+    assert!(early.gap_closed && !early.own_rule_proven);
+    assert!(
+        early.iterations < full.iterations,
+        "{} {}",
+        early.iterations,
+        full.iterations
+    );
+    assert!(open(&early) <= CLOSED_RTOL, "{:e}", open(&early));
+    assert!(
+        open(&full) < open(&early),
+        "{:e} {:e}",
+        open(&full),
+        open(&early)
     );
 }

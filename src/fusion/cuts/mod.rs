@@ -31,7 +31,9 @@
 //! where it is tight, i.e. the likely active constraints — found by the same search from the
 //! eigenvectors of its `P̄`, (2) also stops when the proven lower bound reaches the certified
 //! rule's proven trace within the tolerance (`gap_closed`): the optimum is then proven to
-//! that relative accuracy, not just "no violation found", and (3) does not stop on "no
+//! that relative accuracy, not just "no violation found" — or, with `bracket_rtol` (the
+//! explorer's second stage), as soon as the proven bracket is closed to that, whatever the
+//! violation at the loop's `P̄` — and (3) does not stop on "no
 //! violation found" while the proven bracket is open until a wider search — 2000 random
 //! admissible points (hit-and-run), four times as many random starting directions and, for
 //! `n ≤ 3`, 64 directions spread evenly over the half circle or sphere — has also found none.
@@ -343,8 +345,11 @@ fn cuts_at_scale(
             found.extend(search(&opt.fused, start)?);
         }
         let mut violation = found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max);
-        let gap_closed =
-            certified_trace.is_some_and(|upper| best_lower >= upper - tolerance * upper.max(1.0));
+        let now = CutsSettings {
+            tolerance,
+            ..*settings
+        };
+        let gap_closed = certified_trace.is_some_and(|upper| now.closes(best_lower, upper));
         if violation <= threshold && !gap_closed && certified_trace.is_some() {
             // The local search found nothing but the proven bracket is still open: before
             // stopping, look for violations from random admissible points too (module docs).
@@ -396,10 +401,6 @@ fn cuts_at_scale(
             let lower = best_lower.max(opt.lower_bound);
             let generated = earlier_generated + generated;
             let latest = finish(opt, cross, generated, iterations, violation, stop, lower);
-            let now = CutsSettings {
-                tolerance,
-                ..*settings
-            };
             let (latest, short) = prove_own_rule(problem, latest, &now, &deadline)?;
             // Module docs, (7): the proof's short directions, searched for cuts at this
             // round's rule; the cuts found restart the loop from this round's cuts.
@@ -431,7 +432,7 @@ fn cuts_at_scale(
                         }
                     }
                     earlier = Some(match earlier.take() {
-                        Some(before) => tighter(before, latest, tolerance),
+                        Some(before) => tighter(before, latest, &now),
                         None => latest,
                     });
                     previous = None;
@@ -451,15 +452,19 @@ fn cuts_at_scale(
                 tolerance = REFINED_TOLERANCE;
                 cross = latest.cross.clone();
                 earlier_generated = generated - cross.len();
+                let refined = CutsSettings {
+                    tolerance,
+                    ..*settings
+                };
                 earlier = Some(match earlier.take() {
-                    Some(before) => tighter(before, latest, tolerance),
+                    Some(before) => tighter(before, latest, &refined),
                     None => latest,
                 });
                 previous = None;
                 continue;
             }
             let mut result = match earlier.take() {
-                Some(before) => tighter(before, latest, tolerance),
+                Some(before) => tighter(before, latest, &now),
                 None => latest,
             };
             (result.iterations, result.constraints_generated) = (iterations, generated);
@@ -630,16 +635,20 @@ mod tests {
         for swap in [false, true] {
             let (a, b) = (with(1.0, Some(1.2), 1), with(1.1, Some(1.3), 2));
             let kept = if swap {
-                tighter(b, a, 1e-7)
+                tighter(b, a, &CutsSettings::default())
             } else {
-                tighter(a, b, 1e-7)
+                tighter(a, b, &CutsSettings::default())
             };
             assert_eq!(kept.iterations, 1);
             assert_eq!((kept.lower_bound, kept.certified_trace), (1.1, Some(1.2)));
             assert!(!kept.gap_closed);
         }
         // The later round's lower end reaches the earlier one's upper end: closed.
-        let kept = tighter(with(1.0, Some(1.2), 1), with(1.2, None, 2), 1e-7);
+        let kept = tighter(
+            with(1.0, Some(1.2), 1),
+            with(1.2, None, 2),
+            &CutsSettings::default(),
+        );
         assert_eq!((kept.iterations, kept.lower_bound), (1, 1.2));
         assert!(kept.gap_closed);
     }

@@ -65,7 +65,7 @@ pub(super) fn prove_own_rule(
         result.certificates = Some(Certificates::of(&proven));
         result.certified = Some(proven.fused);
         result.own_rule_proven = true;
-        result.gap_closed = result.lower_bound >= trace - settings.tolerance * trace.max(1.0);
+        result.gap_closed = settings.closes(result.lower_bound, trace);
     }
     let short = if still_open(&result) {
         short
@@ -112,13 +112,13 @@ fn closed(lower: f64, upper: f64) -> bool {
 
 /// Of two results of the loop on one problem, the one whose proven bracket is narrower, with
 /// the larger of their proven lower ends (both bound the same robust optimum).
-pub(super) fn tighter(a: CutsResult, b: CutsResult, tolerance: f64) -> CutsResult {
+pub(super) fn tighter(a: CutsResult, b: CutsResult, settings: &CutsSettings) -> CutsResult {
     let lower = a.lower_bound.max(b.lower_bound);
     let upper = |r: &CutsResult| r.certified_trace.unwrap_or(f64::INFINITY);
     let mut kept = if upper(&a) < upper(&b) { a } else { b };
     kept.lower_bound = lower;
     if let Some(trace) = kept.certified_trace {
-        kept.gap_closed |= lower >= trace - tolerance * trace.max(1.0);
+        kept.gap_closed |= settings.closes(lower, trace);
     }
     kept
 }

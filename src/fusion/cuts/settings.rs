@@ -47,6 +47,13 @@ pub struct CutsSettings {
     /// proven"; default 64, 0: off, else at least 4 and at most
     /// [`MAX_CONES`]).
     pub own_rule_cones: u32,
+    /// Also stop ([`CutsStop::GapClosed`]) as soon as the proven bracket is closed to this
+    /// relative width, `upper − lower ≤ bracket_rtol · upper` — the test of
+    /// [`crate::bounds::Bracket::closed`] — even where the loop's own tolerance is not yet
+    /// met (default `None`: only the loop's tolerance closes the gap; else in `(0, 1)`). The
+    /// explorer's second stage sets it to [`crate::bounds::CLOSED_RTOL`]: it wants the bracket
+    /// closed, and the loop's `P̄` is then a relaxation's, not conservative to `tolerance`.
+    pub bracket_rtol: Option<f64>,
 }
 
 /// Why the cutting-plane loop stopped.
@@ -55,7 +62,8 @@ pub struct CutsSettings {
 pub enum CutsStop {
     /// The worst violation found was below the tolerance.
     Tolerance,
-    /// The proven lower bound reached the certified rule's proven trace within the tolerance.
+    /// The proven lower bound reached the certified rule's proven trace within the tolerance,
+    /// or the bracket closed to [`CutsSettings::bracket_rtol`].
     GapClosed,
     /// `max_iterations` ran out.
     MaxIterations,
@@ -77,6 +85,7 @@ impl Default for CutsSettings {
             certify_settings: CertifySettings::default(),
             time_limit: None,
             own_rule_cones: 64,
+            bracket_rtol: None,
         }
     }
 }
@@ -103,6 +112,13 @@ impl CutsSettings {
                 self.own_rule_cones
             )));
         }
+        if let Some(r) = self.bracket_rtol {
+            if !(r > 0.0 && r < 1.0) {
+                return Err(SolveError::InvalidSettings(format!(
+                    "bracket_rtol must be in (0, 1) (got {r})"
+                )));
+            }
+        }
         if !(self.tolerance > 0.0 && self.tolerance.is_finite()) {
             return Err(SolveError::InvalidSettings(format!(
                 "tolerance must be positive and finite (got {})",
@@ -110,5 +126,17 @@ impl CutsSettings {
             )));
         }
         Ok(())
+    }
+}
+
+impl CutsSettings {
+    /// Whether the loop counts the proven bracket `[lower, upper]` as closed
+    /// ([`CutsStop::GapClosed`]): `lower ≥ upper − tolerance · max(upper, 1)`, or with
+    /// `bracket_rtol`, `upper − lower ≤ bracket_rtol · upper`.
+    pub(crate) fn closes(&self, lower: f64, upper: f64) -> bool {
+        lower >= upper - self.tolerance * upper.max(1.0)
+            || self
+                .bracket_rtol
+                .is_some_and(|r| upper - lower <= r * upper)
     }
 }
