@@ -93,8 +93,8 @@ pub struct Gap {
     pub absolute: f64,
     /// `(upper − lower) / upper`.
     pub relative: f64,
-    /// Whether `relative ≤ 10⁻⁶` ([`CLOSED_RTOL`]): the robust optimum is proven to that
-    /// accuracy, and `upper_rule` attains it.
+    /// Whether `absolute ≤ 10⁻⁶ · upper` ([`CLOSED_RTOL`], [`Bracket::closed`]): the robust
+    /// optimum is proven to that accuracy, and `upper_rule` attains it.
     pub closed: bool,
     /// The certified rule's certificate on each block (when computed; JSON `levels` and
     /// `sectors`).
@@ -111,7 +111,7 @@ impl Gap {
             upper_rule: b.upper_rule.into(),
             absolute: b.gap(),
             relative: b.gap_relative(),
-            closed: b.gap_relative() <= CLOSED_RTOL,
+            closed: b.closed(CLOSED_RTOL),
             certificates,
         }
     }

@@ -2,6 +2,7 @@
 //! it stopped ([`CutsStop`]).
 
 use crate::error::SolveError;
+use crate::fusion::bracket::{Bracket, UpperRule};
 use crate::fusion::certify::{CertifySettings, MAX_CONES};
 use crate::fusion::program::check_time_limit;
 use crate::fusion::sdp::SdpSettings;
@@ -48,11 +49,12 @@ pub struct CutsSettings {
     /// [`MAX_CONES`]).
     pub own_rule_cones: u32,
     /// Also stop ([`CutsStop::GapClosed`]) as soon as the proven bracket is closed to this
-    /// relative width, `upper − lower ≤ bracket_rtol · upper` — the test of
-    /// [`crate::bounds::Bracket::closed`] — even where the loop's own tolerance is not yet
-    /// met (default `None`: only the loop's tolerance closes the gap; else in `(0, 1)`). The
-    /// explorer's second stage sets it to [`crate::bounds::CLOSED_RTOL`]: it wants the bracket
-    /// closed, and the loop's `P̄` is then a relaxation's, not conservative to `tolerance`.
+    /// relative width, `upper − lower ≤ bracket_rtol · upper` as
+    /// [`crate::bounds::Bracket::closed`] tests it (the difference rounded up), even where the
+    /// loop's own tolerance is not yet met (default `None`: only the loop's tolerance closes
+    /// the gap; else in `(0, 1)`). The explorer's second stage sets it to
+    /// [`crate::bounds::CLOSED_RTOL`]: it wants the bracket closed, and the loop's `P̄` is then
+    /// a relaxation's, not conservative to `tolerance`.
     pub bracket_rtol: Option<f64>,
 }
 
@@ -127,16 +129,17 @@ impl CutsSettings {
         }
         Ok(())
     }
-}
 
-impl CutsSettings {
     /// Whether the loop counts the proven bracket `[lower, upper]` as closed
     /// ([`CutsStop::GapClosed`]): `lower ≥ upper − tolerance · max(upper, 1)`, or with
-    /// `bracket_rtol`, `upper − lower ≤ bracket_rtol · upper`.
+    /// `bracket_rtol`, the bracket closed to it as [`Bracket::closed`] tests it.
     pub(crate) fn closes(&self, lower: f64, upper: f64) -> bool {
+        let bracket = Bracket {
+            lower,
+            upper,
+            upper_rule: UpperRule::Certified,
+        };
         lower >= upper - self.tolerance * upper.max(1.0)
-            || self
-                .bracket_rtol
-                .is_some_and(|r| upper - lower <= r * upper)
+            || self.bracket_rtol.is_some_and(|r| bracket.closed(r))
     }
 }
