@@ -10,7 +10,7 @@ Sections (each one command, run in order on an otherwise idle machine):
   brackets  examples/certify_levels: proven brackets at 2 and 3 states, the default certificate
             and, at 3 states, the cutting planes' own rule proven on cones where it leaves them open
   explorer  the same at 3 states as the explorer's second stage runs sdp_cuts (1e-7, 30 s, stopped at a
-            bracket of 1e-6; 64 and 16 cones)
+            bracket of 1e-6; 128 and 64 cones)
   brackets4 the same at 4 states, 5 problems per class (each takes minutes)
   families  examples/certify_levels: the certificate families on the brackets' problems (2 states:
             levels 1-5, 16/24/32 sectors; 3 states: levels 1-3, 64 cones, adaptive up to 32)
@@ -130,11 +130,11 @@ def brackets():
 def explorer():
     # Three states as the explorer's second stage runs `sdp_cuts`: the loop's default tolerance
     # (1e-7), a time limit of 30 s (`PROVE_SECONDS`, www/prove-client.js) and a stop as soon
-    # as the bracket is closed to 1e-6 (`explore::prove`), with the default budget of 64 cones
-    # and with 16 (closed fraction against the cone budget).
+    # as the bracket is closed to 1e-6 (`explore::prove`), with the default budget of 128 cones
+    # and with 64 (closed fraction against the cone budget).
     return certify_levels([
+        "--dims 3 --count 50 --levels 2 --own-rule 128 --cuts-tol 1e-7 --time-limit 30 --bracket-rtol 1e-6",
         "--dims 3 --count 50 --levels 2 --own-rule 64 --cuts-tol 1e-7 --time-limit 30 --bracket-rtol 1e-6",
-        "--dims 3 --count 50 --levels 2 --own-rule 16 --cuts-tol 1e-7 --time-limit 30 --bracket-rtol 1e-6",
     ])
 
 

@@ -193,6 +193,11 @@ pub(super) fn certify_point<const N: usize>(
         iterations.set(iterations.get() + solved.iterations);
         almost.set(almost.get() || solved.status == SdpStatus::AlmostSolved);
     };
+    // Seconds spent solving the cones' programs and proving their certificates, and how many
+    // of each: the time a cut (two programs) and a pass proving every cone will take. The
+    // cutting stops while the time left still holds a cut and two such passes (the candidates
+    // below), so the time limit is kept rather than overrun by the last repairs.
+    let spent = Cell::new((0.0f64, 0.0f64, 0u32));
     let layout = Layout::new(n, 1);
     let identity = DMatrix::<f64>::identity(n, n);
     // A cone's t: the solver's, plus what proving its certificate at Q₀ + tI adds (a cone
@@ -200,12 +205,21 @@ pub(super) fn certify_point<const N: usize>(
     // where Q₀ is short).
     let solve = |cone: Cone<N>| -> Result<Leaf<N>, SolveError> {
         let one = pieces(&[cone]);
+        let began = web_time::Instant::now();
         let solved = solve_pieces(problem, Some(K_a), Base::Shift(Q0), 1, &one, &round())?;
         count(&solved);
+        let solving = began.elapsed().as_secs_f64();
         let raw = solved.pieces.into_iter().next().expect("one piece");
         let start = Q0 + &identity * ((solved.Q.trace() - Q0.trace()) / n as f64);
         let mut Q = start.clone();
+        let began = web_time::Instant::now();
         prove_piece(problem, &layout, K_a, &mut Q, &raw)?;
+        let (solves, proofs, cones) = spent.get();
+        spent.set((
+            solves + solving,
+            proofs + began.elapsed().as_secs_f64(),
+            cones + 1,
+        ));
         let t = (Q.trace() - Q0.trace()) / n as f64;
         Ok(Leaf {
             cone,
@@ -242,7 +256,17 @@ pub(super) fn certify_point<const N: usize>(
     for orthant in orthants::<N>() {
         leaves.extend(solve_or_cut(&solve, orthant, 0)?);
     }
-    while leaves.len() < budget && !deadline.passed() {
+    // Seconds per cone so far: solving its program, and proving its certificate.
+    let per_cone = || {
+        let (solves, proofs, cones) = spent.get();
+        let cones = f64::from(cones.max(1));
+        (solves / cones, proofs / cones)
+    };
+    let time_for_a_cut = |leaves: usize| {
+        let (solve, prove) = per_cone();
+        deadline.remaining() > 2.0 * solve + 2.0 * prove * (leaves + 1) as f64
+    };
+    while leaves.len() < budget && time_for_a_cut(leaves.len()) {
         let Some(worst) = (0..leaves.len())
             .filter(|&k| !leaves[k].settled && leaves[k].t > target)
             .max_by(|&a, &b| leaves[a].t.total_cmp(&leaves[b].t))
@@ -303,15 +327,27 @@ pub(super) fn certify_point<const N: usize>(
     };
     // A repair that fails on one candidate leaves the other.
     let mut best = proven(Q0 + &identity * t_all, &mut leaves.iter().map(|l| &l.raw));
-    if !open.is_empty() {
+    // Under a time limit the joint program runs where the time left, after a pass proving
+    // its result, holds twice what its cones took alone (it takes about that, and a limit
+    // stops it only between iterations, so it gets the time left less once that).
+    let (solve, prove) = per_cone();
+    let alone = open.len() as f64 * solve;
+    let joint_time = settings
+        .time_limit
+        .map(|_| deadline.remaining() - prove * leaves.len() as f64 - alone);
+    if !open.is_empty() && joint_time.is_none_or(|t| t >= alone.max(1e-3)) {
         let cones: Vec<_> = open.iter().map(|l| l.cone).collect();
+        let joint_settings = CertifySettings {
+            time_limit: joint_time,
+            ..*settings
+        };
         match solve_pieces(
             problem,
             Some(K_a),
             Base::Above(Q0),
             1,
             &pieces(&cones),
-            &round(),
+            &joint_settings,
         ) {
             Ok(joint) => {
                 count(&joint);

@@ -45,7 +45,7 @@ pub struct CutsSettings {
     pub time_limit: Option<f64>,
     /// Three-state problems whose bracket the certified rule leaves open: the loop's own rule
     /// is proven on at most this many cones of directions (module docs, "Its own rule,
-    /// proven"; default 64, 0: off, else at least 4 and at most
+    /// proven"; default 128, 0: off, else at least 4 and at most
     /// [`MAX_CONES`]).
     pub own_rule_cones: u32,
     /// Also stop ([`CutsStop::GapClosed`]) as soon as the proven bracket is closed to this
@@ -86,7 +86,7 @@ impl Default for CutsSettings {
             in_out: 0.5,
             certify_settings: CertifySettings::default(),
             time_limit: None,
-            own_rule_cones: 64,
+            own_rule_cones: 128,
             bracket_rtol: None,
         }
     }
