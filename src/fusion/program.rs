@@ -70,6 +70,19 @@ impl Deadline {
         }
     }
 
+    /// This deadline `seconds` earlier (the same without one, or for `seconds` not a positive
+    /// number; passed now where the clock cannot go back that far): the deadline of a step
+    /// that may run up to `seconds` past the one it is given.
+    pub(crate) fn earlier(&self, seconds: f64) -> Self {
+        let by = web_time::Duration::try_from_secs_f64(seconds).unwrap_or_default();
+        Self {
+            end: self
+                .end
+                .map(|end| end.checked_sub(by).unwrap_or_else(web_time::Instant::now)),
+            limit: self.limit,
+        }
+    }
+
     /// `fraction` of the seconds left, at least a millisecond (`None` without a deadline):
     /// the time limit of a part of the solve.
     pub(crate) fn share(&self, fraction: f64) -> Option<f64> {

@@ -196,10 +196,16 @@ fn sweep_problem(c: u64, k: usize, unknown: fn(usize, usize) -> bool) -> FusionP
     (0..k).map(|_| draw()).last().unwrap()
 }
 
+/// The cone budget of the own rule's proof in the tests of (7) and (8) below: their problems
+/// are ones where a proof on that many cones leaves the bracket open (asserted by
+/// `open_at_the_default_tolerance`); those steps are what they test, whatever the default.
+const CONES: u32 = 64;
+
 /// docs/benchmarks.md's `k`-th three-state anti-diagonal problem (`sweep_problem`), the loop
 /// on it at the default tolerance without its own proof (`plain`), and its first round as
-/// `sdp_cuts` ends it (`first`): the same loop, given no iteration past the one where it
-/// converges, proves its rule once and goes no further ((7) and (8) need an iteration left). Asserted: the loop stops on its tolerance, and that proof leaves the
+/// `sdp_cuts` ends it (`first`, [`CONES`] cones): the same loop, given no iteration past the
+/// one where it converges, proves its rule once and goes no further ((7) and (8) need an
+/// iteration left). Asserted: the loop stops on its tolerance, and that proof leaves the
 /// bracket open wider than `CLOSED_RTOL`.
 fn open_at_the_default_tolerance(k: usize) -> (FusionProblem, CutsResult, CutsResult) {
     let p = sweep_problem(0, k, |i, j| j == 2 - i);
@@ -216,6 +222,7 @@ fn open_at_the_default_tolerance(k: usize) -> (FusionProblem, CutsResult, CutsRe
         &p,
         &CutsSettings {
             max_iterations: plain.iterations,
+            own_rule_cones: CONES,
             ..CutsSettings::default()
         },
     )
@@ -248,7 +255,14 @@ fn the_proofs_short_directions_find_the_cuts_the_search_missed() {
     // and goes on once (module docs of `fusion::cuts`, (7)): its own rule, proven, closes the
     // bracket to 10⁻⁶.
     let (p, plain, _) = open_at_the_default_tolerance(1);
-    let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+    let cuts = optimal_fusion_cuts(
+        &p,
+        &CutsSettings {
+            own_rule_cones: CONES,
+            ..CutsSettings::default()
+        },
+    )
+    .unwrap();
     assert_eq!(cuts.proof_rounds, 1);
     assert!(cuts.own_rule_proven);
     assert!(cuts.constraints_generated > plain.constraints_generated);
@@ -268,7 +282,14 @@ fn still_open_after_the_proof_the_loop_goes_on_to_a_finer_tolerance() {
     // (module docs of `fusion::cuts`, (8)), and keeps the narrower bracket: here narrower
     // than the first round's, though still open wider than 10⁻⁶.
     let (p, plain, first) = open_at_the_default_tolerance(20);
-    let cuts = optimal_fusion_cuts(&p, &CutsSettings::default()).unwrap();
+    let cuts = optimal_fusion_cuts(
+        &p,
+        &CutsSettings {
+            own_rule_cones: CONES,
+            ..CutsSettings::default()
+        },
+    )
+    .unwrap();
     assert_eq!(cuts.proof_rounds, 0);
     assert!(cuts.own_rule_proven);
     assert!(cuts.iterations > plain.iterations);

@@ -510,3 +510,50 @@ fn refine_checked<const N: usize>(
     }
     (cones, depth, refused)
 }
+
+/// A proof started from the cover another proof ended with (`Cover`, as the cutting planes'
+/// later proofs start) works from those cones: on the same rule, with the budget spent by
+/// the first proof, it ends with the same cones and the same bound, solving only the leaves
+/// (fewer interior-point iterations). A cover of another number of states is not used.
+#[test]
+fn a_proof_from_an_earlier_cover_starts_from_its_cones() {
+    use super::point::{certify_rule_short, Cover};
+    use crate::fusion::cuts::{optimal_fusion_cuts, CutsSettings};
+    let p = FusionProblem::from_covariances(
+        DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]),
+        DMatrix::from_row_slice(3, 3, &[2.0, -0.3, 0.1, -0.3, 5.0, 1.0, 0.1, 1.0, 1.5]),
+        CrossPattern::from_fn(3, |i, j| i + j != 2),
+    )
+    .unwrap();
+    let rule = optimal_fusion_cuts(
+        &p,
+        &CutsSettings {
+            own_rule_cones: 0,
+            ..CutsSettings::default()
+        },
+    )
+    .unwrap()
+    .fused;
+    let settings = CertifySettings::default();
+    let prove = |start: Option<&Cover>| {
+        certify_rule_short(&p, &rule, 12, 1e-7, &settings, start)
+            .unwrap()
+            .expect("one block of three states")
+    };
+    let (first, _, cover) = prove(None);
+    let Cover::Three(cones) = &cover else {
+        panic!("three states: {cover:?}")
+    };
+    assert_eq!(cones.len(), 12, "the budget is spent");
+    let (again, _, same) = prove(Some(&cover));
+    assert_eq!(same, cover);
+    assert_eq!(again.fused.P, first.fused.P);
+    assert!(
+        again.iterations < first.iterations,
+        "{} {}",
+        again.iterations,
+        first.iterations
+    );
+    let (other, _, from_orthants) = prove(Some(&Cover::Four(Vec::new())));
+    assert_eq!((other.fused.P, from_orthants), (first.fused.P, cover));
+}

@@ -58,7 +58,9 @@
 //! add to the trace fits in half of what the loop's own gap leaves of `CLOSED_RTOL · tr P̄`
 //! (`own_rule::proof_rtol`, with the argument that the bracket then closes); cutting further
 //! would only narrow a bracket already closed. Its bound replaces the certified
-//! rule's as `certified` when its proven trace is smaller (`own_rule_proven`); the gain is
+//! rule's as `certified` when its proven trace is smaller (`own_rule_proven`). A proof after
+//! the first ((7), (8)) starts from the cones the one before ended with (`certify::Cover`,
+//! an exact cover whatever rule it was cut for) rather than from the octants. The gain is
 //! the loop's, so `sdp_cuts`' own gain is then proven to the bracket's upper end. A proof the
 //! solver fails on, or that runs out of time, leaves the result as it was. `certify_rule`
 //! also proves four-state rules, but on 64 cones of ℝ⁴ it takes several times the loop's own
@@ -272,6 +274,14 @@ fn cuts_at_scale(
     // The loop's tolerance: the setting's, then `REFINED_TOLERANCE` once where the proof left
     // the bracket open (module docs, (8)).
     let mut tolerance = settings.tolerance;
+    // Seconds per interior-point iteration of the last program, per cut. A program stopped
+    // by the time limit stops after the iteration running at it, so each is given the
+    // deadline less one iteration's estimated length (the cost of an iteration grows about
+    // linearly with the cuts, one PSD block each): the limit is kept, not overrun by it.
+    let mut per_cut_iteration = 0.0;
+    // The cones of the last proof of the loop's rule: the next proof starts from them
+    // (module docs, (6)).
+    let mut cover = None;
     loop {
         iterations += 1;
         let set = CrossSamples {
@@ -279,7 +289,9 @@ fn cuts_at_scale(
             trials: 0,
             auto: None,
         };
-        let opt = match solve_samples(problem, &set, &sdp, &deadline) {
+        let program_deadline = deadline.earlier(per_cut_iteration * cross.len() as f64);
+        let began = web_time::Instant::now();
+        let opt = match solve_samples(problem, &set, &sdp, &program_deadline) {
             Ok(o) => o,
             // Past the deadline in a round the proof started: that round's result stands.
             Err(SolveError::TimeLimit { .. }) if earlier.is_some() => {
@@ -305,6 +317,9 @@ fn cuts_at_scale(
             }
             Err(e) => return Err(e),
         };
+        per_cut_iteration = began.elapsed().as_secs_f64()
+            / f64::from(opt.iterations.max(1))
+            / cross.len().max(1) as f64;
         best_lower = best_lower.max(opt.lower_bound);
         let threshold = tolerance * opt.fused.trace().max(1.0);
         // Worst-case search from the top eigenvector of the worst current constraint and
@@ -390,6 +405,7 @@ fn cuts_at_scale(
                 // Only the active cuts matter at the optimum: re-solve with them alone and keep
                 // that program if its solution still satisfies every dropped cut and the
                 // worst-case search finds nothing new (module docs).
+                let deadline = deadline.earlier(per_cut_iteration * cross.len() as f64);
                 if let Some((reduced, kept, v)) = prune(
                     problem, &opt, &cross, &sdp, threshold, violation, settings, &deadline,
                 )? {
@@ -401,7 +417,7 @@ fn cuts_at_scale(
             let lower = best_lower.max(opt.lower_bound);
             let generated = earlier_generated + generated;
             let latest = finish(opt, cross, generated, iterations, violation, stop, lower);
-            let (latest, short) = prove_own_rule(problem, latest, &now, &deadline)?;
+            let (latest, short) = prove_own_rule(problem, latest, &now, &deadline, &mut cover)?;
             // Module docs, (7): the proof's short directions, searched for cuts at this
             // round's rule; the cuts found restart the loop from this round's cuts.
             if converged && rounds < PROOF_ROUNDS && iterations < settings.max_iterations {
@@ -679,9 +695,10 @@ mod tests {
             ..base.clone()
         };
         let deadline = Deadline::after(None);
-        let err = prove_own_rule(&three, at(1e-5), &settings, &deadline).unwrap_err();
+        let err = prove_own_rule(&three, at(1e-5), &settings, &deadline, &mut None).unwrap_err();
         assert!(err.to_string().contains("3×3"), "{err}");
-        let (kept, short) = prove_own_rule(&three, at(5e-7), &settings, &deadline).unwrap();
+        let (kept, short) =
+            prove_own_rule(&three, at(5e-7), &settings, &deadline, &mut None).unwrap();
         assert_eq!(kept, at(5e-7));
         assert!(short.is_empty());
     }
