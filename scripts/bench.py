@@ -119,11 +119,11 @@ def rust():
 
 def brackets():
     # The defaults: two states, 24 sectors (level 1 beside it); three states, level 2, and
-    # what `sdp_cuts` reports: level 2, else its own rule proven on at most 64 cones, with the
-    # cutting planes at 1e-10.
+    # what `sdp_cuts` reports: level 2, else its own rule proven on at most 128 cones (the
+    # default), with the cutting planes at 1e-10.
     return certify_levels([
         "--dims 2 --count 50 --levels 1 --sectors 24",
-        "--dims 3 --count 50 --levels 2 --own-rule 64",
+        "--dims 3 --count 50 --levels 2 --own-rule 128",
     ])
 
 
