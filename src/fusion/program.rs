@@ -74,11 +74,17 @@ impl Deadline {
     /// number; passed now where the clock cannot go back that far): the deadline of a step
     /// that may run up to `seconds` past the one it is given.
     pub(crate) fn earlier(&self, seconds: f64) -> Self {
-        let by = web_time::Duration::try_from_secs_f64(seconds).unwrap_or_default();
+        let end = self.end.map(|end| {
+            match web_time::Duration::try_from_secs_f64(seconds) {
+                Ok(by) => end.checked_sub(by),
+                // Beyond what a duration holds: passed now.
+                Err(_) if seconds > 0.0 => None,
+                Err(_) => Some(end),
+            }
+            .unwrap_or_else(web_time::Instant::now)
+        });
         Self {
-            end: self
-                .end
-                .map(|end| end.checked_sub(by).unwrap_or_else(web_time::Instant::now)),
+            end,
             limit: self.limit,
         }
     }
@@ -208,4 +214,27 @@ pub(crate) fn solve_program(
 /// svec index of `(r, c)`, `r ≤ c`, in Clarabel's column-major upper-triangle order.
 pub(crate) fn svec_index(r: usize, c: usize) -> usize {
     c * (c + 1) / 2 + r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Deadline;
+
+    /// `earlier` moves the end back by the seconds given (a step that may overrun by that much
+    /// is given it), to "passed" where that is before now; without a deadline, or for seconds
+    /// that are not a positive number, nothing changes.
+    #[test]
+    fn an_earlier_deadline_ends_that_much_sooner() {
+        let d = Deadline::after(Some(100.0));
+        let left = d.earlier(30.0).remaining();
+        assert!(left <= 70.0 && left > 69.0, "{left}");
+        assert!(d.earlier(100.5).passed());
+        assert!(d.earlier(1e300).passed());
+        for same in [0.0, -1.0, f64::NAN] {
+            let left = d.earlier(same).remaining();
+            assert!(left <= 100.0 && left > 99.0, "{same}: {left}");
+        }
+        let none = Deadline::after(None).earlier(5.0);
+        assert!(none.remaining().is_infinite() && !none.passed());
+    }
 }

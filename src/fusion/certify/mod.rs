@@ -127,8 +127,7 @@
 //! share only `Q`, so each cone is certified on its own at `Q = P̄ + t_k I`, with the
 //! smallest `t_k` (of either sign) of the cone's level-1 program with its three multipliers
 //! — one PSD cone of 19 rows, not one program over every cone. From the four octants (for four
-//! states the eight orthants, below; or from the cones an earlier proof on the problem ended
-//! with, `Cover`, which `bisect` made from them, as the cutting planes' later proofs do), the cone
+//! states the eight orthants, below), the cone
 //! with the largest `t_k` above the target is cut in two ([`bisect`](geometry), an exact
 //! subdivision, so the cones and their negatives always cover space) and both halves are
 //! certified; a cone the solver fails on (an octant or a half) is cut in two in its place,
@@ -234,7 +233,7 @@ mod tests;
 pub use geometry::MAX_SECTORS;
 pub use memo::{CertificateMemo, MEMO_BLOCKS};
 pub use point::certify_rule;
-pub(crate) use point::{certify_rule_short, Cover};
+pub(crate) use point::certify_rule_short;
 pub(crate) use rule::certification_blocks;
 pub use rule::{
     certified_fusion, certified_fusion_memo, certify_gain, Certificates, CertifiedResult,

@@ -62,36 +62,20 @@ pub fn certify_rule(
     rtol: f64,
     settings: &CertifySettings,
 ) -> Result<Option<CertifiedResult>, SolveError> {
-    Ok(certify_rule_short(problem, rule, budget, rtol, settings, None)?.map(|r| r.0))
-}
-
-/// The cones of a finished proof ([`certify_rule_short`]): a cover of the directions made by
-/// [`bisect`] from the orthants, so exact and complete whatever rule it was made for. A later
-/// proof of another rule of the same problem may start from it instead of the orthants (the
-/// cutting planes prove the rules of successive rounds, `fusion::cuts`): where the rules are
-/// near, the cones are already cut where their bound is tight, and the proof solves the
-/// leaves alone instead of every cone on the way to them.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) enum Cover {
-    Three(Vec<Cone<3>>),
-    Four(Vec<Cone<4>>),
+    Ok(certify_rule_short(problem, rule, budget, rtol, settings)?.map(|(proven, _)| proven))
 }
 
 /// [`certify_rule`], with the directions where the rule is short: the centres of the cones
 /// whose `t` stayed above the target (module docs, "At a given rule"), largest `t` first, at
 /// most [`SHORT_DIRECTIONS`]. `t` bounds the largest violation of `P̄` in its cone from above,
 /// so these are where a violation may sit (the cutting planes search there,
-/// `fusion::cuts`). Starts from the cones of `start` where given (a [`Cover`] of a proof on
-/// this problem, of this many states and at most `budget` cones; otherwise from the
-/// orthants), and returns its own.
-#[allow(non_snake_case)]
+/// `fusion::cuts`).
 pub(crate) fn certify_rule_short(
     problem: &FusionProblem,
     rule: &Fused,
     budget: u32,
     rtol: f64,
     settings: &CertifySettings,
-    start: Option<&Cover>,
 ) -> Result<Option<ShortRule>, SolveError> {
     settings.validate()?;
     let n = problem.dim();
@@ -120,44 +104,24 @@ pub(crate) fn certify_rule_short(
     let (scaled, scale) = Pow2::normalising(problem).scaled_problem(problem);
     let at_scale = |p: &FusionProblem, bound: &DMatrix<f64>| {
         let target = rtol * bound.trace().abs() / (8.0 * n as f64);
-        let budget = budget as usize;
-        let K_a = &rule.K_a;
-        Ok::<_, SolveError>(match (n, start) {
-            (3, Some(Cover::Three(c))) => {
-                let (proven, short, cones) =
-                    certify_point::<3>(p, K_a, bound, target, budget, settings, Some(c))?;
-                (proven, short, Cover::Three(cones))
-            }
-            (3, _) => {
-                let (proven, short, cones) =
-                    certify_point::<3>(p, K_a, bound, target, budget, settings, None)?;
-                (proven, short, Cover::Three(cones))
-            }
-            (_, Some(Cover::Four(c))) => {
-                let (proven, short, cones) =
-                    certify_point::<4>(p, K_a, bound, target, budget, settings, Some(c))?;
-                (proven, short, Cover::Four(cones))
-            }
-            _ => {
-                let (proven, short, cones) =
-                    certify_point::<4>(p, K_a, bound, target, budget, settings, None)?;
-                (proven, short, Cover::Four(cones))
-            }
-        })
+        match n {
+            3 => certify_point::<3>(p, &rule.K_a, bound, target, budget as usize, settings),
+            _ => certify_point::<4>(p, &rule.K_a, bound, target, budget as usize, settings),
+        }
     };
     let mut proven = None;
     if scale != Pow2::ONE {
-        let (outcome, short, cover) = at_scale(&scaled, &scale.scale(&rule.P))?;
+        let (outcome, short) = at_scale(&scaled, &scale.scale(&rule.P))?;
         if let Some(bound) = scale.unscale_dominating(&outcome.P) {
             let outcome = BlockCertificate {
                 P: bound,
                 repair: scale.unscale_value(outcome.repair),
                 ..outcome
             };
-            proven = Some((outcome, short, cover));
+            proven = Some((outcome, short));
         }
     }
-    let (proven, short, cover) = match proven {
+    let (proven, short) = match proven {
         Some(p) => p,
         None => at_scale(problem, &rule.P)?,
     };
@@ -176,12 +140,11 @@ pub(crate) fn certify_rule_short(
             ci_blocks: vec![false],
         },
         short,
-        cover,
     )))
 }
 
-/// A proven rule, the directions where it is short and its cones ([`certify_rule_short`]).
-pub(crate) type ShortRule = (CertifiedResult, Vec<DVector<f64>>, Cover);
+/// A proven rule and the directions where it is short ([`certify_rule_short`]).
+pub(crate) type ShortRule = (CertifiedResult, Vec<DVector<f64>>);
 
 /// Most directions [`certify_rule_short`] returns.
 pub(crate) const SHORT_DIRECTIONS: usize = 8;
@@ -199,7 +162,7 @@ struct Leaf<const N: usize> {
 /// The certificate of `K_a` and a bound near `Q₀` on cones of directions (module docs, "At a
 /// given rule"); its `iterations` are summed over every program solved, its status
 /// `AlmostSolved` if any ended so.
-#[allow(non_snake_case, clippy::type_complexity)]
+#[allow(non_snake_case)]
 pub(super) fn certify_point<const N: usize>(
     problem: &FusionProblem,
     K_a: &DMatrix<f64>,
@@ -207,8 +170,7 @@ pub(super) fn certify_point<const N: usize>(
     target: f64,
     budget: usize,
     settings: &CertifySettings,
-    start: Option<&[Cone<N>]>,
-) -> Result<(BlockCertificate, Vec<DVector<f64>>, Vec<Cone<N>>), SolveError> {
+) -> Result<(BlockCertificate, Vec<DVector<f64>>), SolveError> {
     let n = problem.dim();
     let deadline = Deadline::after(settings.time_limit);
     let round = || CertifySettings {
@@ -290,14 +252,9 @@ pub(super) fn certify_point<const N: usize>(
             Err(e) => Err(e),
         }
     }
-    // The start: a cover of an earlier proof within the budget, else the orthants.
-    let start = match start {
-        Some(cones) if cones.len() <= budget => cones.to_vec(),
-        _ => orthants::<N>(),
-    };
     let mut leaves = Vec::new();
-    for cone in start {
-        leaves.extend(solve_or_cut(&solve, cone, 0)?);
+    for orthant in orthants::<N>() {
+        leaves.extend(solve_or_cut(&solve, orthant, 0)?);
     }
     // Seconds per cone so far: solving its program, and proving its certificate.
     let per_cone = || {
@@ -443,5 +400,5 @@ pub(super) fn certify_point<const N: usize>(
         repair,
         pieces: leaves.len() as u32,
     };
-    Ok((certificate, short, leaves.iter().map(|l| l.cone).collect()))
+    Ok((certificate, short))
 }

@@ -58,9 +58,7 @@
 //! add to the trace fits in half of what the loop's own gap leaves of `CLOSED_RTOL · tr P̄`
 //! (`own_rule::proof_rtol`, with the argument that the bracket then closes); cutting further
 //! would only narrow a bracket already closed. Its bound replaces the certified
-//! rule's as `certified` when its proven trace is smaller (`own_rule_proven`). A proof after
-//! the first ((7), (8)) starts from the cones the one before ended with (`certify::Cover`,
-//! an exact cover whatever rule it was cut for) rather than from the octants. The gain is
+//! rule's as `certified` when its proven trace is smaller (`own_rule_proven`); the gain is
 //! the loop's, so `sdp_cuts`' own gain is then proven to the bracket's upper end. A proof the
 //! solver fails on, or that runs out of time, leaves the result as it was. `certify_rule`
 //! also proves four-state rules, but on 64 cones of ℝ⁴ it takes several times the loop's own
@@ -279,9 +277,6 @@ fn cuts_at_scale(
     // deadline less one iteration's estimated length (the cost of an iteration grows about
     // linearly with the cuts, one PSD block each): the limit is kept, not overrun by it.
     let mut per_cut_iteration = 0.0;
-    // The cones of the last proof of the loop's rule: the next proof starts from them
-    // (module docs, (6)).
-    let mut cover = None;
     loop {
         iterations += 1;
         let set = CrossSamples {
@@ -417,7 +412,7 @@ fn cuts_at_scale(
             let lower = best_lower.max(opt.lower_bound);
             let generated = earlier_generated + generated;
             let latest = finish(opt, cross, generated, iterations, violation, stop, lower);
-            let (latest, short) = prove_own_rule(problem, latest, &now, &deadline, &mut cover)?;
+            let (latest, short) = prove_own_rule(problem, latest, &now, &deadline)?;
             // Module docs, (7): the proof's short directions, searched for cuts at this
             // round's rule; the cuts found restart the loop from this round's cuts.
             if converged && rounds < PROOF_ROUNDS && iterations < settings.max_iterations {
@@ -695,10 +690,9 @@ mod tests {
             ..base.clone()
         };
         let deadline = Deadline::after(None);
-        let err = prove_own_rule(&three, at(1e-5), &settings, &deadline, &mut None).unwrap_err();
+        let err = prove_own_rule(&three, at(1e-5), &settings, &deadline).unwrap_err();
         assert!(err.to_string().contains("3×3"), "{err}");
-        let (kept, short) =
-            prove_own_rule(&three, at(5e-7), &settings, &deadline, &mut None).unwrap();
+        let (kept, short) = prove_own_rule(&three, at(5e-7), &settings, &deadline).unwrap();
         assert_eq!(kept, at(5e-7));
         assert!(short.is_empty());
     }

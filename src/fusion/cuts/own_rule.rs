@@ -7,7 +7,7 @@ use super::result::CutsResult;
 use super::settings::{CutsSettings, CutsStop};
 use crate::error::SolveError;
 use crate::fusion::bracket::{Bracket, UpperRule, CLOSED_RTOL};
-use crate::fusion::certify::{certify_rule_short, Certificates, CertifySettings, Cover};
+use crate::fusion::certify::{certify_rule_short, Certificates, CertifySettings};
 use crate::fusion::program::Deadline;
 use crate::fusion::upper::trace_upper_bound;
 use crate::fusion::FusionProblem;
@@ -18,15 +18,12 @@ use crate::fusion::FusionProblem;
 /// past the time limit, or where the solver fails on it, the result as it is.
 ///
 /// Also returns, where the proof ran and left the bracket open wider than [`CLOSED_RTOL`],
-/// the directions where the loop's rule is short (`certify_rule_short`). The proof starts
-/// from `cover`, the cones of the run's last proof (none before the first), and leaves its
-/// own there.
+/// the directions where the loop's rule is short (`certify_rule_short`).
 pub(super) fn prove_own_rule(
     problem: &FusionProblem,
     mut result: CutsResult,
     settings: &CutsSettings,
     deadline: &Deadline,
-    cover: &mut Option<Cover>,
 ) -> Result<(CutsResult, Vec<DVector<f64>>), SolveError> {
     let Some(upper) = result.certified_trace else {
         return Ok((result, Vec::new()));
@@ -52,12 +49,8 @@ pub(super) fn prove_own_rule(
         settings.own_rule_cones,
         proof_rtol(result.fused.P.trace(), result.lower_bound),
         &certify_settings,
-        cover.as_ref(),
     ) {
-        Ok(Some((proven, short, cones))) => {
-            *cover = Some(cones);
-            (proven, short)
-        }
+        Ok(Some(proven)) => proven,
         Ok(None)
         | Err(
             SolveError::TimeLimit { .. }
