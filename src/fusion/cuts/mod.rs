@@ -117,6 +117,10 @@ use super::upper::trace_upper_bound;
 use super::{Criterion, Fused, FusionProblem};
 use crate::error::SolveError;
 
+/// The fraction of `CutsSettings::time_limit` the loop keeps in reserve (it plans its work to
+/// the limit less this share of it).
+const TIME_RESERVE: f64 = 0.01;
+
 /// The robust-optimal bound by cutting planes (see the module docs).
 ///
 /// ```
@@ -171,7 +175,11 @@ fn cuts_at_scale(
     problem: &FusionProblem,
     settings: &CutsSettings,
 ) -> Result<CutsResult, SolveError> {
-    let deadline = Deadline::after(settings.time_limit);
+    // The loop works to the limit less `TIME_RESERVE` of it: what runs between its deadline
+    // checks (a worst-case search, the wider search's random points, the result) is kept
+    // inside the limit.
+    let deadline = Deadline::after(settings.time_limit)
+        .earlier(settings.time_limit.map_or(0.0, |t| t * TIME_RESERVE));
     let n = problem.dim();
     let mut cross = sample_cross_covariances(
         problem,

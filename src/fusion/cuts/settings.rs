@@ -41,11 +41,12 @@ pub struct CutsSettings {
     /// iterations and inside each solve) the loop returns the last finished program's result
     /// and its proven bracket with `converged: false` and `stop: TimeLimit` — an error only if
     /// the first program did not finish in time. The guiding certificate gets half of the
-    /// limit and is left out if it does not finish. A solve stops only between its
-    /// interior-point iterations, so each program is given the limit less one iteration's
-    /// length as the last one took, and the proof of the loop's own rule stops cutting while
-    /// the time left holds what its last steps took per cone: kept by these estimates, not a
-    /// hard bound (docs/benchmarks.md gives the worst time measured).
+    /// limit and is left out if it does not finish. The loop plans to finish 1 % before the
+    /// limit (the steps between its deadline checks take milliseconds); a solve stops only
+    /// between its interior-point iterations, so each program is given the deadline less one
+    /// iteration's length as the last one took, and the proof of the loop's own rule stops
+    /// cutting while the time left holds what its last steps took per cone: kept by these
+    /// estimates, not a hard bound (docs/benchmarks.md gives the worst time measured).
     pub time_limit: Option<f64>,
     /// Three-state problems whose bracket the certified rule leaves open: the loop's own rule
     /// is proven on at most this many cones of directions (module docs, "Its own rule,
