@@ -134,8 +134,10 @@
 //! three times at most, and a cut whose parts would pass the budget or still fail leaves its
 //! cone whole and uncut from then on. This goes on until every `t_k` is within the target (`rtol · tr P̄ / (8n)`),
 //! the cone budget is spent or, under a time limit, the time left would no longer hold a cut
-//! and the two passes proving every cone below (timed from the cones so far: the limit is
-//! kept to a fraction of a cone's time, not overrun by the last repairs). A cone whose larger half keeps 99 % of
+//! and the two passes proving every cone below (timed from the cones so far; the joint
+//! program below then runs only where the time left, less a pass, holds twice what its cones
+//! took alone, and is given that less once: the limit is kept by these estimates, not
+//! overrun by the last steps). A cone whose larger half keeps 99 % of
 //! its `t_k` four cuts in a row is not cut again: `P̄` itself is short there, and cutting
 //! cannot help. The cones within the target hold at `P̄ + τI`, `τ` the largest of their
 //! `t_k`. The others are certified together in one program with `Q ⪰ P̄` in place of
