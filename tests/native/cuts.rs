@@ -201,6 +201,14 @@ fn sweep_problem(c: u64, k: usize, unknown: fn(usize, usize) -> bool) -> FusionP
 /// `open_at_the_default_tolerance`); those steps are what they test, whatever the default.
 const CONES: u32 = 64;
 
+/// The default settings with the proof on [`CONES`] cones.
+fn with_cones() -> CutsSettings {
+    CutsSettings {
+        own_rule_cones: CONES,
+        ..CutsSettings::default()
+    }
+}
+
 /// docs/benchmarks.md's `k`-th three-state anti-diagonal problem (`sweep_problem`), the loop
 /// on it at the default tolerance without its own proof (`plain`), and its first round as
 /// `sdp_cuts` ends it (`first`, [`CONES`] cones): the same loop, given no iteration past the
@@ -222,8 +230,7 @@ fn open_at_the_default_tolerance(k: usize) -> (FusionProblem, CutsResult, CutsRe
         &p,
         &CutsSettings {
             max_iterations: plain.iterations,
-            own_rule_cones: CONES,
-            ..CutsSettings::default()
+            ..with_cones()
         },
     )
     .unwrap();
@@ -255,14 +262,7 @@ fn the_proofs_short_directions_find_the_cuts_the_search_missed() {
     // and goes on once (module docs of `fusion::cuts`, (7)): its own rule, proven, closes the
     // bracket to 10⁻⁶.
     let (p, plain, _) = open_at_the_default_tolerance(1);
-    let cuts = optimal_fusion_cuts(
-        &p,
-        &CutsSettings {
-            own_rule_cones: CONES,
-            ..CutsSettings::default()
-        },
-    )
-    .unwrap();
+    let cuts = optimal_fusion_cuts(&p, &with_cones()).unwrap();
     assert_eq!(cuts.proof_rounds, 1);
     assert!(cuts.own_rule_proven);
     assert!(cuts.constraints_generated > plain.constraints_generated);
@@ -282,14 +282,7 @@ fn still_open_after_the_proof_the_loop_goes_on_to_a_finer_tolerance() {
     // (module docs of `fusion::cuts`, (8)), and keeps the narrower bracket: here narrower
     // than the first round's, though still open wider than 10⁻⁶.
     let (p, plain, first) = open_at_the_default_tolerance(20);
-    let cuts = optimal_fusion_cuts(
-        &p,
-        &CutsSettings {
-            own_rule_cones: CONES,
-            ..CutsSettings::default()
-        },
-    )
-    .unwrap();
+    let cuts = optimal_fusion_cuts(&p, &with_cones()).unwrap();
     assert_eq!(cuts.proof_rounds, 0);
     assert!(cuts.own_rule_proven);
     assert!(cuts.iterations > plain.iterations);
