@@ -132,6 +132,8 @@ export interface FuseResponse {
   gap_relative?: number;
   repair?: number;
   gain_certified_trace?: number;
+  /** `sdp`, `sdp_cuts`: a bound proven for the method's own gain and every admissible `P_ab` (rounding included); `x` with it is a conservative estimate, where `x` with `p` (the relaxation's) is not. `gain_certified_trace` is its trace rounded up. */
+  gain_certified_p?: number[][];
   levels?: number[];
   sectors?: number[];
   stop?: "tolerance" | "gap_closed" | "max_iterations" | "time_limit";

@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::api::{
     certificate_response, check_blocks, check_count, fuse_planned, sdp_response, structured,
-    unknown_field, ClosedForm, CovarianceSummary, Details, FuseRequest, FuseResponse, Options,
-    PairInput, StructureDetails, Structured, MAX_SAMPLES,
+    unknown_field, ClosedForm, CovarianceSummary, Details, FuseRequest, FuseResponse, Gains,
+    Options, PairInput, StructureDetails, Structured, MAX_SAMPLES,
 };
 use crate::error::RequestError;
 use crate::fusion::bracket::{
@@ -134,6 +134,24 @@ pub struct Proof {
     /// Rounds in which the own rule's proof pointed the loop to cuts its search had missed
     /// ([`crate::sdp::CutsResult::proof_rounds`]).
     pub proof_rounds: usize,
+    /// The loop's gain with the bound proven for it (`sdp_cuts`' `gain_certified_p`): the
+    /// rule to carry on (the page's JSON export holds it); absent when there is none (past the
+    /// time limit).
+    pub rule: Option<ProvenGain>,
+}
+
+/// A gain `K = [K_a K_b]` with a bound `P̄` proven to dominate `K J Kᵀ` for every admissible
+/// joint covariance `J`, rounding included (`fusion::bracket`, "A given gain's bound").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProvenGain {
+    /// `K_a`, nested rows.
+    pub ka: Vec<Vec<f64>>,
+    /// `K_b = I − K_a`, nested rows.
+    pub kb: Vec<Vec<f64>>,
+    /// `P̄`, nested rows.
+    pub p: Vec<Vec<f64>>,
+    /// `tr P̄`, rounded up.
+    pub trace: f64,
 }
 
 /// The conservativeness index of one rule over the region's cross-covariances:
@@ -280,15 +298,20 @@ pub fn prove(request: &ExploreRequest) -> Result<Option<Proof>, RequestError> {
     let mut plan = fuse_request.plan()?;
     plan.cuts.bracket_rtol = Some(CLOSED_RTOL);
     let response = fuse_planned(&fuse_request, &plan)?;
-    let Details::SdpCuts(d) = response.details else {
-        unreachable!("method sdp_cuts answers with its details")
+    let (Details::SdpCuts(d), Gains::Pair { ka, kb }) = (response.details, response.gains) else {
+        unreachable!("method sdp_cuts answers with its details and a pair of gains")
     };
+    let rule = d
+        .gain_certified_p
+        .zip(d.gain_certified_trace)
+        .map(|(p, trace)| ProvenGain { ka, kb, p, trace });
     Ok(d.bracket.as_ref().map(|b| Proof {
         gap: Gap::of(b, d.certificates.clone()),
         own_rule_proven: d.own_rule_proven,
         stop: d.stop,
         iterations: d.iterations,
         proof_rounds: d.proof_rounds,
+        rule,
     }))
 }
 

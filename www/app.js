@@ -486,7 +486,10 @@ function init() {
   $("export-json").addEventListener("click", () => {
     if (!last) return;
     const { region, ...numbers } = last;
-    download("nmci-numbers.json", "application/json", JSON.stringify({ state, ...numbers }, null, 2));
+    // The second stage's proof (its bracket, and the cutting planes' gains with their proven
+    // bound) when it has finished.
+    const proof = second?.proof ? { second_stage: second.proof } : {};
+    download("nmci-numbers.json", "application/json", JSON.stringify({ state, ...numbers, ...proof }, null, 2));
   });
   $("share").addEventListener("click", () => {
     writeHash();

@@ -175,7 +175,9 @@ function secondStage(second, first) {
   const pointed = p.proof_rounds > 0
     ? `; the proof pointed them to cuts their search had missed (${p.proof_rounds === 1 ? "once" : "twice"})`
     : "";
-  return el("div", { id: "proof-status" }, key("second stage:"), ` the cutting planes (${p.iterations} iterations, stopped by ${stop}) ${narrower}${pointed}`);
+  // The loop's gain with the bound proven for it: the rule a filter can carry on.
+  const rule = p.rule ? `; their gains with the bound proven for them (tr P̄ ${p.rule.trace.toFixed(6)}) are in the JSON export` : "";
+  return el("div", { id: "proof-status" }, key("second stage:"), ` the cutting planes (${p.iterations} iterations, stopped by ${stop}) ${narrower}${pointed}${rule}`);
 }
 
 /** An element with attributes and children (strings become text nodes). */

@@ -50,6 +50,10 @@ class Fused:
     gap_relative: Optional[float]
     repair: Optional[float]
     gain_certified_trace: Optional[float]
+    gain_certified_p: Optional[Array]
+    """``sdp``, ``sdp_cuts``: a bound proven for the method's own gain (``Ka``, ``Kb``) and every
+    admissible cross-covariance; ``(x, gain_certified_p)`` is a conservative estimate where
+    ``(x, P)`` (the relaxation's) is not. ``gain_certified_trace`` is its trace rounded up."""
     levels: Optional[List[int]]
     sectors: Optional[List[int]]
     stop: Optional[str]

@@ -401,6 +401,12 @@ fn response_dict(py: Python<'_>, mut r: FuseResponse) -> PyResult<Bound<'_, PyDi
         Details::Nway { weights, .. } => Some(std::mem::take(weights)),
         _ => None,
     };
+    // Written by serde too (so the field keeps its place), then replaced by the array.
+    let gain_certified_p = match &r.details {
+        Details::Sdp(d) => d.gain_certified_p.clone(),
+        Details::SdpCuts(d) => d.gain_certified_p.clone(),
+        _ => None,
+    };
     let fields = to_python(py, &r)?.cast_into::<PyDict>()?;
     fields.set_item("x", PyArray1::from_vec(py, x))?;
     fields.set_item("p", array2(py, &p)?)?;
@@ -421,6 +427,9 @@ fn response_dict(py: Python<'_>, mut r: FuseResponse) -> PyResult<Bound<'_, PyDi
     }
     if let Some(weights) = weights {
         fields.set_item("weights", array2(py, &weights)?)?;
+    }
+    if let Some(p) = gain_certified_p {
+        fields.set_item("gain_certified_p", array2(py, &p)?)?;
     }
     Ok(fields)
 }

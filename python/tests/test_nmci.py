@@ -147,6 +147,24 @@ def test_the_array_functions_return_the_contract_s_response():
         assert got.method == method
 
 
+@pytest.mark.parametrize("method", ["sdp", "sdp_cuts"])
+def test_the_sdps_give_the_proven_bound_of_their_own_gain(method):
+    # `gain_certified_p`: a symmetric numpy array whose trace, rounded up, is
+    # `gain_certified_trace`; it dominates the true fused error covariance of the response's
+    # own gains for cross-covariances drawn from the admissible set (the Rust tests search the
+    # worst case), where the relaxation's `P` may not.
+    a, b = np.array(PAPER["pa"], dtype=float), np.array(PAPER["pb"], dtype=float)
+    r = {"sdp": nmci.optimal, "sdp_cuts": nmci.sdp_cuts}[method](a, b, pab_unknown=ONE_ZERO)
+    bound = r.gain_certified_p
+    assert isinstance(bound, np.ndarray) and bound.shape == (2, 2)
+    assert np.array_equal(bound, bound.T) and bound.tolist() == r.to_dict()["gain_certified_p"]
+    assert np.trace(bound) <= r.gain_certified_trace <= np.trace(bound) * (1 + 1e-14)
+    assert r.gain_certified_trace >= r.lower_bound
+    for P_ab in nmci.sample_cross_covariances(a, b, ONE_ZERO, count=500, seed=1):
+        error = r.Ka @ a @ r.Ka.T + r.Kb @ b @ r.Kb.T + r.Ka @ P_ab @ r.Kb.T + r.Kb @ P_ab.T @ r.Ka.T
+        assert np.linalg.eigvalsh(bound - error).min() >= -1e-12
+
+
 @pytest.mark.parametrize("rule", ["ci", "nmci", "ici", "ei", "naive", "certified"])
 def test_any_array_like_gives_the_response_of_float64_arrays(rule):
     # float64 arrays go straight to Rust, which reads any strides; lists, integer arrays and

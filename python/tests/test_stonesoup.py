@@ -106,15 +106,22 @@ def test_nmci_is_never_looser_than_ci(seed):
     assert nm.fusion.guarantee == ci.fusion.guarantee == "conservative"
 
 
-@pytest.mark.parametrize("rule", ["certified", "ici", "ei", "naive", "sdp"])
+@pytest.mark.parametrize("rule", ["certified", "ici", "ei", "naive", "sdp", "sdp_cuts"])
 def test_every_rule_of_the_registry_updates(rule):
+    # The SDPs' update takes the bound proven for their own gain, not their relaxation's `p`.
     rng = np.random.default_rng(7)
     A, B = spd(rng, 2), spd(rng, 2)
     options = {"samples": 50} if rule == "sdp" else None
     up = NmciUpdater(measurement_model=None, rule=rule, options=options).update(
         hypothesis(np.ones(2), A, np.zeros(2), B))
     expected = nmci.fuse({"method": rule, "pa": A, "pb": B, "xa": np.ones(2), "xb": np.zeros(2), **(options or {})})
-    assert np.array_equal(up.covar, np.asarray(expected["p"])) and up.fusion.rule == rule
+    sdp = rule in ("sdp", "sdp_cuts")
+    covar = np.asarray(expected["gain_certified_p" if sdp else "p"])
+    assert np.array_equal(up.covar, covar) and up.fusion.rule == rule
+    assert np.array_equal(np.ravel(up.state_vector), expected["x"])
+    assert (up.fusion.guarantee == "conservative") == (sdp or rule == "certified")
+    if sdp:
+        assert np.trace(covar) >= expected["trace"] and not np.array_equal(covar, expected["p"])
 
 
 @pytest.mark.parametrize("omega", [0.3, 0.5, 0.8])

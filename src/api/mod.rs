@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{InputError, RequestError, SolveError};
 use crate::fusion::bracket::{
-    bracket_certificate, gain_certified_trace, trace_upper_bound, upper_bounds, UpperBounds,
+    bracket_certificate, gain_certified, trace_upper_bound, upper_bounds, UpperBounds,
 };
 use crate::fusion::certify::{certified_fusion, Certificates, CertifiedResult, CertifySettings};
 use crate::fusion::ci::covariance_intersection;
@@ -187,14 +187,14 @@ pub(crate) fn fuse_planned(
             let cuts = optimal_fusion_cuts(&problem, &plan.cuts)?;
             // Past the time limit the own-gain certificate is left out, not an error (the loop
             // has its bracket).
-            let gain_certified_trace = match gain_certified_trace(
+            let gain_certified = match gain_certified(
                 &problem,
                 &cuts.fused.K_a,
                 &plan.certify,
                 cuts.certified.as_ref(),
                 cuts.lower_bound,
             ) {
-                Ok(t) => t,
+                Ok(bound) => bound,
                 Err(SolveError::TimeLimit { .. }) => None,
                 Err(e) => return Err(e.into()),
             };
@@ -210,7 +210,8 @@ pub(crate) fn fuse_planned(
                 gap_closed: cuts.gap_closed,
                 bracket: uppers.bracket(cuts.lower_bound),
                 certificates: cuts.certificates,
-                gain_certified_trace,
+                gain_certified_trace: gain_certified.as_ref().map(trace_upper_bound),
+                gain_certified_p: gain_certified.as_ref().map(matrix_to_rows),
                 own_rule_proven: cuts.own_rule_proven,
                 proof_rounds: cuts.proof_rounds,
             });
@@ -395,7 +396,7 @@ impl ClosedForm {
 /// `upper` (the absorbed problem, or the given one; `structure::absorb`, "A lower end");
 /// `uppers` are the certified upper bounds when the caller has already computed them (the
 /// bracket's certificates are then not repeated here); `own_gain`: whether to give the proven
-/// bound for the SDP's own gain (`gain_certified_trace`).
+/// bound for the SDP's own gain (`gain_certified_p`, `gain_certified_trace`).
 pub(crate) fn sdp_response(
     problem: &FusionProblem,
     upper: &FusionProblem,
@@ -414,8 +415,8 @@ pub(crate) fn sdp_response(
     };
     // The certified rule's bound carried over to the SDP's gain, or the gain's own
     // certificate (`fusion::bracket`, "A given gain's bound").
-    let gain_certified_trace = if own_gain {
-        gain_certified_trace(
+    let gain_certified = if own_gain {
+        gain_certified(
             upper,
             &opt.fused.K_a,
             &plan.certify,
@@ -437,7 +438,8 @@ pub(crate) fn sdp_response(
         worst_sample_margin: opt.worst_sample_margin,
         bracket: uppers.bracket(opt.lower_bound),
         certificates,
-        gain_certified_trace,
+        gain_certified_trace: gain_certified.as_ref().map(trace_upper_bound),
+        gain_certified_p: gain_certified.as_ref().map(matrix_to_rows),
     });
     let r = response(Method::Sdp, Criterion::Trace, &opt.fused, details);
     Ok((r, opt.fused))

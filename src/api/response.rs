@@ -158,6 +158,11 @@ pub struct SdpDetails {
     /// whichever exists alone; `None` when neither does); see `fusion::bracket`, "A given
     /// gain's bound".
     pub gain_certified_trace: Option<f64>,
+    /// That bound (nested rows, symmetric): `P̄ ⪰ K P' Kᵀ` for this method's own gain and
+    /// every admissible `P_ab`, proven with rounding accounted for, so `(x, gain_certified_p)`
+    /// is a conservative estimate to use in a filter where `p` (the relaxation's) is not;
+    /// `gain_certified_trace` is its trace rounded up.
+    pub gain_certified_p: Option<Rows>,
 }
 
 /// The cutting-plane SDP's report.
@@ -185,6 +190,11 @@ pub struct CutsDetails {
     pub certificates: Option<Certificates>,
     /// As [`SdpDetails::gain_certified_trace`] (absent past the time limit).
     pub gain_certified_trace: Option<f64>,
+    /// As [`SdpDetails::gain_certified_p`] (absent past the time limit). Where
+    /// `own_rule_proven` it is the bound the proof of the loop's own rule gave (the gain is the
+    /// same, so nothing is carried over), unless its trace leaves the gain's bracket open and
+    /// the gain's own certificate gives a smaller one.
+    pub gain_certified_p: Option<Rows>,
     /// Whether the bracket's certified upper end is the loop's own rule proven on cones of
     /// directions (`CutsResult::own_rule_proven`; then `certificates` gives level 1 and the
     /// number of cones).
@@ -330,6 +340,8 @@ struct ResponseWire {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     gain_certified_trace: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    gain_certified_p: Option<Rows>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     levels: Option<Vec<u32>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     sectors: Option<Vec<u32>>,
@@ -416,6 +428,7 @@ impl From<FuseResponse> for ResponseWire {
             gap_relative: None,
             repair: None,
             gain_certified_trace: None,
+            gain_certified_p: None,
             levels: None,
             sectors: None,
             stop: None,
@@ -454,6 +467,7 @@ impl From<FuseResponse> for ResponseWire {
                 w.worst_sample_margin = Some(d.worst_sample_margin);
                 w.blocks = Some(d.blocks);
                 w.gain_certified_trace = d.gain_certified_trace;
+                w.gain_certified_p = d.gain_certified_p;
                 w.set_certificates(d.certificates.as_ref());
                 w.set_bracket(d.bracket.as_ref());
             }
@@ -465,6 +479,7 @@ impl From<FuseResponse> for ResponseWire {
                 w.converged = Some(d.converged);
                 w.stop = Some(d.stop);
                 w.gain_certified_trace = d.gain_certified_trace;
+                w.gain_certified_p = d.gain_certified_p;
                 w.gap_closed = Some(d.gap_closed);
                 w.own_rule_proven = Some(d.own_rule_proven);
                 w.proof_rounds = Some(d.proof_rounds);
@@ -528,6 +543,7 @@ impl TryFrom<ResponseWire> for FuseResponse {
                 bracket: w.bracket(),
                 certificates: w.certificates(),
                 gain_certified_trace: w.gain_certified_trace,
+                gain_certified_p: w.gain_certified_p.take(),
             }),
             Method::SdpCuts => Details::SdpCuts(CutsDetails {
                 status: need(w.status, "status", m)?,
@@ -540,6 +556,7 @@ impl TryFrom<ResponseWire> for FuseResponse {
                 bracket: w.bracket(),
                 certificates: w.certificates(),
                 gain_certified_trace: w.gain_certified_trace,
+                gain_certified_p: w.gain_certified_p.take(),
                 own_rule_proven: need(w.own_rule_proven, "own_rule_proven", m)?,
                 proof_rounds: need(w.proof_rounds, "proof_rounds", m)?,
             }),

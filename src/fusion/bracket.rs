@@ -14,12 +14,14 @@
 //! CI (one pencil) and nmCI (one pencil per block) always join. The certified rule joins when every
 //! independent block has at most [`BRACKET_CERTIFY_MAX_BLOCK`] states
 //! ([`bracket_certificate`]; its level-1 program grows as `(2n² + 1)²`); the same limit
-//! applies to certifying an optimal-fusion method's own gain ([`gain_certified_trace`]).
+//! applies to certifying an optimal-fusion method's own gain ([`gain_certified`]).
 //! Method `"certified"` itself takes larger blocks.
 //!
 //! ## A given gain's bound, carried over from the certified rule
-//! `gain_certified_trace` reports a proven upper bound on what an optimal-fusion method's own
-//! gain `K₁` (`K_b = I − K_a`) costs when the bound must hold for every admissible `J`. Besides
+//! [`gain_certified`] gives a proven bound `P̄₁ ⪰ K₁ J K₁ᵀ` for every admissible `J` for an
+//! optimal-fusion method's own gain `K₁` (`K_b = I − K_a`): what that gain costs when the bound
+//! must hold for all of them (responses carry it as `gain_certified_p`, its trace rounded up as
+//! `gain_certified_trace`). Besides
 //! the gain's own certificate (`certify_gain`, a solve), the certified rule's pair `(K₀, P̄₀)`
 //! gives one without a solve. With `Δ = K₁ − K₀ = [ΔK_a, −ΔK_a]` and any `ε > 0`, for every
 //! `J ⪰ 0` (Young's inequality, as above)
@@ -31,14 +33,16 @@
 //! `P̄₁ = (1 + ε) P̄₀ + 2(1 + 1/ε) ΔK_a (P_a + P_b) ΔK_aᵀ` dominates `K₁ J K₁ᵀ` for every
 //! admissible `J`, and its trace `(1 + ε) t₀ + (1 + 1/ε) d`, `t₀ = tr P̄₀`,
 //! `d = 2 tr(ΔK_a (P_a + P_b) ΔK_aᵀ)`, is smallest at `ε = √(d / t₀)`: `(√t₀ + √d)²`. It is
-//! evaluated in balls and rounded up ([`carried_trace`]); when `K₁ = K₀` it is `t₀`.
+//! evaluated in balls and returned as a float matrix that dominates the ball
+//! ([`carried_bound`]); its trace, rounded up, is never below the exact `(√tr P̄₀ + √d)²` and
+//! above it by rounding only (the unit test); when `K₁ = K₀` it is `P̄₀`.
 //!
 //! When that carried-over bound `t` is within the bracket's closing tolerance of the proven
 //! lower end (`t − lower_bound ≤ CLOSED_RTOL · t`), no bound for this gain can be smaller by
 //! more than that — with `K₁`, every valid bound `P̄` is a feasible point of the robust
 //! problem, so `tr P̄ ≥ V* ≥ lower_bound` — and the gain's own certificate is not solved.
 //! Otherwise it is (within
-//! the block limit above), and the smaller of the two is reported. Where the method's gain is
+//! the block limit above), and the one of the two with the smaller trace is reported. Where the method's gain is
 //! close to the certified rule's (as on the paper's example with one known zero, the unit
 //! test) the carried-over bound exceeds the certified rule's trace by only `2√(t₀ d) + d`, and
 //! the second solve is saved (`docs/benchmarks.md` has the timings).
@@ -93,60 +97,66 @@ fn small_enough(problem: &FusionProblem, gain: Option<&DMatrix<f64>>) -> bool {
         .all(|b| b.len() <= BRACKET_CERTIFY_MAX_BLOCK)
 }
 
-/// A proven upper bound on the worst-case trace of an optimal-fusion method's own gain `K_a`
-/// (module docs, "A given gain's bound"): the certified rule's `certified` bound carried over
-/// to `K_a`, without a solve when that is within [`CLOSED_RTOL`] of the proven `lower` end;
-/// otherwise the smaller of it and the gain's own certificate (`certify_gain`, only for
-/// blocks of at most [`BRACKET_CERTIFY_MAX_BLOCK`] states). `None` when neither exists.
+/// A proven bound for an optimal-fusion method's own gain `K_a` (module docs, "A given gain's
+/// bound"): a symmetric `P̄` with `P̄ ⪰ K J Kᵀ` (`K_b = I − K_a`) for every admissible `J`.
+/// It is the certified rule's `certified` bound carried over to `K_a`, without a solve when its
+/// trace is within [`CLOSED_RTOL`] of the proven `lower` end; otherwise the one of smaller
+/// rounded-up trace of it and the gain's own certificate (`certify_gain`, only for blocks of
+/// at most [`BRACKET_CERTIFY_MAX_BLOCK`] states). `None` when neither exists.
 #[allow(non_snake_case)]
-pub(crate) fn gain_certified_trace(
+pub(crate) fn gain_certified(
     problem: &FusionProblem,
     K_a: &DMatrix<f64>,
     settings: &CertifySettings,
     certified: Option<&Fused>,
     lower: f64,
-) -> Result<Option<f64>, SolveError> {
-    let carried = certified.and_then(|c| carried_trace(problem, K_a, c));
-    if let Some(t) = carried {
+) -> Result<Option<DMatrix<f64>>, SolveError> {
+    let carried = certified.and_then(|c| carried_bound(problem, K_a, c));
+    if let Some(P) = &carried {
+        let t = trace_upper_bound(P);
         if t - lower <= CLOSED_RTOL * t {
-            return Ok(Some(t));
+            return Ok(carried);
         }
     }
     let own = if small_enough(problem, Some(K_a)) {
-        Some(trace_upper_bound(
-            &certify_gain(problem, K_a, settings)?.fused.P,
-        ))
+        Some(certify_gain(problem, K_a, settings)?.fused.P)
     } else {
         None
     };
     Ok(match (own, carried) {
-        (Some(own), Some(carried)) => Some(own.min(carried)),
+        (Some(own), Some(carried)) => {
+            Some(if trace_upper_bound(&own) <= trace_upper_bound(&carried) {
+                own
+            } else {
+                carried
+            })
+        }
         (own, carried) => own.or(carried),
     })
 }
 
-/// `(1 + ε) t₀ + (1 + 1/ε) d` rounded up, with `t₀ ≥ tr P̄₀` of the conservative pair
-/// `certified = (K₀, P̄₀)` and `d ≥ 2 tr(ΔK_a (P_a + P_b) ΔK_aᵀ)`, `ΔK_a = K_a − K₀`, both
-/// enclosed in balls: a proven upper bound on the trace of a bound that dominates
-/// `K J Kᵀ` (`K_b = I − K_a`) for every admissible `J` (module docs). `None` when the sizes
-/// differ or a number is not finite.
+/// `P̄₁ = (1 + ε) P̄₀ + 2(1 + 1/ε) ΔK_a (P_a + P_b) ΔK_aᵀ` (module docs) for the conservative
+/// pair `certified = (K₀, P̄₀)`, `ΔK_a = K_a − K₀` and `ε = √(d / t₀)`: evaluated in balls and
+/// returned as a float matrix that dominates every matrix of the ball
+/// (`BallMatrix::dominating`), so it dominates `K J Kᵀ` (`K_b = I − K_a`) for every admissible
+/// `J`. `P̄₀` itself when `K_a = K₀`. `None` when the sizes differ or a number is not finite.
 #[allow(non_snake_case)]
-pub(crate) fn carried_trace(
+pub(crate) fn carried_bound(
     problem: &FusionProblem,
     K_a: &DMatrix<f64>,
     certified: &Fused,
-) -> Option<f64> {
+) -> Option<DMatrix<f64>> {
     let n = problem.dim();
-    let K_0 = &certified.K_a;
-    if K_a.shape() != (n, n) || K_0.shape() != (n, n) || certified.P.shape() != (n, n) {
+    let (K_0, P_0) = (&certified.K_a, &certified.P);
+    if K_a.shape() != (n, n) || K_0.shape() != (n, n) || P_0.shape() != (n, n) {
         return None;
     }
-    let t0 = trace_upper_bound(&certified.P);
+    let t0 = trace_upper_bound(P_0);
     if !(t0.is_finite() && t0 > 0.0) || K_a.iter().any(|k| !k.is_finite()) {
         return None;
     }
     if K_a == K_0 {
-        return Some(t0);
+        return Some(P_0.clone());
     }
     let delta = BallMatrix::from_fn(n, n, |i, j| {
         let mut d = Dot::new();
@@ -160,23 +170,40 @@ pub(crate) fn carried_trace(
         d.add(Ball::exact(problem.P_b[(i, j)]));
         d.ball()
     });
-    let d = 2.0 * delta.mul(&sum).mul(&delta.transpose()).trace().upper(); // exact doubling
+    // `ΔK_a (P_a + P_b) ΔK_aᵀ`; `d` its trace doubled (exactly), rounded up.
+    let spread = delta.mul(&sum).mul(&delta.transpose());
+    let d = 2.0 * spread.trace().upper();
     if !d.is_finite() {
         return None;
     }
-    // Any ε > 0 gives a valid bound; this one makes it (√t₀ + √d)² up to rounding.
-    let epsilon = (d / t0).sqrt().max(1e-150);
+    // Any ε > 0 gives a valid bound; this one makes its trace (√t₀ + √d)² up to rounding.
+    let epsilon = Ball::exact((d / t0).sqrt().max(1e-150));
     let one_plus = |x: Ball| {
         let mut s = Dot::new();
         s.add(Ball::exact(1.0));
         s.add(x);
         s.ball()
     };
-    let mut total = Dot::new();
-    total.add_prod(one_plus(Ball::exact(epsilon)), Ball::exact(t0));
-    total.add_prod(one_plus(Ball::exact(epsilon).recip()?), Ball::exact(d));
-    let t = total.ball().upper();
-    t.is_finite().then_some(t)
+    let (a, b) = (one_plus(epsilon), one_plus(epsilon.recip()?));
+    let b = Ball {
+        mid: 2.0 * b.mid,
+        rad: 2.0 * b.rad,
+    }; // exact doubling
+    let bound = BallMatrix::from_fn(n, n, |i, j| {
+        let mut s = Dot::new();
+        s.add_prod(a, Ball::exact(P_0[(i, j)]));
+        s.add_prod(b, spread.at(i, j));
+        s.ball()
+    })
+    .dominating();
+    bound.iter().all(|v| v.is_finite()).then_some(bound)
+}
+
+/// The rounded-up trace of [`carried_bound`].
+#[cfg(test)]
+#[allow(non_snake_case)]
+fn carried_trace(problem: &FusionProblem, K_a: &DMatrix<f64>, certified: &Fused) -> Option<f64> {
+    carried_bound(problem, K_a, certified).map(|P| trace_upper_bound(&P))
 }
 
 /// The proven upper bounds of a problem: CI, nmCI and (for small blocks) the certified rule.
@@ -327,7 +354,7 @@ mod tests {
     /// `max tr(K J Kᵀ)` over admissible joint covariances drawn by hit-and-run, `K_b = I − K_a`:
     /// a lower estimate of the gain's worst case, which every valid bound's trace exceeds.
     #[allow(non_snake_case)]
-    fn sampled_worst_trace(problem: &FusionProblem, K_a: &DMatrix<f64>) -> f64 {
+    fn sampled_errors(problem: &FusionProblem, K_a: &DMatrix<f64>) -> Vec<DMatrix<f64>> {
         let n = problem.dim();
         let K_b = DMatrix::identity(n, n) - K_a;
         let drawn =
@@ -337,13 +364,30 @@ mod tests {
             .iter()
             .map(|P_ab| {
                 let cross = K_a * P_ab * K_b.transpose();
-                (K_a * &problem.P_a * K_a.transpose()
+                K_a * &problem.P_a * K_a.transpose()
                     + &K_b * &problem.P_b * K_b.transpose()
                     + &cross
-                    + cross.transpose())
-                .trace()
+                    + cross.transpose()
             })
+            .collect()
+    }
+
+    /// The largest `tr K J Kᵀ` over 2000 admissible `J` drawn (`K_b = I − K_a`).
+    #[allow(non_snake_case)]
+    fn sampled_worst_trace(problem: &FusionProblem, K_a: &DMatrix<f64>) -> f64 {
+        sampled_errors(problem, K_a)
+            .iter()
+            .map(|e| e.trace())
             .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// The smallest `λ_min(P − K J Kᵀ)` over the same `J`.
+    #[allow(non_snake_case)]
+    fn sampled_worst_margin(problem: &FusionProblem, K_a: &DMatrix<f64>, P: &DMatrix<f64>) -> f64 {
+        sampled_errors(problem, K_a)
+            .iter()
+            .map(|e| (P - e).symmetric_eigenvalues().min())
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// The carried-over bound: `t₀` itself for the certified gain, `(√t₀ + √d)²` to rounding
@@ -361,7 +405,7 @@ mod tests {
             Some(t0)
         );
         let direction = DMatrix::from_row_slice(2, 2, &[0.7, -0.4, 0.5, -0.9]);
-        let mut exceeded = false;
+        let (mut exceeded, mut short) = (false, false);
         for step in [1e-9, 1e-4, 0.05, 0.3] {
             let K_a = &cert.fused.K_a + &direction * step;
             let t = carried_trace(&problem, &K_a, &cert.fused).unwrap();
@@ -378,10 +422,28 @@ mod tests {
                 "{step}: bound {t} below a sampled worst case {worst}"
             );
             exceeded |= worst > t0;
+            // The matrix itself dominates every sampled error (to the eigensolver's
+            // rounding), where `P̄₀` alone does not (below).
+            let P = carried_bound(&problem, &K_a, &cert.fused).unwrap();
+            assert_eq!(P, P.transpose());
+            // It is the module docs' `P̄₁` (in floats, to rounding), never below it.
+            let epsilon = (d / t0).sqrt();
+            let formula = &cert.fused.P * (1.0 + epsilon)
+                + &delta
+                    * (&problem.P_a + &problem.P_b)
+                    * delta.transpose()
+                    * (2.0 * (1.0 + 1.0 / epsilon));
+            let off = (&P - &formula).abs().max();
+            assert!(off <= 1e-12 * t, "{step}: {off}");
+            let above = (&P - &formula).symmetric_eigenvalues().min();
+            assert!(above >= -1e-14 * t, "{step}: {above}");
+            let margin = sampled_worst_margin(&problem, &K_a, &P);
+            assert!(margin >= -1e-12, "{step}: margin {margin}");
+            short |= sampled_worst_margin(&problem, &K_a, &cert.fused.P) < -1e-6;
         }
         assert!(
-            exceeded,
-            "no gain's sampled worst case exceeded t₀: the test proves little"
+            exceeded && short,
+            "no gain's sampled worst case exceeded P̄₀: the test proves little"
         );
         // Sizes that do not fit, and non-finite gains: no bound.
         assert_eq!(
@@ -436,11 +498,19 @@ mod tests {
         )
         .unwrap();
         let K = &sdp.fused.K_a;
+        let gain_trace = |certified: Option<&Fused>, lower: f64| {
+            gain_certified(&problem, K, &settings, certified, lower)
+                .unwrap()
+                .map(|P| trace_upper_bound(&P))
+        };
         let carried = carried_trace(&problem, K, &cert.fused).unwrap();
         assert!(carried - sdp.lower_bound <= CLOSED_RTOL * carried);
-        let closed =
-            gain_certified_trace(&problem, K, &settings, Some(&cert.fused), sdp.lower_bound);
-        assert_eq!(closed.unwrap(), Some(carried));
+        let closed = gain_certified(&problem, K, &settings, Some(&cert.fused), sdp.lower_bound);
+        assert_eq!(
+            closed.unwrap(),
+            carried_bound(&problem, K, &cert.fused),
+            "the carried matrix itself"
+        );
         let own = trace_upper_bound(&certify_gain(&problem, K, &settings).unwrap().fused.P);
         assert_ne!(
             own, carried,
@@ -448,22 +518,18 @@ mod tests {
         );
         // The threshold is relative to the bound: just inside it the carried bound, just
         // outside the solve.
-        let at = |gap: f64| {
-            let lower = carried * (1.0 - gap * CLOSED_RTOL);
-            gain_certified_trace(&problem, K, &settings, Some(&cert.fused), lower).unwrap()
-        };
+        let at = |gap: f64| gain_trace(Some(&cert.fused), carried * (1.0 - gap * CLOSED_RTOL));
         assert_eq!(at(0.9), Some(carried));
         assert_eq!(at(1.1), Some(own.min(carried)));
-        let open = gain_certified_trace(&problem, K, &settings, Some(&cert.fused), 0.0);
-        assert_eq!(open.unwrap(), Some(own.min(carried)));
-        let alone = gain_certified_trace(&problem, K, &settings, None, sdp.lower_bound);
-        assert_eq!(alone.unwrap(), Some(own));
+        assert_eq!(gain_trace(Some(&cert.fused), 0.0), Some(own.min(carried)));
+        assert_eq!(gain_trace(None, sdp.lower_bound), Some(own));
     }
 
     /// The cutting planes hand their certified rule on (`CutsResult::certified`, the pair whose
     /// trace is `certified_trace`), and method `sdp_cuts` reports the bound carried over from
     /// it to the loop's gain where that closes the gain's bracket.
     #[test]
+    #[allow(non_snake_case)]
     fn the_cutting_planes_carry_their_certified_rule_to_their_gain() {
         let problem = one_known_zero();
         let cuts = crate::sdp::optimal_fusion_cuts(&problem, &Default::default()).unwrap();
@@ -481,7 +547,9 @@ mod tests {
         .unwrap();
         match crate::contract::fuse(&request).unwrap().details {
             crate::contract::Details::SdpCuts(d) => {
-                assert_eq!(d.gain_certified_trace, Some(carried))
+                assert_eq!(d.gain_certified_trace, Some(carried));
+                let P = carried_bound(&problem, &cuts.fused.K_a, cert).unwrap();
+                assert_eq!(d.gain_certified_p, Some(crate::linalg::matrix_to_rows(&P)));
             }
             other => panic!("{other:?}"),
         }

@@ -30,7 +30,8 @@
 //!   the worst cases found so far), and only to the solver's tolerance, so their optimum is a
 //!   lower bound on the robust optimum (up to that tolerance; the bracket's lower end is the
 //!   rigorous one) and their `P̄` need not dominate for other `P'`. Their responses carry the
-//!   proven bracket.
+//!   proven bracket and, for blocks of up to four states, `gain_certified_p`: a bound proven
+//!   conservative for their own gain (`fusion::bracket`, "A given gain's bound").
 //! - [`Guarantee::CommonInformation`]: ICI (Noack et al. 2017) is conservative when the
 //!   correlation comes from common information, not for every admissible `P'`.
 //! - [`Guarantee::None`]: EI and naive fusion (which assumes `P' = 0`) guarantee nothing.

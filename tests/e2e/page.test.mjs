@@ -286,10 +286,17 @@ test("at three states a second stage closes the bracket the sampled SDP leaves o
     await page.waitForFunction(() => document.body.dataset.proving === "false", null, { timeout: 120_000 });
     assert.match(await text("#gap"), /\(both ends proven, every rounding accounted for: a Lagrangian bound from the cutting planes' duals below, the cutting planes' own rule \(proven on \d+ cones of directions\) above\)/);
     assert.match(await text("#gap-verdict"), /^proven optimal to 10⁻⁶ \(relative\): the cutting planes' own rule \(proven on \d+ cones of directions\) is within 10⁻⁶ of the robust optimum$/);
-    assert.match(await text("#proof-status"), /^second stage: the cutting planes \(\d+ iterations, stopped by converged\) narrowed the bracket [\d.e+]+ times$/);
+    assert.match(await text("#proof-status"), /^second stage: the cutting planes \(\d+ iterations, stopped by converged\) narrowed the bracket [\d.e+]+ times; their gains with the bound proven for them \(tr P̄ [\d.]+\) are in the JSON export$/);
   };
   await proven();
   await page.screenshot({ path: join(out, "explorer-second-stage.png"), fullPage: true });
+  // The export holds the proof: the gains, and the bound proven for them within the bracket.
+  const [download] = await Promise.all([page.waitForEvent("download"), page.click("#export-json")]);
+  const { second_stage: proof } = JSON.parse(await readFile(await download.path(), "utf8"));
+  assert.ok(proof.own_rule_proven && proof.closed, JSON.stringify(proof));
+  assert.equal(proof.rule.p.length, 3);
+  assert.ok(proof.rule.trace <= proof.upper && proof.rule.trace >= proof.lower, `${proof.rule.trace} ${proof.upper}`);
+  proof.rule.ka.forEach((row, i) => row.forEach((k, j) => assert.ok(Math.abs(k + proof.rule.kb[i][j] - (i === j)) <= 1e-15)));
   // The proof's bracket lies within the first one (both proven, so they must overlap).
   const ends = (t) => t.match(/\[([\d.]+), ([\d.]+)\]/).slice(1).map(Number);
   const [lo, hi] = ends(await text("#gap"));

@@ -673,6 +673,58 @@ fn the_cutting_planes_own_rule_is_proven_and_closes_brackets_level_2_leaves_open
     }
 }
 
+/// Method `sdp_cuts` hands the proven bound for its own gain on (`gain_certified_p`), as the
+/// JSON contract runs it by default: on the first three anti-diagonal problems of
+/// docs/benchmarks.md's sweep, where its own rule is proven, the matrix is symmetric, its trace
+/// rounded up is `gain_certified_trace` (at most the bracket's upper end), and the independent
+/// worst-case search above finds no direction it misses, while the same matrix lowered below
+/// the proven lower end is missed.
+#[test]
+#[allow(non_snake_case)]
+fn sdp_cuts_gives_the_proven_bound_of_its_own_gain() {
+    let rows = |m: &DMatrix<f64>| -> Vec<Vec<f64>> {
+        m.row_iter().map(|r| r.iter().copied().collect()).collect()
+    };
+    let matrix = |rows: &Vec<Vec<f64>>| DMatrix::from_fn(3, 3, |i, j| rows[i][j]);
+    let unknown: Vec<Vec<bool>> = (0..3)
+        .map(|i| (0..3).map(|j| j == 2 - i).collect())
+        .collect();
+    let starts = half_sphere(200);
+    for k in 1..=3 {
+        let p = crate::cuts::sweep_problem(0, k, |i, j| j == 2 - i);
+        let request: FuseRequest = serde_json::from_value(serde_json::json!({
+            "pa": rows(&p.P_a), "pb": rows(&p.P_b), "pab_unknown": unknown, "method": "sdp_cuts",
+        }))
+        .unwrap();
+        let response = fuse(&request).unwrap();
+        let (Details::SdpCuts(d), Gains::Pair { ka, .. }) = (&response.details, &response.gains)
+        else {
+            panic!("{response:?}")
+        };
+        assert!(d.own_rule_proven, "problem {k}");
+        let (K_a, P) = (matrix(ka), matrix(d.gain_certified_p.as_ref().unwrap()));
+        assert_eq!(P, P.transpose());
+        let trace = d.gain_certified_trace.unwrap();
+        assert_eq!(trace, trace_upper_bound(&P));
+        let bracket = d.bracket.unwrap();
+        assert!(
+            trace <= bracket.upper,
+            "problem {k}: {trace} above {bracket:?}"
+        );
+        let violation = worst_violation_by_hand(&p, &K_a, &P, &starts);
+        assert!(
+            violation <= 1e-9 * trace,
+            "problem {k}: violation {violation:e}"
+        );
+        let eps = 2.0 * (trace - bracket.lower) / 3.0 + 1e-7;
+        let lowered = &P - DMatrix::identity(3, 3) * eps;
+        assert!(
+            worst_violation_by_hand(&p, &K_a, &lowered, &starts) > 0.0,
+            "problem {k}"
+        );
+    }
+}
+
 #[test]
 fn own_rule_cones_out_of_range_is_a_typed_error() {
     let p = random_problem(3, CrossPattern::from_fn(3, |i, j| i + j != 2), &mut rng(2));

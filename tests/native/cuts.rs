@@ -179,7 +179,7 @@ fn the_requests_cuts_tolerance_is_the_loops() {
 
 /// docs/benchmarks.md's `k`-th three-state problem of class `c` (0 anti-diagonal, 1 chain),
 /// whose unknown entries are `unknown` (`certify_levels`' draw, seed `3000 + c`).
-fn sweep_problem(c: u64, k: usize, unknown: fn(usize, usize) -> bool) -> FusionProblem {
+pub(crate) fn sweep_problem(c: u64, k: usize, unknown: fn(usize, usize) -> bool) -> FusionProblem {
     use rand::Rng;
     let mut r = rng(3000 + c);
     let mut draw = || {

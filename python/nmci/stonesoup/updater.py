@@ -45,6 +45,14 @@ for errors ``e_a``, ``e_b`` with any cross-covariance ``C``, expanding
 (a test checks it on random joint covariances). Gating with ``V`` therefore never rejects a true
 association more often than the gate's level says.
 
+The covariance of the update is the rule's bound ``p``, except for the SDPs (``sdp``,
+``sdp_cuts``): their ``p`` is a relaxation's, imposed for finitely many cross-covariances only,
+so a track carrying it could become overconfident. Where their response carries
+``gain_certified_p`` — a bound proven for their own gain and every admissible cross-covariance,
+rounding included (blocks of up to four states; see :attr:`nmci.Fused.gain_certified_p`) — the
+update takes that, with the same estimate, and ``update.fusion.guarantee`` says
+``"conservative"``; otherwise ``p``, and the guarantee says ``"relaxation"``.
+
 Blocks: where the states split into blocks with no entries of ``A``, ``B`` or ``C`` between them
 (nmCI's blocks, or declared ``blocks``), the densities factor over the blocks, each block with its
 own ``ω_k``, and ``V`` is block-diagonal with blocks ``V_k(ω_k)``. A block fused at an endpoint
@@ -239,12 +247,17 @@ class NmciUpdater(Updater):
         else:
             r = self._fuse(A, B, a, b)
             x, P = np.reshape(r["x"], (n, 1)), np.asarray(r["p"], dtype=float)
+            guarantee = r["guarantee"]
+            # The SDPs' own `p` is a relaxation's: the bound proven for their gain is the
+            # covariance a filter can carry on with (module docs).
+            if r.get("gain_certified_p") is not None:
+                P, guarantee = np.asarray(r["gain_certified_p"], dtype=float), "conservative"
             omega, blocks = r.get("omega"), r.get("blocks")
             info = FusionInfo(
                 self.rule,
                 None if omega is None else tuple(float(w) for w in omega),
                 None if blocks is None else tuple(tuple(b) for b in blocks),
-                r["guarantee"])
+                guarantee)
         if force_symmetric_covariance:
             P = (P + P.T) / 2
         update = Update.from_state(prediction, x, P, hypothesis, measurement.timestamp)
