@@ -19,6 +19,7 @@ const STROKE = (() => {
       : r.guarantee === "relaxation" ? { width: 2, dash: "7 4" }
       : { width: 1.8, dash: "2 3" };
   }
+  stroke.proven = { width: 1.6, dash: "none" }; // a proven bound: solid
   return stroke;
 })();
 
@@ -63,7 +64,7 @@ const prover = createProveClient({
   onProof: (proof, of) => {
     if (of !== analysedState) return;
     second = { proof };
-    renderNumbers();
+    render(); // the proven rule's ellipse, and the numbers
   },
   onProofError: (error, of) => {
     if (of !== analysedState) return;
@@ -294,6 +295,7 @@ function render() {
     pa: state.n === s.n ? state.pa : s.pa,
     pb: state.n === s.n ? state.pb : s.pb,
     ...Object.fromEntries(last.rules.map((r) => [r.method, r.response ? r.response.p : null])),
+    proven: second?.proof?.rule?.p ?? null,
   };
   const n = last.n;
   const region = [];

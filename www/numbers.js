@@ -11,6 +11,8 @@ export const STYLE = {
   pa: { label: "P_a", color: "#1f77b4" },
   pb: { label: "P_b", color: "#e07b00" },
   ...Object.fromEntries(EXPLORER_RULES.map((r) => [r.name, { label: r.legend, color: r.colour }])),
+  // The second stage's rule: the cutting planes' gain, in their registry colour.
+  proven: { label: "cutting planes, proven bound", color: RULE.sdp_cuts.colour },
 };
 
 const f3 = (v) => (v === undefined || v === null ? "—" : Number(v).toFixed(3));
@@ -176,7 +178,7 @@ function secondStage(second, first) {
     ? `; the proof pointed them to cuts their search had missed (${p.proof_rounds === 1 ? "once" : "twice"})`
     : "";
   // The loop's gain with the bound proven for it: the rule a filter can carry on.
-  const rule = p.rule ? `; their gains with the bound proven for them (tr P̄ ${p.rule.trace.toFixed(6)}) are in the JSON export` : "";
+  const rule = p.rule ? `; their gains with the bound proven for them (tr P̄ ${p.rule.trace.toFixed(6)}, drawn in the picture) are in the JSON export` : "";
   return el("div", { id: "proof-status" }, key("second stage:"), ` the cutting planes (${p.iterations} iterations, stopped by ${stop}) ${narrower}${pointed}${rule}`);
 }
 

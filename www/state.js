@@ -2,8 +2,10 @@
 
 import { EXPLORER_RULES } from "./rules.js";
 
-// The region, the two estimates, then every rule the explorer computes (from the registry).
-export const LAYERS = ["region", "pa", "pb", ...EXPLORER_RULES.map((r) => r.name)];
+// The region, the two estimates, every rule the explorer computes (from the registry), then
+// the second stage's proven rule (the cutting planes' gain with its proven bound, when a proof
+// has one).
+export const LAYERS = ["region", "pa", "pb", ...EXPLORER_RULES.map((r) => r.name), "proven"];
 // Drawn by default: all but the rules guaranteed for chosen correlations only or not at all
 // (`unguaranteed` in the registry); they are a click away.
 const DEFAULT_OFF = EXPLORER_RULES.filter((r) => r.unguaranteed).map((r) => r.name);

@@ -286,8 +286,10 @@ test("at three states a second stage closes the bracket the sampled SDP leaves o
     await page.waitForFunction(() => document.body.dataset.proving === "false", null, { timeout: 120_000 });
     assert.match(await text("#gap"), /\(both ends proven, every rounding accounted for: a Lagrangian bound from the cutting planes' duals below, the cutting planes' own rule \(proven on \d+ cones of directions\) above\)/);
     assert.match(await text("#gap-verdict"), /^proven optimal to 10⁻⁶ \(relative\): the cutting planes' own rule \(proven on \d+ cones of directions\) is within 10⁻⁶ of the robust optimum$/);
-    assert.match(await text("#proof-status"), /^second stage: the cutting planes \(\d+ iterations, stopped by converged\) narrowed the bracket [\d.e+]+ times; their gains with the bound proven for them \(tr P̄ [\d.]+\) are in the JSON export$/);
+    assert.match(await text("#proof-status"), /^second stage: the cutting planes \(\d+ iterations, stopped by converged\) narrowed the bracket [\d.e+]+ times; their gains with the bound proven for them \(tr P̄ [\d.]+, drawn in the picture\) are in the JSON export$/);
+    assert.equal(await page.locator("#layer-proven").count(), 1, "the proven rule's ellipse");
   };
+  assert.equal(await page.locator("#layer-proven").count(), 0, "no proven rule while the proof runs");
   await proven();
   await page.screenshot({ path: join(out, "explorer-second-stage.png"), fullPage: true });
   // The export holds the proof: the gains, and the bound proven for them within the bracket.
