@@ -41,9 +41,8 @@
 //! lower end (`t − lower_bound ≤ CLOSED_RTOL · t`), no bound for this gain can be smaller by
 //! more than that — with `K₁`, every valid bound `P̄` is a feasible point of the robust
 //! problem, so `tr P̄ ≥ V* ≥ lower_bound` — and the gain's own certificate is not solved.
-//! Otherwise it is (within
-//! the block limit above), and the one of the two with the smaller trace is reported. Where the method's gain is
-//! close to the certified rule's (as on the paper's example with one known zero, the unit
+//! Otherwise it is (within the block limit above), and the one of the two with the smaller
+//! trace is reported. Where the method's gain is close to the certified rule's (as on the paper's example with one known zero, the unit
 //! test) the carried-over bound exceeds the certified rule's trace by only `2√(t₀ d) + d`, and
 //! the second solve is saved (`docs/benchmarks.md` has the timings).
 
@@ -351,8 +350,8 @@ mod tests {
         .unwrap()
     }
 
-    /// `max tr(K J Kᵀ)` over admissible joint covariances drawn by hit-and-run, `K_b = I − K_a`:
-    /// a lower estimate of the gain's worst case, which every valid bound's trace exceeds.
+    /// `K J Kᵀ` (`K_b = I − K_a`) for 2000 admissible joint covariances `J` drawn by
+    /// hit-and-run: every valid bound for the gain dominates each of them.
     #[allow(non_snake_case)]
     fn sampled_errors(problem: &FusionProblem, K_a: &DMatrix<f64>) -> Vec<DMatrix<f64>> {
         let n = problem.dim();
@@ -372,7 +371,8 @@ mod tests {
             .collect()
     }
 
-    /// The largest `tr K J Kᵀ` over 2000 admissible `J` drawn (`K_b = I − K_a`).
+    /// The largest `tr K J Kᵀ` over those `J`: a lower estimate of the gain's worst case,
+    /// which every valid bound's trace exceeds.
     #[allow(non_snake_case)]
     fn sampled_worst_trace(problem: &FusionProblem, K_a: &DMatrix<f64>) -> f64 {
         sampled_errors(problem, K_a)
