@@ -10,6 +10,11 @@ pub mod fuzz;
 pub mod memo;
 pub mod worst;
 
+/// A matrix as the contract's nested rows.
+pub fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    m.row_iter().map(|r| r.iter().copied().collect()).collect()
+}
+
 pub fn rng(seed: u64) -> ChaCha8Rng {
     ChaCha8Rng::seed_from_u64(seed)
 }

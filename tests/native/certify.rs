@@ -682,9 +682,6 @@ fn the_cutting_planes_own_rule_is_proven_and_closes_brackets_level_2_leaves_open
 #[test]
 #[allow(non_snake_case)]
 fn sdp_cuts_gives_the_proven_bound_of_its_own_gain() {
-    let rows = |m: &DMatrix<f64>| -> Vec<Vec<f64>> {
-        m.row_iter().map(|r| r.iter().copied().collect()).collect()
-    };
     let matrix = |rows: &Vec<Vec<f64>>| DMatrix::from_fn(3, 3, |i, j| rows[i][j]);
     let unknown: Vec<Vec<bool>> = (0..3)
         .map(|i| (0..3).map(|j| j == 2 - i).collect())
@@ -692,10 +689,8 @@ fn sdp_cuts_gives_the_proven_bound_of_its_own_gain() {
     let starts = half_sphere(200);
     for k in 1..=3 {
         let p = crate::cuts::sweep_problem(0, k, |i, j| j == 2 - i);
-        let request: FuseRequest = serde_json::from_value(serde_json::json!({
-            "pa": rows(&p.P_a), "pb": rows(&p.P_b), "pab_unknown": unknown, "method": "sdp_cuts",
-        }))
-        .unwrap();
+        let mut request = FuseRequest::new(Method::SdpCuts, rows(&p.P_a), rows(&p.P_b));
+        request.pair.pab_unknown = Some(unknown.clone());
         let response = fuse(&request).unwrap();
         let (Details::SdpCuts(d), Gains::Pair { ka, .. }) = (&response.details, &response.gains)
         else {

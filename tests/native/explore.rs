@@ -308,10 +308,7 @@ fn the_second_stage_proves_three_state_brackets_the_page_leaves_open() {
     let mut r = rng(44);
     let mut own = 0;
     for _ in 0..3 {
-        let rows = |m: &DMatrix<f64>| {
-            let rows: Vec<Vec<f64>> = m.row_iter().map(|r| r.iter().copied().collect()).collect();
-            serde_json::to_string(&rows).unwrap()
-        };
+        let rows = |m: &DMatrix<f64>| serde_json::to_string(&common::rows(m)).unwrap();
         let (pa, pb) = (random_spd(3, &mut r), random_spd(3, &mut r));
         let req = request(&format!(
             r#"{{"pa": {}, "pb": {}, "pab_unknown": [[true,true,false],[true,false,true],[false,true,true]], "samples": 200, "sampler": "auto", "region_samples": 0}}"#,

@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use nmci::{check::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *};
 use rand::Rng;
 
-use crate::common::{self, block_spd, diag, rng};
+use crate::common::{self, block_spd, diag, rng, rows};
 
 /// A steady-state Kalman covariance of a 2-axis constant-velocity model (states
 /// `[x, vx, y, vy]`) with a position sensor of variances `r` per axis, computed in a frame
@@ -61,12 +61,6 @@ fn cv_pair(theta: f64) -> (DMatrix<f64>, DMatrix<f64>) {
         cv_covariance([1.0, 100.0], theta),
         cv_covariance([100.0, 1.0], theta),
     )
-}
-
-fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
-    (0..m.nrows())
-        .map(|i| m.row(i).iter().copied().collect())
-        .collect()
 }
 
 fn per_axis_pattern() -> Vec<Vec<bool>> {
