@@ -673,6 +673,39 @@ fn the_cutting_planes_own_rule_is_proven_and_closes_brackets_level_2_leaves_open
     }
 }
 
+/// Method `method` through the contract on docs/benchmarks.md's `k`-th three-state
+/// anti-diagonal problem: the problem, the response, the response's `K_a`, its
+/// `gain_certified_p` and `gain_certified_trace` — asserted symmetric, and the trace the
+/// matrix's rounded up.
+#[allow(non_snake_case)]
+fn own_gain_bound(
+    method: Method,
+    k: usize,
+) -> (FusionProblem, FuseResponse, DMatrix<f64>, DMatrix<f64>, f64) {
+    let matrix = |rows: &Vec<Vec<f64>>| DMatrix::from_fn(3, 3, |i, j| rows[i][j]);
+    let p = crate::cuts::sweep_problem(0, k, |i, j| j == 2 - i);
+    let mut request = FuseRequest::new(method, rows(&p.P_a), rows(&p.P_b));
+    request.pair.pab_unknown = Some(
+        (0..3)
+            .map(|i| (0..3).map(|j| j == 2 - i).collect())
+            .collect(),
+    );
+    let response = fuse(&request).unwrap();
+    let (P, trace) = match &response.details {
+        Details::Sdp(d) => (&d.gain_certified_p, d.gain_certified_trace),
+        Details::SdpCuts(d) => (&d.gain_certified_p, d.gain_certified_trace),
+        other => panic!("{other:?}"),
+    };
+    let (P, trace) = (matrix(P.as_ref().unwrap()), trace.unwrap());
+    assert_eq!(P, P.transpose());
+    assert_eq!(trace, trace_upper_bound(&P));
+    let Gains::Pair { ka, .. } = &response.gains else {
+        panic!("{:?}", response.gains)
+    };
+    let K_a = matrix(ka);
+    (p, response, K_a, P, trace)
+}
+
 /// Method `sdp_cuts` hands the proven bound for its own gain on (`gain_certified_p`), as the
 /// JSON contract runs it by default: on the first three anti-diagonal problems of
 /// docs/benchmarks.md's sweep, where its own rule is proven, the matrix is symmetric, its trace
@@ -682,25 +715,13 @@ fn the_cutting_planes_own_rule_is_proven_and_closes_brackets_level_2_leaves_open
 #[test]
 #[allow(non_snake_case)]
 fn sdp_cuts_gives_the_proven_bound_of_its_own_gain() {
-    let matrix = |rows: &Vec<Vec<f64>>| DMatrix::from_fn(3, 3, |i, j| rows[i][j]);
-    let unknown: Vec<Vec<bool>> = (0..3)
-        .map(|i| (0..3).map(|j| j == 2 - i).collect())
-        .collect();
     let starts = half_sphere(200);
     for k in 1..=3 {
-        let p = crate::cuts::sweep_problem(0, k, |i, j| j == 2 - i);
-        let mut request = FuseRequest::new(Method::SdpCuts, rows(&p.P_a), rows(&p.P_b));
-        request.pair.pab_unknown = Some(unknown.clone());
-        let response = fuse(&request).unwrap();
-        let (Details::SdpCuts(d), Gains::Pair { ka, .. }) = (&response.details, &response.gains)
-        else {
-            panic!("{response:?}")
+        let (p, response, K_a, P, trace) = own_gain_bound(Method::SdpCuts, k);
+        let Details::SdpCuts(d) = &response.details else {
+            unreachable!()
         };
         assert!(d.own_rule_proven, "problem {k}");
-        let (K_a, P) = (matrix(ka), matrix(d.gain_certified_p.as_ref().unwrap()));
-        assert_eq!(P, P.transpose());
-        let trace = d.gain_certified_trace.unwrap();
-        assert_eq!(trace, trace_upper_bound(&P));
         let bracket = d.bracket.unwrap();
         assert!(
             trace <= bracket.upper,
@@ -727,31 +748,17 @@ fn sdp_cuts_gives_the_proven_bound_of_its_own_gain() {
 #[test]
 #[allow(non_snake_case)]
 fn sdp_gives_the_proven_bound_of_its_own_gain() {
-    let matrix = |rows: &Vec<Vec<f64>>| DMatrix::from_fn(3, 3, |i, j| rows[i][j]);
-    let unknown: Vec<Vec<bool>> = (0..3)
-        .map(|i| (0..3).map(|j| j == 2 - i).collect())
-        .collect();
     let starts = half_sphere(200);
     let mut relaxation_missed = false;
     for k in 1..=3 {
-        let p = crate::cuts::sweep_problem(0, k, |i, j| j == 2 - i);
-        let mut request = FuseRequest::new(Method::Sdp, rows(&p.P_a), rows(&p.P_b));
-        request.pair.pab_unknown = Some(unknown.clone());
-        let response = fuse(&request).unwrap();
-        let (Details::Sdp(d), Gains::Pair { ka, .. }) = (&response.details, &response.gains) else {
-            panic!("{response:?}")
-        };
-        let (K_a, P) = (matrix(ka), matrix(d.gain_certified_p.as_ref().unwrap()));
-        assert_eq!(P, P.transpose());
-        let trace = d.gain_certified_trace.unwrap();
-        assert_eq!(trace, trace_upper_bound(&P));
+        let (p, response, K_a, P, trace) = own_gain_bound(Method::Sdp, k);
         let violation = worst_violation_by_hand(&p, &K_a, &P, &starts);
         assert!(
             violation <= 1e-9 * trace,
             "problem {k}: violation {violation:e}"
         );
-        let relaxed = worst_violation_by_hand(&p, &K_a, &matrix(&response.p), &starts);
-        relaxation_missed |= relaxed > 1e-6 * trace;
+        let relaxation = DMatrix::from_fn(3, 3, |i, j| response.p[i][j]);
+        relaxation_missed |= worst_violation_by_hand(&p, &K_a, &relaxation, &starts) > 1e-6 * trace;
     }
     assert!(
         relaxation_missed,
