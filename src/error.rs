@@ -144,7 +144,7 @@ pub enum InputError {
     },
     /// An entry of `P_a` or `P_b` between two declared blocks above the coupling tolerance:
     /// the blocks are not independent in it (`crate::structure::absorb_couplings`).
-    #[error("{}[{row}][{col}] = {value} couples blocks {} and {} ({relative:.1e} relative to the square root of its diagonal entries, above coupling_tol {tol:e}): the declared blocks are not independent", request_field(name), blocks[0], blocks[1])]
+    #[error("{}[{row}][{col}] = {value} couples blocks {} and {} ({} relative to the square root of its diagonal entries, above coupling_tol {tol:e}): the declared blocks are not independent", request_field(name), blocks[0], blocks[1], crate::structure::digits_above(*relative, *tol))]
     CouplingTooLarge {
         /// The covariance's request field (`pa`, `pb`, `estimates[i].p`).
         name: String,

@@ -11,6 +11,8 @@
 
 pub(crate) mod absorb;
 
+pub(crate) use absorb::digits_above;
+
 use nalgebra::DMatrix;
 
 use crate::error::InputError;

@@ -309,9 +309,12 @@ def optimal(
     optimum.
 
     ``blocks`` declares a partition of the states into blocks with independent errors (it
-    implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up
-    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are absorbed into a
-    proven block-diagonal bound, reported in ``structure``.
+    implies ``pab_unknown`` when that is not given). Entries of ``Pa``, ``Pb`` between blocks up
+    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are not absorbed into
+    the relaxation: it solves the *deflated* problem (those entries dropped, the diagonals
+    lowered by as much), so that its proven lower end holds for the given covariances; the
+    bracket's upper ends are proven on the absorbed problem (a block-diagonal bound that
+    dominates them). Reported in ``structure`` (``absorbed``: ``True``).
     """
     return _two(
         "sdp",
@@ -358,9 +361,10 @@ def sdp_cuts(
     three-state bracket open, it goes on once to ``1e-10`` and proves again.
 
     ``blocks`` declares a partition of the states into blocks with independent errors (it
-    implies ``pab_unknown`` when that is not given); entries of ``Pa``, ``Pb`` between blocks up
-    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are absorbed into a
-    proven block-diagonal bound, reported in ``structure``.
+    implies ``pab_unknown`` when that is not given). Entries of ``Pa``, ``Pb`` between blocks are
+    *not* absorbed: the loop stops on a bracket computed on the problem it solves, so it solves
+    the covariances as given, the blocks such entries couple merged into one; ``structure``
+    says so (``absorbed``: ``False``, and its note).
     """
     return _two(
         "sdp_cuts",

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{InputError, RequestError, SolveError};
 use crate::fusion::bracket::{
-    bracket_certificate, gain_certified, trace_upper_bound, upper_bounds, UpperBounds,
+    bracket_certificate, gain_certified, trace_upper_bound, upper_bounds, UpperBounds, UpperRule,
 };
 use crate::fusion::certify::{certified_fusion, Certificates, CertifiedResult, CertifySettings};
 use crate::fusion::ci::covariance_intersection;
@@ -187,19 +187,41 @@ pub(crate) fn fuse_planned(
             let cuts = optimal_fusion_cuts(&problem, &plan.cuts)?;
             // Past the time limit the own-gain certificate is left out, not an error (the loop
             // has its bracket).
-            let gain_certified = match gain_certified(
-                &problem,
-                &cuts.fused.K_a,
-                &plan.certify,
-                cuts.certified.as_ref(),
-                cuts.lower_bound,
-            ) {
+            // Where the loop proved its own rule, that is the bound for its gain (the least
+            // of its proofs); otherwise the certified rule's carried over, or the gain's own.
+            let proven = cuts
+                .own_rule_proven
+                .then(|| cuts.certified.as_ref().map(|c| c.P.clone()))
+                .flatten();
+            let gain_certified = match proven.map(|p| Ok(Some(p))).unwrap_or_else(|| {
+                gain_certified(
+                    &problem,
+                    &cuts.fused.K_a,
+                    &plan.certify,
+                    cuts.certified.as_ref(),
+                    cuts.lower_bound,
+                )
+            }) {
                 Ok(bound) => bound,
                 Err(SolveError::TimeLimit { .. }) => None,
                 Err(e) => return Err(e.into()),
             };
-            // The loop computed the certified rule already (blocks of up to 6 states).
-            let uppers = UpperBounds::of(&problem, cuts.certified_trace)?;
+            // The loop computed the certified rule already (blocks of up to 6 states); where
+            // it proved its own rule, that bound is the own gain's and named so.
+            let (certified_upper, own_upper) = if cuts.own_rule_proven {
+                (None, cuts.certified_trace)
+            } else {
+                (cuts.certified_trace, None)
+            };
+            let own_upper = own_upper
+                .into_iter()
+                .chain(gain_certified.as_ref().map(trace_upper_bound))
+                .reduce(f64::min);
+            let uppers = UpperBounds::of(&problem, certified_upper)?;
+            let mut gap_closed = cuts.gap_closed;
+            if let Some(own) = own_upper {
+                gap_closed |= plan.cuts.closes(cuts.lower_bound, own);
+            }
             let details = Details::SdpCuts(CutsDetails {
                 status: cuts.status,
                 iterations: cuts.iterations as u32,
@@ -207,8 +229,10 @@ pub(crate) fn fuse_planned(
                 violation: cuts.violation,
                 converged: cuts.converged,
                 stop: cuts.stop,
-                gap_closed: cuts.gap_closed,
-                bracket: uppers.bracket(cuts.lower_bound),
+                gap_closed,
+                // Every proven upper end the response holds: the loop's (the certified rule,
+                // or its own rule proven) and the bound for its own gain.
+                bracket: uppers.bracket_with_own(cuts.lower_bound, own_upper, UpperRule::SdpCuts),
                 certificates: cuts.certificates,
                 gain_certified_trace: gain_certified.as_ref().map(trace_upper_bound),
                 gain_certified_p: gain_certified.as_ref().map(matrix_to_rows),
@@ -436,7 +460,11 @@ pub(crate) fn sdp_response(
         sampler_choice: opt.sampler_choice,
         lmis: opt.lmis,
         worst_sample_margin: opt.worst_sample_margin,
-        bracket: uppers.bracket(opt.lower_bound),
+        bracket: uppers.bracket_with_own(
+            opt.lower_bound,
+            gain_certified.as_ref().map(trace_upper_bound),
+            UpperRule::Sdp,
+        ),
         certificates,
         gain_certified_trace: gain_certified.as_ref().map(trace_upper_bound),
         gain_certified_p: gain_certified.as_ref().map(matrix_to_rows),

@@ -111,7 +111,7 @@ fn as_given(
         blocks: exact,
         couplings: Vec::new(),
         exact_blocks: s.exact_blocks,
-        near_miss: s.near_miss,
+        near_miss: s.near_miss.clone(),
     };
     details_of(&as_given, tol, false, None, kept)
 }

@@ -235,6 +235,11 @@ pub enum UpperRule {
     Nmci,
     /// The certified rule.
     Certified,
+    /// The sampled SDP's own gain, its bound proven (`gain_certified_p`).
+    Sdp,
+    /// The cutting planes' own gain, its bound proven (the own rule proven, or
+    /// `gain_certified_p`).
+    SdpCuts,
 }
 
 impl Bracket {
@@ -323,6 +328,34 @@ impl UpperBounds {
     /// The bracket with a proven lower bound.
     pub fn bracket(&self, lower: f64) -> Option<Bracket> {
         self.best().map(|(upper, upper_rule)| Bracket {
+            lower,
+            upper,
+            upper_rule,
+        })
+    }
+
+    /// The bracket with a proven lower bound, its upper end the least of these bounds and
+    /// `own`, the rounded-up trace of a bound proven for the method's own gain
+    /// (`gain_certified_p`), which `rule` names: every proven upper bound a response holds.
+    /// `own` is named only when it is smaller than the others (as the certified rule is, by
+    /// more than `10⁻¹²` relative: where it is the certified rule's bound carried over
+    /// unchanged the two are equal).
+    pub fn bracket_with_own(
+        &self,
+        lower: f64,
+        own: Option<f64>,
+        rule: UpperRule,
+    ) -> Option<Bracket> {
+        let best = match (self.best(), own) {
+            (Some((b, r)), Some(o)) => Some(if o < b * (1.0 - 1e-12) {
+                (o, rule)
+            } else {
+                (b, r)
+            }),
+            (best, None) => best,
+            (None, Some(o)) => Some((o, rule)),
+        };
+        best.map(|(upper, upper_rule)| Bracket {
             lower,
             upper,
             upper_rule,

@@ -74,6 +74,8 @@ impl From<super::bracket::UpperRule> for Method {
             UpperRule::Ci => Method::Ci,
             UpperRule::Nmci => Method::Nmci,
             UpperRule::Certified => Method::Certified,
+            UpperRule::Sdp => Method::Sdp,
+            UpperRule::SdpCuts => Method::SdpCuts,
         }
     }
 }
@@ -86,6 +88,8 @@ impl Method {
             Method::Ci => Some(UpperRule::Ci),
             Method::Nmci => Some(UpperRule::Nmci),
             Method::Certified => Some(UpperRule::Certified),
+            Method::Sdp => Some(UpperRule::Sdp),
+            Method::SdpCuts => Some(UpperRule::SdpCuts),
             _ => None,
         }
     }

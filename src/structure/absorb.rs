@@ -203,8 +203,10 @@ pub struct BlockStructure {
     /// of the given problem).
     pub exact_blocks: usize,
     /// The strongest coupling (relative, at most [`COUPLING_HINT`]) left that merges blocks,
-    /// and the number of blocks a tolerance at its size would give: what the note suggests.
-    pub near_miss: Option<(f64, usize)>,
+    /// the number of blocks a tolerance at its size would give, and that tolerance as the
+    /// note writes it: the shortest decimal at least the coupling that gives those blocks
+    /// (so the advice works when followed).
+    pub near_miss: Option<(f64, usize, String)>,
 }
 
 /// A problem with its near-zero couplings absorbed ([`absorb_couplings`]).
@@ -232,7 +234,9 @@ impl BlockStructure {
 
     /// `tr P̄_a + tr P̄_b − tr P_a − tr P_b`, the sum of [`Coupling::trace_added`].
     pub fn trace_added(&self) -> f64 {
-        self.couplings.iter().map(|c| c.trace_added).sum()
+        self.couplings
+            .iter()
+            .fold(0.0, |sum, c| sum + c.trace_added)
     }
 
     /// A sentence for a person when the structure differs from what exact zeros give, or
@@ -255,9 +259,10 @@ impl BlockStructure {
                 self.trace_added(),
             ));
         }
-        if let Some((size, count)) = self.near_miss {
+        if let Some((size, count, advice)) = &self.near_miss {
             parts.push(format!(
-                "a coupling of {size:.1e} relative (above coupling_tol {tol:.0e}) keeps blocks merged: coupling_tol = {size:.1e} would give {count} blocks"
+                "a coupling of {} relative (above coupling_tol {tol:e}) keeps blocks merged: coupling_tol = {advice} would give {count} blocks",
+                digits_above(*size, tol),
             ));
         }
         (!parts.is_empty()).then(|| parts.join("; "))
@@ -447,13 +452,33 @@ fn near_miss(
     patterns: &[(String, &CrossPattern)],
     blocks: &[Vec<usize>],
     tol: f64,
-) -> Option<(f64, usize)> {
+) -> Option<(f64, usize, String)> {
     let finer = blocks_at(n, matrices, patterns, COUPLING_HINT);
     if finer.len() <= blocks.len() {
         return None;
     }
     let (size, ..) = strongest_across(matrices, &block_of(n, &finer), tol)?;
-    Some((size, blocks_at(n, matrices, patterns, size).len()))
+    let count = blocks_at(n, matrices, patterns, size).len();
+    // The shortest decimal at least `size` that still gives `count` blocks (at 17 digits it
+    // is `size` itself, which does).
+    let advice = (2..=17)
+        .map(|digits| format!("{:.*e}", digits - 1, size))
+        .find(|text| {
+            text.parse::<f64>()
+                .is_ok_and(|t| t >= size && blocks_at(n, matrices, patterns, t).len() == count)
+        })
+        .unwrap_or_else(|| format!("{size:e}"));
+    Some((size, count, advice))
+}
+
+/// `value` (above `floor`) in the fewest significant digits (two at least) that still read
+/// above `floor` written shortest, so a coupling printed beside its tolerance is never shown
+/// at or below it.
+pub(crate) fn digits_above(value: f64, floor: f64) -> String {
+    (2..=17)
+        .map(|digits| format!("{:.*e}", digits - 1, value))
+        .find(|text| text.parse::<f64>().is_ok_and(|v| v > floor))
+        .unwrap_or_else(|| format!("{value:e}"))
 }
 
 /// `P` with its couplings between `blocks` (`of`: the block of each state) absorbed into the

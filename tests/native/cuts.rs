@@ -4,6 +4,7 @@
 use crate::common;
 
 use common::*;
+use nalgebra::{DMatrix, DVector};
 use nmci::{check::*, contract::*, rules::*, sample::*, sdp::*, structure::*, *};
 
 #[test]
@@ -327,4 +328,52 @@ fn with_bracket_rtol_the_loop_stops_as_soon_as_the_bracket_is_closed_to_it() {
         open(&full),
         open(&early)
     );
+}
+
+/// The audit's request: the certified rule leaves the bracket open (4.082055052 against a
+/// lower end of 4.08205485…) while the bound proven for the loop's own gain is tighter
+/// (4.082054852). The bracket's upper end is the least proven bound the response holds, named
+/// `sdp_cuts`, and closed on it; the loop decided its stop on it too (`own_rule_proven`).
+/// Also: every sdp and sdp_cuts response's upper end is at most its `gain_certified_trace`.
+#[test]
+fn the_bracket_takes_the_tightest_proven_bound_of_the_response() {
+    let text = r#"{"pa":[[0.5998366656318036,1.6424122868303237],[1.6424122868303237,7.281053231631694]],"pb":[[0.3406402674953386,-1.0052242182458433],[-1.0052242182458433,9.024739066347712]],"pab_unknown":[[false,true],[false,true]],"method":"sdp_cuts","time_limit":2.0}"#;
+    let request: FuseRequest = serde_json::from_str(text).unwrap();
+    let r = fuse(&request).unwrap();
+    let json = serde_json::to_value(&r).unwrap();
+    let upper = json["upper_bound"].as_f64().unwrap();
+    let own = json["gain_certified_trace"].as_f64().unwrap();
+    assert!(upper <= own, "{upper} > {own}");
+    assert!(upper < 4.08205500, "{upper}");
+    assert_eq!(json["upper_bound_rule"], "sdp_cuts");
+    assert_eq!(json["own_rule_proven"], true);
+    assert_eq!(json["gap_closed"], true, "{json}");
+    assert!(r.bracket().unwrap().closed(nmci::bounds::CLOSED_RTOL));
+    // The bound behind it holds: no sampled cross-covariance violates it.
+    let p = request.problem().unwrap();
+    let Details::SdpCuts(d) = &r.details else {
+        unreachable!()
+    };
+    let m = |rows: &Vec<Vec<f64>>| DMatrix::from_fn(2, 2, |i, j| rows[i][j]);
+    let (ka, kb) = r.pair_gains().unwrap();
+    let fused = Fused {
+        x: DVector::from_row_slice(&r.x),
+        P: m(d.gain_certified_p.as_ref().unwrap()),
+        K_a: m(ka),
+        K_b: m(kb),
+    };
+    let samples = sample_cross_covariances(&p, 2000, 5, SamplerSettings::hit_and_run()).unwrap();
+    assert!(worst_margin(&p, &fused, &samples.cross).unwrap() >= 0.0);
+    // The sampled SDP: its upper end, too, is never above the bound proven for its gain.
+    for seed in 0..3 {
+        let text = text
+            .replace("\"sdp_cuts\"", "\"sdp\"")
+            .replace(",\"time_limit\":2.0", &format!(",\"seed\":{seed}"));
+        let request: FuseRequest = serde_json::from_str(&text).unwrap();
+        let json = serde_json::to_value(fuse(&request).unwrap()).unwrap();
+        if let Some(own) = json["gain_certified_trace"].as_f64() {
+            let upper = json["upper_bound"].as_f64().unwrap();
+            assert!(upper <= own, "seed {seed}: {upper} > {own}");
+        }
+    }
 }

@@ -491,3 +491,52 @@ fn refusals_name_their_field() {
         assert_eq!(field.as_deref(), Some("coupling_tol"), "{message}");
     }
 }
+
+/// The note's advice works when followed (the audit's request: a coupling of 1.0368e-9
+/// relative, just above the default tolerance, once printed "1.0e-9", advice that still
+/// gave one block): the suggested `coupling_tol` gives the blocks the note promises, and the
+/// coupling is never printed at or below the tolerance beside it; the declared blocks'
+/// refusal prints its coupling the same way.
+#[test]
+fn the_structure_notes_advice_works_when_followed() {
+    let request = |extra: &str| {
+        let text = format!(
+            r#"{{"pa":[[3,1.8e-9],[1.8e-9,1]],"pb":[[1,0],[0,4]],"pab_unknown":[[true,false],[false,true]],"method":"nmci"{extra}}}"#
+        );
+        let req: FuseRequest = serde_json::from_str(&text).unwrap();
+        fuse(&req)
+    };
+    let r = request("").unwrap();
+    assert_eq!(r.blocks().map(|b| b.len()), Some(1));
+    let note = r.structure.as_ref().unwrap().note.clone().unwrap();
+    let advice = note
+        .split("coupling_tol = ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .unwrap_or_else(|| panic!("no advice in {note}"));
+    let promised: usize = note
+        .split("would give ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no block count in {note}"));
+    let coupling = note
+        .split("a coupling of ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|c| c.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("no coupling in {note}"));
+    assert!(coupling > 1e-9, "{note}");
+    let followed = request(&format!(r#","coupling_tol":{advice}"#)).unwrap();
+    assert_eq!(followed.blocks().map(|b| b.len()), Some(promised), "{note}");
+    assert_eq!(promised, 2, "{note}");
+    // Declared blocks at the default tolerance: refused, the coupling printed above it.
+    let e = request(r#","blocks":[[0],[1]]"#).unwrap_err().to_string();
+    let shown = e
+        .split('(')
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|c| c.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("no coupling in {e}"));
+    assert!(shown > 1e-9, "{e}");
+}

@@ -59,8 +59,12 @@
 //! (`own_rule::proof_rtol`, with the argument that the bracket then closes); cutting further
 //! would only narrow a bracket already closed. Its bound replaces the certified
 //! rule's as `certified` when its proven trace is smaller (`own_rule_proven`); the gain is
-//! the loop's, so `sdp_cuts`' own gain is then proven to the bracket's upper end. A proof the
-//! solver fails on, or that runs out of time, leaves the result as it was. `certify_rule`
+//! the loop's, so `sdp_cuts`' own gain is then proven to the bracket's upper end. Where the
+//! cones leave the bracket open, and on problems of other sizes wherever the bracket is not
+//! closed to the loop's tolerance, the gain's own certificate (`certify_gain`, blocks of up to
+//! `BRACKET_CERTIFY_MAX_BLOCK` states) is tried the same way: the least bound proven for the
+//! loop's gain is its upper end, and the loop's stop and (7), (8) are decided on it. A proof
+//! the solver fails on, or that runs out of time, leaves the result as it was. `certify_rule`
 //! also proves four-state rules, but on 64 cones of ℝ⁴ it takes several times the loop's own
 //! time and closes few more brackets than the default certificate (docs/methods.md, "Four
 //! states", measures both), so the loop runs it at three states only.

@@ -6,16 +6,21 @@ use nalgebra::DVector;
 use super::result::CutsResult;
 use super::settings::{CutsSettings, CutsStop};
 use crate::error::SolveError;
-use crate::fusion::bracket::{Bracket, UpperRule, CLOSED_RTOL};
-use crate::fusion::certify::{certify_rule_short, Certificates, CertifySettings};
+use crate::fusion::bracket::{Bracket, UpperRule, BRACKET_CERTIFY_MAX_BLOCK, CLOSED_RTOL};
+use crate::fusion::certify::{
+    certification_blocks, certify_gain, certify_rule_short, Certificates, CertifiedResult,
+    CertifySettings,
+};
 use crate::fusion::program::Deadline;
 use crate::fusion::upper::trace_upper_bound;
 use crate::fusion::FusionProblem;
 
 /// Where the certified rule left the bracket of a three-state problem open (wider than
 /// [`CLOSED_RTOL`], the proof's own target), the loop's own rule proven on cones of
-/// directions (module docs, "Its own rule, proven"), kept when its proven trace is smaller;
-/// past the time limit, or where the solver fails on it, the result as it is.
+/// directions (module docs, "Its own rule, proven"), kept when its proven trace is smaller,
+/// and where that leaves it open, the gain's own certificate ([`prove_own_gain`]); at other
+/// sizes, where the bracket is not closed to the loop's tolerance, the gain's own
+/// certificate. Past the time limit, or where the solver fails on it, the result as it is.
 ///
 /// Also returns, where the proof ran and left the bracket open wider than [`CLOSED_RTOL`],
 /// the directions where the loop's rule is short (`certify_rule_short`).
@@ -30,19 +35,21 @@ pub(super) fn prove_own_rule(
     };
     // The time left, read once (a limit of zero would be refused as a setting).
     let left = deadline.remaining();
-    if result.gap_closed
-        || closed(result.lower_bound, upper)
-        || problem.dim() != 3
-        || settings.own_rule_cones == 0
-        || result.stop == CutsStop::TimeLimit
-        || left <= 0.0
-    {
+    if result.gap_closed || result.stop == CutsStop::TimeLimit || left <= 0.0 {
         return Ok((result, Vec::new()));
     }
     let certify_settings = CertifySettings {
         time_limit: settings.time_limit.map(|_| left),
         ..settings.certify_settings
     };
+    if problem.dim() != 3 || settings.own_rule_cones == 0 {
+        // Not closed to the loop's tolerance: the gain's own certificate.
+        prove_own_gain(problem, &mut result, settings, &certify_settings)?;
+        return Ok((result, Vec::new()));
+    }
+    if closed(result.lower_bound, upper) {
+        return Ok((result, Vec::new()));
+    }
     let (proven, short) = match certify_rule_short(
         problem,
         &result.fused,
@@ -59,13 +66,18 @@ pub(super) fn prove_own_rule(
         ) => return Ok((result, Vec::new())),
         Err(e) => return Err(e),
     };
-    let trace = trace_upper_bound(&proven.fused.P);
-    if trace < upper {
-        result.certified_trace = Some(trace);
-        result.certificates = Some(Certificates::of(&proven));
-        result.certified = Some(proven.fused);
-        result.own_rule_proven = true;
-        result.gap_closed = settings.closes(result.lower_bound, trace);
+    adopt_if_tighter(&mut result, proven, settings);
+    if still_open(&result) {
+        // The cones left it open: the gain's own certificate, in the time left.
+        let certify_settings = CertifySettings {
+            time_limit: settings
+                .time_limit
+                .map(|_| deadline.remaining().max(f64::MIN_POSITIVE)),
+            ..settings.certify_settings
+        };
+        if !deadline.passed() {
+            prove_own_gain(problem, &mut result, settings, &certify_settings)?;
+        }
     }
     let short = if still_open(&result) {
         short
@@ -73,6 +85,53 @@ pub(super) fn prove_own_rule(
         Vec::new()
     };
     Ok((result, short))
+}
+
+/// The loop's gain `K` with its own certificate (`certify_gain`: the least `P̄ ⪰ K J Kᵀ` the
+/// certificate family proves for that gain, every admissible `J`), kept as the result's
+/// proven rule when its proven trace is smaller (module docs, (6)): the bracket's upper end
+/// is then the least proven bound the loop holds, and the loop's stop and its rounds (7), (8)
+/// are decided on it. Only where every block the gain couples has at most
+/// [`BRACKET_CERTIFY_MAX_BLOCK`] states (the bracket's limit); past the time limit, or where
+/// the solver fails on it, the result as it is.
+fn prove_own_gain(
+    problem: &FusionProblem,
+    result: &mut CutsResult,
+    settings: &CutsSettings,
+    certify_settings: &CertifySettings,
+) -> Result<(), SolveError> {
+    let gain = &result.fused.K_a;
+    if !certification_blocks(problem, Some(gain))
+        .iter()
+        .all(|b| b.len() <= BRACKET_CERTIFY_MAX_BLOCK)
+    {
+        return Ok(());
+    }
+    match certify_gain(problem, gain, certify_settings) {
+        Ok(proven) => {
+            adopt_if_tighter(result, proven, settings);
+            Ok(())
+        }
+        Err(
+            SolveError::TimeLimit { .. }
+            | SolveError::SolverFailed { .. }
+            | SolveError::NotProven { .. },
+        ) => Ok(()),
+        Err(e) => Err(e),
+    }
+}
+
+/// `proven`, a bound proven for the loop's own gain, as the result's proven rule when its
+/// rounded-up trace is below the one the result holds.
+fn adopt_if_tighter(result: &mut CutsResult, proven: CertifiedResult, settings: &CutsSettings) {
+    let trace = trace_upper_bound(&proven.fused.P);
+    if result.certified_trace.is_none_or(|upper| trace < upper) {
+        result.certified_trace = Some(trace);
+        result.certificates = Some(Certificates::of(&proven));
+        result.certified = Some(proven.fused);
+        result.own_rule_proven = true;
+        result.gap_closed = settings.closes(result.lower_bound, trace);
+    }
 }
 
 /// The `rtol` the proof of a rule with `tr P̄ = trace` is run at, where the proven lower end
