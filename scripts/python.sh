@@ -41,6 +41,18 @@ rm -rf target/wheels
 case "$what" in
   build) ;;
   test)
+    # Stone Soup's own tests and examples (not in its wheel): its sdist of the installed
+    # version, from PyPI, once (python/tests/test_stonesoup_upstream.py runs them).
+    ss_version=$("$py" -c 'import stonesoup; print(stonesoup.__version__)')
+    ss_src=target/stonesoup-src
+    if [ ! -d "$ss_src/stonesoup-$ss_version" ]; then
+      say "fetching Stone Soup $ss_version's sources (its tests and examples) from PyPI"
+      rm -rf "$ss_src" && mkdir -p "$ss_src"
+      "$py" -m pip download -q --disable-pip-version-check --no-deps --no-binary :all: \
+        "stonesoup==$ss_version" -d "$ss_src"
+      tar -xzf "$ss_src/stonesoup-$ss_version.tar.gz" -C "$ss_src" \
+        "stonesoup-$ss_version/stonesoup" "stonesoup-$ss_version/docs/examples"
+    fi
     # The CLI to compare with: the dev build (`cargo test` has built its dependencies); the
     # contract tests compare its output with the release wheel's to the bit.
     cargo build --quiet -p nmci-cli

@@ -20,8 +20,9 @@
 //! matrix-decreasing, so `P(ω)` is matrix-convex and `tr P` convex; `log det` is concave and
 //! increasing, so `log det P = −log det P⁻¹` is convex. (Per axis: `hᵢ` is concave and positive,
 //! `1/hᵢ` convex.) The weight is therefore found exactly as for CI: an endpoint when the
-//! derivative there does not point inwards (ties within `1e-9` of the size of its terms go to
-//! the endpoint), otherwise the root of the analytic derivative by CI's safeguarded Newton
+//! derivative there does not point inwards (within `1e-9` of the size of its terms; where it
+//! does at neither end the criterion is flat and `ω = ½`, the middle of the optimal set),
+//! otherwise the root of the analytic derivative by CI's safeguarded Newton
 //! (one minimiser for both rules: `ci::minimise_convex`) to machine precision.
 
 use nalgebra::{DMatrix, DVector};

@@ -10,7 +10,9 @@
 //! in `ω`; the optimum is an endpoint when the derivative does not change sign on `[0, 1]`
 //! (then `ω` is exactly `0` or `1` and `P` is exactly `P_b` or `P_a`; a derivative within
 //! `1e-9` of the size of its terms counts as zero, so rounding noise on a flat criterion does
-//! not decide), otherwise the root of the derivative, found by safeguarded Newton (exact
+//! not decide; where it counts as zero at both ends — equal covariances, a criterion flat on
+//! all of `[0, 1]`, every `ω` optimal — `ω = ½`, the middle of the optimal set, whose mean is
+//! the average of the two), otherwise the root of the derivative, found by safeguarded Newton (exact
 //! second derivative, bisection when a step leaves the bracket) until the derivative is zero
 //! to within `4ε` of the size of its terms — its sign then no longer says where the root is —
 //! or a step moves `ω` by less than `4ε` relative: at most 8 steps on 40 random problems

@@ -11,6 +11,11 @@ use super::pencil::Pencil;
 /// rounding noise). CI's and ICI's (shared through [`minimise_convex`]).
 pub(in crate::fusion) const ENDPOINT_TIE: f64 = 1e-9;
 
+/// `ω` where the criterion is flat on all of `[0, 1]` (both endpoints optimal within
+/// [`ENDPOINT_TIE`]: equal covariances): the midpoint of the optimal set, which gives the
+/// average of the two means (a tie taken at an endpoint would drop one of them).
+pub(in crate::fusion) const FLAT_OMEGA: f64 = 0.5;
+
 /// The pencils of the blocks that share one `ω`, each with its multiplicity: the blocks of a
 /// block-diagonal problem each count in the criterion, and blocks with equal covariances in
 /// both estimates ([`covariance_twins`]) share one pencil counted as often as they occur. CI
@@ -46,8 +51,8 @@ pub(super) fn derivatives(pencils: &Weighted, criterion: Criterion, omega: f64) 
 }
 
 /// The minimiser over `[0, 1]` of CI's (convex) criterion summed over `pencils`. An endpoint
-/// is returned exactly when the derivative there does not point inwards (ties within
-/// [`ENDPOINT_TIE`] go to the endpoint, `ω = 0` first).
+/// is returned exactly when the derivative there does not point inwards (within
+/// [`ENDPOINT_TIE`]); where both do, [`FLAT_OMEGA`].
 pub(super) fn optimal_omega(pencils: &Weighted, criterion: Criterion) -> f64 {
     solve_omega(pencils, criterion).0
 }
@@ -59,8 +64,9 @@ pub(super) fn solve_omega(pencils: &Weighted, criterion: Criterion) -> (f64, usi
 
 /// The one minimiser of a convex criterion of `ω` over `[0, 1]` (CI's and ICI's), given its
 /// derivative, second derivative and the size of the terms the derivative sums at `ω`:
-/// an endpoint, exactly, when the derivative there does not point inwards (within
-/// [`ENDPOINT_TIE`] of its size; `ω = 0` first); otherwise safeguarded Newton from `½` —
+/// [`FLAT_OMEGA`] when the derivative points inwards at neither end (within [`ENDPOINT_TIE`]
+/// of its size: the criterion is flat); an endpoint, exactly, when it does not at that end;
+/// otherwise safeguarded Newton from `½` —
 /// bisection when a step leaves the bracket — until the derivative is zero to within `4ε` of
 /// its size (its sign then no longer says where the root is) or a step moves `ω` by less than
 /// `4ε` relative. Returns `ω` and the number of interior evaluations.
@@ -68,11 +74,17 @@ pub(in crate::fusion) fn minimise_convex(
     derivatives: impl Fn(f64) -> (f64, f64, f64),
 ) -> (f64, usize) {
     let (g0, _, size0) = derivatives(0.0);
-    if g0 >= -ENDPOINT_TIE * size0 {
+    let (g1, _, size1) = derivatives(1.0);
+    let (zero_optimal, one_optimal) = (g0 >= -ENDPOINT_TIE * size0, g1 <= ENDPOINT_TIE * size1);
+    if zero_optimal && one_optimal {
+        // Both ends optimal: a convex criterion with zero slope at both ends is flat on
+        // [0, 1] (equal covariances), so every ω is optimal; the midpoint averages the means.
+        return (FLAT_OMEGA, 0);
+    }
+    if zero_optimal {
         return (0.0, 0);
     }
-    let (g1, _, size1) = derivatives(1.0);
-    if g1 <= ENDPOINT_TIE * size1 {
+    if one_optimal {
         return (1.0, 0);
     }
     // g is increasing (convex criterion), g(lo) < 0 < g(hi).

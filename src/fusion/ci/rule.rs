@@ -8,7 +8,7 @@ use crate::fusion::{
     covariance_twins, scatter_block, BlockMean, Criterion, Fused, FusionProblem, MeanPlan,
 };
 
-use super::omega::{optimal_omega, ENDPOINT_TIE};
+use super::omega::{optimal_omega, ENDPOINT_TIE, FLAT_OMEGA};
 use super::pencil::{HalfPencil, Pencil};
 
 /// CI result: the fused estimate and the optimal weight `ω` on estimate `a`.
@@ -320,14 +320,19 @@ pub(super) fn ci_block_in_place(
 ) -> Result<(f64, Option<Pencil>), InputError> {
     let half = HalfPencil::new(P_a, P_b)?;
     // g is non-decreasing (convex criterion): a clearly negative g(1) settles ω = 1 without
-    // g(0); otherwise g(0) decides between ω = 0 (ties included, as in `optimal_omega`),
-    // ω = 1 (a tie at 1) and an interior optimum.
+    // g(0); otherwise g(0) decides between ω = 0, the flat criterion (both ends optimal:
+    // `FLAT_OMEGA`, as in `optimal_omega`), ω = 1 (a tie at 1) and an interior optimum.
     let (g1, size1) = half.derivative_at_one(P_a, criterion);
     if g1 < -ENDPOINT_TIE * size1 {
         return Ok((1.0, None));
     }
     let (g0, size0) = half.derivative_at_zero(P_a, P_b, criterion)?;
     if g0 >= -ENDPOINT_TIE * size0 {
+        if g1 <= ENDPOINT_TIE * size1 {
+            let pencil = Pencil::new(P_a, P_b)?;
+            pencil.fuse_covariance_into(P_a, P_b, FLAT_OMEGA, None);
+            return Ok((FLAT_OMEGA, Some(pencil)));
+        }
         P_a.clone_from(P_b);
         return Ok((0.0, None));
     }

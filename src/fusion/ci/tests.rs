@@ -125,7 +125,7 @@ fn block_nmci_in_place_matches_per_block_ci() {
         assert_eq!(omegas[2], 1.0);
         assert_eq!(omegas[3], omegas[0]);
         assert!(omegas[0] > 0.0 && omegas[0] < 1.0);
-        assert_eq!(omegas[4], 0.0, "a tie goes to ω = 0");
+        assert_eq!(omegas[4], 0.5, "a flat criterion takes the midpoint");
         for (k, r) in reference.iter().enumerate() {
             assert!((omegas[k] - r.omega).abs() < 1e-9, "{criterion:?} {k}");
             assert!(close(&a[k].P, &r.fused.P), "{criterion:?} block {k}");
@@ -212,25 +212,38 @@ fn the_weight_does_not_depend_on_the_scale() {
 }
 
 #[test]
-fn a_tie_goes_to_omega_zero_at_every_scale() {
-    // Identical estimates: g ≡ 0, computed as rounding noise of either sign; the tie
-    // tolerance scales with the terms, so the answer is ω = 0 at every scale and size.
+fn a_tie_takes_the_midpoint_and_averages_the_means_at_every_scale() {
+    // Equal covariances: g ≡ 0, computed as rounding noise of either sign; the tie tolerance
+    // scales with the terms, so at every scale and size ω = ½, the bound is the covariance
+    // (to rounding) and the mean the average of the two (an endpoint would drop one).
     let mut seed = 13;
     for k in -8..=8 {
         for n in 1..=5 {
             let P = spd(n, &mut seed, 0.1) * 10f64.powi(k);
-            let g = Estimate {
-                x: DVector::zeros(n),
+            let a = Estimate {
+                x: DVector::from_fn(n, |i, _| i as f64 + 1.0),
                 P: P.clone(),
             };
-            let p = problem(&g, &g);
+            let b = Estimate {
+                x: DVector::from_fn(n, |i, _| -3.0 * i as f64),
+                P: P.clone(),
+            };
+            let p = problem(&a, &b);
+            let average = (&a.x + &b.x) * 0.5;
             for criterion in [Criterion::Trace, Criterion::Logdet] {
                 let ci = covariance_intersection(&p, criterion).unwrap();
-                assert_eq!(ci.omega, 0.0, "CI 1e{k}, n = {n}, {criterion:?}");
-                let mut a = g.P.clone();
-                let (w, pencil) = ci_block_in_place(&mut a, &g.P, criterion).unwrap();
-                assert_eq!(w, 0.0, "in place 1e{k}, n = {n}, {criterion:?}");
-                assert!(pencil.is_none());
+                assert_eq!(ci.omega, 0.5, "CI 1e{k}, n = {n}, {criterion:?}");
+                assert!(
+                    (&ci.fused.x - &average).amax() <= 1e-12 * average.amax().max(1.0),
+                    "CI 1e{k}, n = {n}: {} vs {average}",
+                    ci.fused.x
+                );
+                assert!(close(&ci.fused.P, &P), "CI 1e{k}, n = {n}");
+                let mut fused = a.P.clone();
+                let (w, pencil) = ci_block_in_place(&mut fused, &b.P, criterion).unwrap();
+                assert_eq!(w, 0.5, "in place 1e{k}, n = {n}, {criterion:?}");
+                assert!(pencil.is_some());
+                assert!(close(&fused, &P), "in place 1e{k}, n = {n}");
             }
         }
     }
