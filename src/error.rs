@@ -144,7 +144,7 @@ pub enum InputError {
     },
     /// An entry of `P_a` or `P_b` between two declared blocks above the coupling tolerance:
     /// the blocks are not independent in it (`crate::structure::absorb_couplings`).
-    #[error("{}[{row}][{col}] = {value} couples blocks {} and {} ({} relative to the square root of its diagonal entries, above coupling_tol {tol:e}): the declared blocks are not independent", request_field(name), blocks[0], blocks[1], crate::structure::digits_above(*relative, *tol))]
+    #[error("{}[{row}][{col}] = {value} couples blocks {} and {} ({} relative to the square root of its diagonal entries, above coupling_tol {tol:e}): the declared blocks are not independent", request_field(name), blocks[0], blocks[1], digits_above(*relative, *tol))]
     CouplingTooLarge {
         /// The covariance's request field (`pa`, `pb`, `estimates[i].p`).
         name: String,
@@ -468,3 +468,13 @@ pub enum ReportError {
 #[derive(Debug, Clone, PartialEq, Error)]
 #[error("cannot draw the chart: {0}")]
 pub struct DrawError(pub String);
+
+/// `value` (above `floor`) in the fewest significant digits (two at least) that still read
+/// above `floor` written shortest, so a coupling printed beside its tolerance is never shown
+/// at or below it.
+pub(crate) fn digits_above(value: f64, floor: f64) -> String {
+    (2..=17)
+        .map(|digits| format!("{:.*e}", digits - 1, value))
+        .find(|text| text.parse::<f64>().is_ok_and(|v| v > floor))
+        .unwrap_or_else(|| format!("{value:e}"))
+}

@@ -11,8 +11,6 @@
 
 pub(crate) mod absorb;
 
-pub(crate) use absorb::digits_above;
-
 use nalgebra::DMatrix;
 
 use crate::error::InputError;

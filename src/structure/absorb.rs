@@ -262,7 +262,7 @@ impl BlockStructure {
         if let Some((size, count, advice)) = &self.near_miss {
             parts.push(format!(
                 "a coupling of {} relative (above coupling_tol {tol:e}) keeps blocks merged: coupling_tol = {advice} would give {count} blocks",
-                digits_above(*size, tol),
+                crate::error::digits_above(*size, tol),
             ));
         }
         (!parts.is_empty()).then(|| parts.join("; "))
@@ -469,16 +469,6 @@ fn near_miss(
         })
         .unwrap_or_else(|| format!("{size:e}"));
     Some((size, count, advice))
-}
-
-/// `value` (above `floor`) in the fewest significant digits (two at least) that still read
-/// above `floor` written shortest, so a coupling printed beside its tolerance is never shown
-/// at or below it.
-pub(crate) fn digits_above(value: f64, floor: f64) -> String {
-    (2..=17)
-        .map(|digits| format!("{:.*e}", digits - 1, value))
-        .find(|text| text.parse::<f64>().is_ok_and(|v| v > floor))
-        .unwrap_or_else(|| format!("{value:e}"))
 }
 
 /// `P` with its couplings between `blocks` (`of`: the block of each state) absorbed into the

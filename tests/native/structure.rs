@@ -509,34 +509,23 @@ fn the_structure_notes_advice_works_when_followed() {
     let r = request("").unwrap();
     assert_eq!(r.blocks().map(|b| b.len()), Some(1));
     let note = r.structure.as_ref().unwrap().note.clone().unwrap();
-    let advice = note
-        .split("coupling_tol = ")
-        .nth(1)
-        .and_then(|rest| rest.split(' ').next())
-        .unwrap_or_else(|| panic!("no advice in {note}"));
-    let promised: usize = note
-        .split("would give ")
-        .nth(1)
-        .and_then(|rest| rest.split(' ').next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no block count in {note}"));
-    let coupling = note
-        .split("a coupling of ")
-        .nth(1)
-        .and_then(|rest| rest.split(' ').next())
-        .and_then(|c| c.parse::<f64>().ok())
-        .unwrap_or_else(|| panic!("no coupling in {note}"));
+    // The word after `marker` in `text`.
+    let word = |text: &str, marker: &str| -> String {
+        text.split(marker)
+            .nth(1)
+            .and_then(|rest| rest.split(' ').next())
+            .unwrap_or_else(|| panic!("no {marker:?} in {text}"))
+            .to_string()
+    };
+    let advice = word(&note, "coupling_tol = ");
+    let promised: usize = word(&note, "would give ").parse().unwrap();
+    let coupling: f64 = word(&note, "a coupling of ").parse().unwrap();
     assert!(coupling > 1e-9, "{note}");
     let followed = request(&format!(r#","coupling_tol":{advice}"#)).unwrap();
     assert_eq!(followed.blocks().map(|b| b.len()), Some(promised), "{note}");
     assert_eq!(promised, 2, "{note}");
     // Declared blocks at the default tolerance: refused, the coupling printed above it.
     let e = request(r#","blocks":[[0],[1]]"#).unwrap_err().to_string();
-    let shown = e
-        .split('(')
-        .nth(1)
-        .and_then(|rest| rest.split(' ').next())
-        .and_then(|c| c.parse::<f64>().ok())
-        .unwrap_or_else(|| panic!("no coupling in {e}"));
+    let shown: f64 = word(&e, "(").parse().unwrap();
     assert!(shown > 1e-9, "{e}");
 }
