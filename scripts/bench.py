@@ -220,6 +220,12 @@ def stack():
     return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
 
 
+def stonesoup():
+    cmd = "scripts/python.sh bench-stonesoup"
+    out = sh(f"bash {cmd}")
+    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
+
+
 def accuracy():
     # CI, ICI, EI and naive against 50-digit references (docs/methods.md, "CI's accuracy").
     cmd = "scripts/python.sh accuracy"
@@ -247,6 +253,7 @@ SECTIONS = {
     "study": ("The 16-agent tracking study", study),
     "python": ("From Python, beside numpy, scipy and cvxpy", python),
     "stack": ("Stacks: k pairs by CI in one call, one thread", stack),
+    "stonesoup": ("Stone Soup: one update per rule, a 4-state track pair", stonesoup),
     "accuracy": ("Accuracy of the closed-form rules against 50-digit references", accuracy),
     "browser": ("In the browser (wasm, headless Chromium)", browser),
 }

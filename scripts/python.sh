@@ -6,6 +6,7 @@
 #   scripts/python.sh test    -> build, then pytest python/tests against the `nmci` CLI
 #   scripts/python.sh bench   -> build, then scripts/bench_python.py (installs scipy and cvxpy)
 #   scripts/python.sh bench-stack -> build, then scripts/bench_stack.py
+#   scripts/python.sh bench-stonesoup -> build, then scripts/bench_stonesoup.py
 #   scripts/python.sh accuracy -> build, then scripts/accuracy.py (50-digit references)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,8 +22,9 @@ if [ ! -x "$py" ]; then
 fi
 # distributed: Dask's local cluster, which examples/python/sharded_study.py runs shards on;
 # mpmath: the 50-digit references of the accuracy tests; stonesoup: the plugin nmci.stonesoup
-# (its tests, the stack benchmark's ChernoffUpdater peer).
-need=(maturin numpy pytest scipy distributed mpmath stonesoup)
+# (its tests, the stack benchmark's ChernoffUpdater peer); graphviz, networkx, pydot,
+# ordered_set: what Stone Soup's architecture tutorial imports (python/tests/test_stonesoup_upstream.py).
+need=(maturin numpy pytest scipy distributed mpmath stonesoup graphviz networkx pydot ordered_set)
 [ "$what" = bench ] && need+=(cvxpy clarabel)
 missing=()
 for p in "${need[@]}"; do
@@ -45,13 +47,14 @@ case "$what" in
     # version, from PyPI, once (python/tests/test_stonesoup_upstream.py runs them).
     ss_version=$("$py" -c 'import stonesoup; print(stonesoup.__version__)')
     ss_src=target/stonesoup-src
-    if [ ! -d "$ss_src/stonesoup-$ss_version" ]; then
+    if [ ! -f "$ss_src/stonesoup-$ss_version/docs/tutorials/architecture/03_Avoiding_Data_Incest.py" ]; then
       say "fetching Stone Soup $ss_version's sources (its tests and examples) from PyPI"
       rm -rf "$ss_src" && mkdir -p "$ss_src"
       "$py" -m pip download -q --disable-pip-version-check --no-deps --no-binary :all: \
         "stonesoup==$ss_version" -d "$ss_src"
       tar -xzf "$ss_src/stonesoup-$ss_version.tar.gz" -C "$ss_src" \
-        "stonesoup-$ss_version/stonesoup" "stonesoup-$ss_version/docs/examples"
+        "stonesoup-$ss_version/stonesoup" "stonesoup-$ss_version/docs/examples" \
+        "stonesoup-$ss_version/docs/tutorials/architecture"
     fi
     # The CLI to compare with: the dev build (`cargo test` has built its dependencies); the
     # contract tests compare its output with the release wheel's to the bit.
@@ -61,11 +64,14 @@ case "$what" in
   bench)
     "$py" scripts/bench_python.py
     ;;
+  bench-stonesoup)
+    "$py" scripts/bench_stonesoup.py
+    ;;
   bench-stack)
     "$py" scripts/bench_stack.py
     ;;
   accuracy)
     "$py" scripts/accuracy.py
     ;;
-  *) echo "usage: scripts/python.sh build|test|bench|accuracy" >&2; exit 2 ;;
+  *) echo "usage: scripts/python.sh build|test|bench|bench-stack|bench-stonesoup|accuracy" >&2; exit 2 ;;
 esac

@@ -99,6 +99,9 @@ pub mod rules {
     pub use crate::fusion::rules::{
         rules, BlockUse, Criteria, Guarantee, Limits, Method, RequestOption, RuleInfo, RULES,
     };
+    pub use crate::fusion::semidefinite::{
+        fuse_semidefinite, fuse_semidefinite_problem, SemidefiniteResult, SemidefiniteRule,
+    };
 }
 
 /// The certified rule: a bound proven to dominate `K P' Kᵀ` for every admissible `P'`, by a

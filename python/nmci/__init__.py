@@ -310,11 +310,11 @@ def optimal(
 
     ``blocks`` declares a partition of the states into blocks with independent errors (it
     implies ``pab_unknown`` when that is not given). Entries of ``Pa``, ``Pb`` between blocks up
-    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are not absorbed into
-    the relaxation: it solves the *deflated* problem (those entries dropped, the diagonals
-    lowered by as much), so that its proven lower end holds for the given covariances; the
-    bracket's upper ends are proven on the absorbed problem (a block-diagonal bound that
-    dominates them). Reported in ``structure`` (``absorbed``: ``True``).
+    to ``coupling_tol`` relative (default ``1e-9``; ``0``: exact zeros only) are absorbed for the
+    bracket's upper ends, proven on the absorbed problem (a block-diagonal bound that dominates
+    them); the relaxation itself solves the *deflated* problem (those entries dropped, the
+    diagonals lowered by as much), so that its proven lower end holds for the given covariances.
+    Reported in ``structure``.
     """
     return _two(
         "sdp",

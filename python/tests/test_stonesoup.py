@@ -2,6 +2,7 @@
 absent; the test command installs it."""
 
 import datetime
+import warnings
 
 import numpy as np
 import pytest
@@ -323,3 +324,112 @@ def test_the_readme_switch_runs():
     exec(compile(block, "README.md", "exec"), namespace)
     assert isinstance(namespace["track_updater"], NmciUpdater)
     assert namespace["track_updater"].blocks == [[0, 1], [2, 3]]
+
+
+@pytest.mark.parametrize("A", [
+    np.diag([1e-24, 1e-24, 0.5, 0.2]),      # a collapsed particle cloud in one block
+    np.diag([1.0, 0.0, 0.5, 0.2]),          # a state claimed exactly
+    np.full((4, 4), 0.04),                  # a broadcast row: rank one
+])
+@pytest.mark.parametrize("kwargs", [{}, {"rule": "nmci", "blocks": [[0, 1], [2, 3]]}, {"omega": 0.5}])
+def test_degenerate_covariances_do_not_stop_the_tracker(A, kwargs):
+    """Semi-definite measurement covariances: the pseudo-inverse form (docs/methods.md,
+    "Semi-definite covariances"), conservative: the update's covariance dominates its gains'
+    error covariance for a sampled cross-covariance, and a claim of certainty is never trusted."""
+    rng = np.random.default_rng(3)
+    B = spd(rng, 4, [[0, 1], [2, 3]]) + np.eye(4)
+    a, b = rng.standard_normal(4), rng.standard_normal(4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", nmci.StructureWarning)
+        update = NmciUpdater(measurement_model=None, **kwargs).update(hypothesis(a, A, b, B))
+    P = np.asarray(update.covar, dtype=float)
+    assert np.all(np.isfinite(P)) and np.linalg.eigvalsh((P + P.T) / 2).min() > 0
+    # A direction the measurement claims exactly (a zero eigenvalue: not positive definite)
+    # gets no information from it: the variance there is at least what the prediction's
+    # information alone gives, 1 / (uᵀ B⁻¹ u). (The collapsed cloud is positive definite, and
+    # its tiny variances are taken as given.)
+    eigenvalues, vectors = np.linalg.eigh(A)
+    if eigenvalues[0] <= 0.0:
+        u = vectors[:, :1]
+        assert (u.T @ P @ u).item() >= (1 - 1e-9) / (u.T @ np.linalg.inv(B) @ u).item()
+
+
+def test_semidefinite_covariances_through_the_rule_functions_say_so():
+    with pytest.warns(nmci.StructureWarning, match="pseudo-inverse form"):
+        f = nmci.ci(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]), np.array([1.0, 2.0]), np.zeros(2))
+    assert abs(f.x[1]) <= 1e-12 and f.P[1, 1] >= 3.0 * (1 - 1e-12)
+    with pytest.raises(nmci.InputError) as e:
+        nmci.ici(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]))
+    assert e.value.field == "pa"
+
+
+def test_the_arguments_are_in_chernoff_updaters_order_and_checked_when_set():
+    u = NmciUpdater(None, 0.3)
+    assert u.omega == 0.3 and u.rule == "ci" and u.criterion == "trace" and u.on_violation == "merge"
+    for name, value in [("omega", 1.7), ("omega", True), ("rule", "kalman"), ("criterion", "det"),
+                        ("on_violation", "ignore"), ("coupling_tol", 2.0)]:
+        with pytest.raises(nmci.RequestError) as e:
+            setattr(u, name, value)
+        assert e.value.field == name
+    assert u.omega == 0.3  # a refused value leaves the property as it was
+    with pytest.raises(nmci.RequestError) as e:
+        u.rule = "nmci"  # a fixed omega is CI's
+    assert e.value.field == "omega"
+    u.omega = None
+    u.rule = "nmci"
+    assert u.rule == "nmci"
+
+
+@pytest.mark.parametrize("on_violation", ["merge", "raise"])
+def test_declared_blocks_the_data_violate_are_merged_or_refused(on_violation):
+    rng = np.random.default_rng(8)
+    A, B = spd(rng, 4), spd(rng, 4)  # every entry couples the axes, as a range-bearing radar's
+    a, b = rng.standard_normal(4), rng.standard_normal(4)
+    u = NmciUpdater(None, rule="nmci", blocks=[[0, 1], [2, 3]], on_violation=on_violation)
+    if on_violation == "raise":
+        with pytest.raises(nmci.InputError):
+            u.update(hypothesis(a, A, b, B))
+        return
+    with pytest.warns(nmci.StructureWarning, match="couples declared blocks"):
+        update = u.update(hypothesis(a, A, b, B))
+    assert update.fusion.merged and update.fusion.blocks == ((0, 1, 2, 3),)
+    # CI over the merged block: the same bound as CI on the whole state.
+    ci = NmciUpdater(None, rule="ci").update(hypothesis(a, A, b, B))
+    assert np.allclose(update.covar, ci.covar, rtol=1e-12, atol=1e-14)
+
+
+def test_stone_soups_reducer_calls_work_on_the_class_and_ties_average():
+    one = GaussianState(np.array([[1.0], [2.0]]), np.diag([2.0, 3.0]))
+    two = GaussianState(np.array([[-1.0], [0.0]]), np.diag([2.0, 3.0]))
+    assert NmciCovarianceIntersection.merge_components(one) is one
+    merged = NmciCovarianceIntersection.merge_components(one, two)
+    # Equal covariances: every weight is optimal; the middle one averages the means.
+    assert np.allclose(merged.state_vector, [[0.0], [1.0]], atol=1e-12)
+    assert merged.fusion.omega == pytest.approx((0.5, 0.5))
+    equal = NmciCovarianceIntersection(weighting="equal").merge_components(one, two)
+    stone = CovarianceIntersection.merge_components(one, two)
+    assert np.array_equal(equal.covar, stone.covar) and np.array_equal(equal.state_vector, stone.state_vector)
+
+
+def test_ties_average_the_means_in_ci_and_nmci():
+    P = np.array([[2.0, 0.3], [0.3, 1.0]])
+    a, b = np.array([1.0, 2.0]), np.array([3.0, -2.0])
+    for f in (nmci.ci(P, P, a, b), nmci.nmci(P, P, a, b, pab_unknown=np.eye(2, dtype=bool))):
+        assert np.allclose(f.x, (a + b) / 2, atol=1e-12) and np.allclose(f.omega, 0.5)
+
+
+def test_fuse_tracks_with_a_predictor_aligns_the_times_and_says_what_it_left_out():
+    from stonesoup.predictor.kalman import KalmanPredictor
+
+    rng = np.random.default_rng(4)
+    half = datetime.timedelta(seconds=0.5)
+    one = Track([GaussianState(rng.standard_normal((2, 1)), spd(rng, 2), timestamp=T0 + 2 * k * half)
+                 for k in range(3)])
+    two = Track([GaussianState(rng.standard_normal((2, 1)), spd(rng, 2), timestamp=T0 + (2 * k + 1) * half)
+                 for k in range(3)])
+    with pytest.warns(UserWarning, match="6 of 6 times left out"):
+        assert len(fuse_tracks([one, two])) == 0
+    predictor = KalmanPredictor(ConstantVelocity(0.1))
+    with pytest.warns(UserWarning, match="1 of 6 times left out"):
+        fused = fuse_tracks([one, two], predictor=predictor)
+    assert [s.timestamp for s in fused] == [T0 + k * half for k in range(1, 6)]

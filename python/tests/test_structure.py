@@ -108,3 +108,20 @@ def test_refusals_name_their_field(kwargs, field, needle):
         nmci.nmci(args.pop("Pa"), args.pop("Pb"), **args)
     assert raised.value.field == field
     assert needle in str(raised.value)
+
+
+@pytest.mark.parametrize("rule", ["nmci", "certified", "optimal", "sdp_cuts"])
+def test_each_rules_docstring_says_what_it_does_with_couplings(rule):
+    """The docstring's claim about absorption is the response's ``absorbed`` field."""
+    f = getattr(nmci, rule)
+    doc = " ".join(f.__doc__.split())
+    says_not = "not absorbed" in doc or "*not* absorbed" in doc
+    says_absorbed = "are absorbed" in doc or "(``absorbed``: ``True``)" in doc
+    assert says_not != says_absorbed, doc
+    Pa = np.array([[3.0, 1e-12], [1e-12, 1.0]])
+    Pb = np.diag([1.0, 4.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        kwargs = {"samples": 50} if rule == "optimal" else {}
+        r = f(Pa, Pb, blocks=[[0], [1]], **kwargs)
+    assert r.structure["absorbed"] is says_absorbed, (rule, r.structure)

@@ -33,6 +33,7 @@ use crate::fusion::nway::{
 };
 use crate::fusion::rules::Method;
 use crate::fusion::sdp::optimal_fusion;
+use crate::fusion::semidefinite::{self, fuse_semidefinite, SemidefiniteRule};
 use crate::fusion::{Criterion, Estimate, Fused, FusionProblem};
 use crate::linalg::matrix_to_rows;
 use crate::structure::{CrossPattern, StructureSettings};
@@ -161,16 +162,19 @@ pub(crate) fn fuse_planned(
             plan.criterion,
         );
     }
+    let problem = match request.problem() {
+        Ok(problem) => problem,
+        Err(RequestError::Input(e)) if semidefinite::definiteness_refusal(&e) => {
+            return semidefinite_response(request, plan.criterion, e);
+        }
+        Err(e) => return Err(e),
+    };
     let Structured {
         problem,
         upper,
         details,
         ..
-    } = structured(
-        request.problem()?,
-        &request.pair.structure_settings(),
-        request.method,
-    )?;
+    } = structured(problem, &request.pair.structure_settings(), request.method)?;
     check_blocks(request.method, &problem)?;
     let mut response = match request.method {
         Method::Ci => Ok(ClosedForm::Ci.response(&problem, plan.criterion)?.0),
@@ -248,6 +252,58 @@ pub(crate) fn fuse_planned(
         }
     }?;
     response.structure = details;
+    Ok(response)
+}
+
+/// A two-estimate request whose covariance `refused` was refused as not positive definite:
+/// CI, nmCI and naive fusion in the pseudo-inverse form (`fusion::semidefinite`), their
+/// structure note saying so; every other rule refuses it as before.
+fn semidefinite_response(
+    request: &FuseRequest,
+    criterion: Criterion,
+    refused: InputError,
+) -> Result<FuseResponse, RequestError> {
+    let rule = match request.method {
+        Method::Ci => SemidefiniteRule::Ci,
+        Method::Nmci => SemidefiniteRule::Nmci,
+        Method::Naive => SemidefiniteRule::Naive,
+        _ => return Err(refused.into()),
+    };
+    let (xa, pa, xb, pb, pattern) = request.pair.parts()?;
+    let r = match fuse_semidefinite(rule, &xa, &pa, &xb, &pb, &pattern, criterion) {
+        Ok(r) => r,
+        // Not positive semi-definite either: the covariance form's refusal says it best.
+        Err(InputError::NotPositiveDefinite { .. }) => return Err(refused.into()),
+        Err(e) => return Err(e.into()),
+    };
+    let details = match rule {
+        SemidefiniteRule::Ci => Details::Omega(r.omega[0]),
+        SemidefiniteRule::Nmci => Details::Blocks {
+            omega: r.omega.clone(),
+            blocks: r.blocks.clone(),
+        },
+        SemidefiniteRule::Naive => Details::None,
+    };
+    let reported = if rule == SemidefiniteRule::Naive {
+        Criterion::default()
+    } else {
+        criterion
+    };
+    let mut response = response(request.method, reported, &r.fused, details);
+    let note = format!(
+        "{refused}: {} fused it in the pseudo-inverse form instead, eigenvalues at most n·ε·λ_max taken as zero and their directions as uninformed; conservative for every cross-covariance to the rounding of the eigendecomposition (docs/methods.md, \"Semi-definite covariances\")",
+        request.method.name(),
+    );
+    response.structure = Some(StructureDetails {
+        blocks: r.blocks.clone(),
+        exact_blocks: r.blocks.len(),
+        coupling_tol: 0.0,
+        absorbed: false,
+        couplings: Vec::new(),
+        trace_added: 0.0,
+        nmci_trace_cost: None,
+        note: Some(note),
+    });
     Ok(response)
 }
 

@@ -131,6 +131,26 @@ impl PairInput {
 
     /// The validated problem (errors name the field: `P_a`, `x_b`, `pab_unknown`, …).
     pub fn problem(&self) -> Result<FusionProblem, InputError> {
+        let (xa, pa, xb, pb, pattern) = self.parts()?;
+        FusionProblem::new(xa, pa, xb, pb, pattern)
+    }
+
+    /// The request's `x_a`, `P_a`, `x_b`, `P_b` and pattern, read but not yet validated as a
+    /// problem (the pseudo-inverse form, `fusion::semidefinite`, takes them where
+    /// [`PairInput::problem`] refuses a semi-definite covariance).
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn parts(
+        &self,
+    ) -> Result<
+        (
+            DVector<f64>,
+            DMatrix<f64>,
+            DVector<f64>,
+            DMatrix<f64>,
+            CrossPattern,
+        ),
+        InputError,
+    > {
         let pa = matrix("P_a", &self.pa)?;
         let pb = matrix("P_b", &self.pb)?;
         let n = pa.nrows();
@@ -143,7 +163,7 @@ impl PairInput {
             (None, Some(blocks)) => CrossPattern::within_blocks(n, blocks)?,
             (None, None) => CrossPattern::fully_unknown(n),
         };
-        FusionProblem::new(vector(&self.xa), pa, vector(&self.xb), pb, pattern)
+        Ok((vector(&self.xa), pa, vector(&self.xb), pb, pattern))
     }
 
     /// The structure settings of `blocks` and `coupling_tol` (checked when applied).

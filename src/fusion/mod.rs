@@ -16,6 +16,7 @@ pub(crate) mod rules;
 pub(crate) mod sample;
 pub(crate) mod scale;
 pub(crate) mod sdp;
+pub(crate) mod semidefinite;
 pub(crate) mod upper;
 pub(crate) mod verify;
 

@@ -537,3 +537,53 @@ fn covariances_out_of_the_float_range_are_named_so_not_called_indefinite() {
     )
     .is_ok());
 }
+
+/// Semi-definite covariances through the contract: `ci`, `nmci` and `naive` fuse them in the
+/// pseudo-inverse form (`fusion::semidefinite`) and say so in the structure note; every other
+/// rule refuses them as before, and an indefinite matrix keeps its refusal.
+#[test]
+fn semidefinite_covariances_are_fused_in_the_pseudo_inverse_form_by_ci_nmci_and_naive() {
+    let run = |pa: &str, method: &str| {
+        fuse_json(&format!(
+            r#"{{"pa": {pa}, "pb": [[2,0],[0,3]], "xa": [1, 2], "xb": [0, 0], "pab_unknown": [[true,false],[false,true]], "method": "{method}"}}"#
+        ))
+    };
+    for pa in ["[[1,0],[0,0]]", "[[1,0],[0,1e-24]]"] {
+        for method in ["ci", "nmci", "naive"] {
+            let v: serde_json::Value = serde_json::from_str(&run(pa, method).unwrap()).unwrap();
+            let note = v["structure"]["note"].as_str().unwrap();
+            assert!(note.contains("pseudo-inverse form"), "{method}: {note}");
+            if pa.contains("1e-24") && method == "nmci" {
+                // nmCI truncates each block on its own: in its block 1e-24 is a variance like
+                // any other, and a's (the smaller) is taken, mean and all.
+                assert_eq!(v["p"][1][1].as_f64(), Some(1e-24), "{v}");
+                assert_eq!(v["x"][1].as_f64(), Some(2.0), "{v}");
+                continue;
+            }
+            // State 1 is b's alone (a's claim of certainty is not trusted): its mean, and at
+            // least b's variance.
+            assert!(
+                v["x"][1].as_f64().unwrap().abs() <= 1e-12,
+                "{method} {pa}: {v}"
+            );
+            assert!(
+                v["p"][1][1].as_f64().unwrap() >= 3.0 * (1.0 - 1e-12),
+                "{method} {pa}: {v}"
+            );
+        }
+        for method in ["ici", "ei", "certified", "sdp", "sdp_cuts"] {
+            let e = run(pa, method).unwrap_err();
+            assert_eq!(e.field().as_deref(), Some("pa"), "{method}: {e}");
+        }
+    }
+    // nmCI: one weight per block, state 0 fused as CI of (1, 2) would be.
+    let v: serde_json::Value =
+        serde_json::from_str(&run("[[1,0],[0,0]]", "nmci").unwrap()).unwrap();
+    assert_eq!(v["blocks"], serde_json::json!([[0], [1]]));
+    assert_eq!(v["omega"][0], 1.0);
+    let e = run("[[1,2],[2,1]]", "ci").unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "P_a is not positive definite (smallest eigenvalue -1.000000e0)"
+    );
+}

@@ -1,6 +1,6 @@
 """nmci in Stone Soup: fuse tracks with the exactly optimal CI, nmCI or any other rule of nmci.
 
-Install with ``pip install nmci[stonesoup]``. The package is registered under Stone Soup's plugin
+Install the built wheel with its extra, ``pip install "<the wheel's path>[stonesoup]"`` (README). The package is registered under Stone Soup's plugin
 entry point, so ``from stonesoup.plugins.nmci import NmciUpdater`` works too, and under its YAML
 entry point, so a saved configuration holding these components loads back.
 
@@ -14,7 +14,10 @@ entry point, so a saved configuration holding these components loads back.
 - :func:`blocks_from_transition_model` — the state blocks of a
   ``CombinedLinearGaussianTransitionModel`` (a modelling claim: see its docs);
 - :func:`chernoff_log_normaliser` and :func:`innovation_covariance` — the normaliser of the
-  Chernoff product of two Gaussians and the innovation covariance derived from it.
+  Chernoff product of two Gaussians and the innovation covariance derived from it;
+- :func:`fixed_omega_ci` — CI at a fixed weight in its pseudo-inverse form (semi-definite
+  covariances), and :func:`merge_coupled_blocks` — declared blocks merged where the data couple
+  them.
 
 The three-line switch from Stone Soup's fixed-ω fusion::
 
@@ -30,7 +33,9 @@ from .updater import (
     FusionInfo,
     NmciUpdater,
     chernoff_log_normaliser,
+    fixed_omega_ci,
     innovation_covariance,
+    merge_coupled_blocks,
 )
 from .serialise import yaml_init
 
@@ -40,7 +45,9 @@ __all__ = [
     "NmciUpdater",
     "blocks_from_transition_model",
     "chernoff_log_normaliser",
+    "fixed_omega_ci",
     "fuse_tracks",
     "innovation_covariance",
+    "merge_coupled_blocks",
     "yaml_init",
 ]

@@ -17,7 +17,18 @@ def blocks_from_transition_model(model) -> List[List[int]]:
     axis-aligned noise). It does not hold for a range-bearing radar, whose converted noise couples
     the axes, nor after any step that mixes blocks. nmci checks the estimates against the claim
     (entries between blocks beyond ``coupling_tol`` are refused), not the cross-covariance, which
-    nobody knows.
+    nobody knows; where the data violate it, :class:`NmciUpdater` merges the coupled blocks
+    (``on_violation``).
+
+    Parameters
+    ----------
+    model : :class:`~stonesoup.models.transition.base.TransitionModel`
+        The transition model of the tracks.
+
+    Returns
+    -------
+    list of list of int
+        The states of each component model, in order.
     """
     if isinstance(model, CombinedGaussianTransitionModel):
         blocks, start = [], 0

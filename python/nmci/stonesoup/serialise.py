@@ -23,5 +23,11 @@ def _from_yaml(constructor, tag_suffix, node):
 
 
 def yaml_init(yaml) -> None:
-    """Registers the reading of ``!nmci.`` tags on Stone Soup's ``YAML`` instance."""
+    """Registers the reading of ``!nmci.`` tags on Stone Soup's ``YAML`` instance.
+
+    Parameters
+    ----------
+    yaml : :class:`stonesoup.serialise.YAML`
+        Stone Soup's YAML reader and writer (it calls this through its entry point).
+    """
     yaml.constructor.add_multi_constructor("!nmci.", _from_yaml)

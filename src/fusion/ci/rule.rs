@@ -20,7 +20,8 @@ pub struct CiResult {
     pub omega: f64,
 }
 
-/// `(P, K_a, K_b)` of one pencil at `ω`, exact at the endpoints.
+/// `(P, K_a, K_b)` of one pencil at `ω`, exact at the endpoints and, for equal covariances,
+/// at the flat criterion's midpoint (`P = P_b`, `K_a = K_b = ½I`).
 #[allow(non_snake_case)]
 pub(super) fn fuse_at(
     pencil: &Pencil,
@@ -33,6 +34,8 @@ pub(super) fn fuse_at(
         (P_b.clone(), DMatrix::zeros(n, n))
     } else if omega == 1.0 {
         (P_a.clone(), DMatrix::identity(n, n))
+    } else if omega == FLAT_OMEGA && P_a == P_b {
+        (P_b.clone(), DMatrix::identity(n, n) * FLAT_OMEGA)
     } else {
         let P = pencil.covariance(omega);
         let mut K_a = pencil.gain_b(omega);
@@ -330,7 +333,10 @@ pub(super) fn ci_block_in_place(
     if g0 >= -ENDPOINT_TIE * size0 {
         if g1 <= ENDPOINT_TIE * size1 {
             let pencil = Pencil::new(P_a, P_b)?;
-            pencil.fuse_covariance_into(P_a, P_b, FLAT_OMEGA, None);
+            // Equal covariances: `P(½)` is `P_b`, exactly (as `fuse_at` gives it).
+            if *P_a != *P_b {
+                pencil.fuse_covariance_into(P_a, P_b, FLAT_OMEGA, None);
+            }
             return Ok((FLAT_OMEGA, Some(pencil)));
         }
         P_a.clone_from(P_b);
