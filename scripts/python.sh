@@ -24,7 +24,9 @@ fi
 # mpmath: the 50-digit references of the accuracy tests; stonesoup: the plugin nmci.stonesoup
 # (its tests, the stack benchmark's ChernoffUpdater peer); graphviz, networkx, pydot,
 # ordered_set: what Stone Soup's architecture tutorial imports (python/tests/test_stonesoup_upstream.py).
-need=(maturin numpy pytest scipy distributed mpmath stonesoup graphviz networkx pydot ordered_set)
+# ziglang: the linker maturin builds the manylinux2014 (glibc 2.17) wheel with, so it installs
+# on RHEL/Rocky 8 and 9 clusters, not only on this machine's glibc.
+need=(maturin numpy pytest scipy distributed mpmath stonesoup graphviz networkx pydot ordered_set ziglang)
 [ "$what" = bench ] && need+=(cvxpy clarabel)
 missing=()
 for p in "${need[@]}"; do
@@ -37,7 +39,8 @@ fi
 
 say "building the wheel (maturin, release)"
 rm -rf target/wheels
-(cd python && VIRTUAL_ENV="$PWD/../$venv" "../$venv/bin/maturin" build --release --quiet -i "../$py" -o ../target/wheels)
+(cd python && PATH="$PWD/../$venv/bin:$PATH" VIRTUAL_ENV="$PWD/../$venv" "../$venv/bin/maturin" build --release --quiet \
+  -i "../$py" --zig --compatibility manylinux2014 -o ../target/wheels)
 "$py" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/nmci-*.whl
 
 case "$what" in

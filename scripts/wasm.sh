@@ -61,7 +61,7 @@ case "${1:-}" in
     pkg=target/npm/nmci
     rm -rf target/npm && mkdir -p "$pkg"
     cp "$out_dir"/nmci.js "$out_dir"/nmci.d.ts "$out_dir"/nmci_bg.wasm "$out_dir"/nmci_bg.wasm.d.ts "$pkg"/
-    cp npm/node.js npm/index.d.ts npm/contract.d.ts npm/README.md "$pkg"/
+    cp npm/node.js npm/index.d.ts npm/contract.d.ts npm/README.md LICENSE-MIT LICENSE-APACHE "$pkg"/
     sed "s/@VERSION@/$version/" npm/package.json > "$pkg/package.json"
     (cd target/npm && npm pack --silent ./nmci >/dev/null)
     echo "target/npm/nmci-$version.tgz"

@@ -62,6 +62,10 @@ pub mod structure;
 #[cfg(target_arch = "wasm32")]
 pub mod wasm;
 
+/// The nalgebra nmci's matrices are, re-exported so a dependent crate uses the same version:
+/// `use nmci::nalgebra::{DMatrix, DVector};`.
+pub use nalgebra;
+
 // The common path at the root: the problem, its result, the errors.
 pub use error::{
     request_field, DrawError, InputError, ReportError, RequestError, SampleError, SolveError,

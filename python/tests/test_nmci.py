@@ -661,3 +661,23 @@ def test_the_registry_of_rules_and_a_function_per_rule():
         assert fused.guarantee == r["guarantee"]
     assert {r["name"] for r in rules if r["nway"]} == {"ci", "nmci"}
     assert all(hasattr(nmci, f"{r['name']}_nway") for r in rules if r["nway"])
+
+
+def test_the_installed_wheel_carries_both_licence_texts():
+    from importlib.metadata import distribution
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    files = {Path(str(f)).name: f for f in distribution("nmci").files or []}
+    for name in ("LICENSE-MIT", "LICENSE-APACHE"):
+        assert name in files, sorted(files)
+        assert Path(files[name].locate()).read_text() == (root / name).read_text()
+
+
+def test_the_wheel_installs_where_researchers_work():
+    """manylinux2014 (glibc 2.17): RHEL/Rocky 8 and 9 clusters take it, not only this machine."""
+    from pathlib import Path
+
+    wheels = list((Path(__file__).resolve().parents[2] / "target" / "wheels").glob("nmci-*.whl"))
+    assert len(wheels) == 1, wheels
+    assert "manylinux_2_17_x86_64" in wheels[0].name and "abi3" in wheels[0].name, wheels[0].name

@@ -433,3 +433,10 @@ def test_fuse_tracks_with_a_predictor_aligns_the_times_and_says_what_it_left_out
     with pytest.warns(UserWarning, match="1 of 6 times left out"):
         fused = fuse_tracks([one, two], predictor=predictor)
     assert [s.timestamp for s in fused] == [T0 + k * half for k in range(1, 6)]
+
+
+def test_ties_in_n_way_ci_take_the_centre_of_the_simplex():
+    P = np.array([[2.0, 0.3], [0.3, 1.0]])
+    xs = [np.array([1.0, 2.0]), np.array([3.0, -2.0]), np.array([-1.0, 3.0])]
+    f = nmci.ci_nway([(x, P) for x in xs])
+    assert np.allclose(np.ravel(f["weights"]), 1 / 3) and np.allclose(f.x, np.mean(xs, axis=0), atol=1e-12)

@@ -26,6 +26,13 @@ const dir = install();
 process.on("exit", () => rmSync(dir, { recursive: true, force: true }));
 const node = (args) => execFileSync(process.execPath, args, { cwd: dir, encoding: "utf8" });
 
+test("the installed package carries both licence texts", () => {
+  for (const name of ["LICENSE-MIT", "LICENSE-APACHE"]) {
+    const text = readFileSync(join(dir, "node_modules", "nmci", name), "utf8");
+    assert.equal(text, readFileSync(join(root, name), "utf8"), name);
+  }
+});
+
 test("the Node example runs from the installed package with the README's numbers", () => {
   copyFileSync(join(root, "examples", "node", "paper_example.mjs"), join(dir, "paper_example.mjs"));
   const out = node(["paper_example.mjs"]);
