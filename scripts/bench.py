@@ -209,7 +209,7 @@ def python():
     cmd = "scripts/python.sh bench"
     out = sh(f"bash {cmd}")
     # The script's own progress lines (`[python] …`) are not results.
-    lines = [l for l in out.strip().splitlines() if not l.startswith("[python] ")]
+    lines = [l for l in out.strip().splitlines() if not l.startswith(("[python] ", "🛠"))]
     # A blank line between the versions and the table (a table does not interrupt a paragraph).
     return cmd, "\n".join(l + ("\n" if l.startswith("numpy ") else "") for l in lines)
 
@@ -217,20 +217,21 @@ def python():
 def stack():
     cmd = "scripts/python.sh bench-stack"
     out = sh(f"bash {cmd}")
-    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
+    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith(("[python] ", "🛠")))
 
 
 def stonesoup():
     cmd = "scripts/python.sh bench-stonesoup"
     out = sh(f"bash {cmd}")
-    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
+    # The table only (maturin's and the script's progress lines are not results).
+    return cmd, "\n".join(l for l in out.strip().splitlines() if l.startswith("|"))
 
 
 def accuracy():
     # CI, ICI, EI and naive against 50-digit references (docs/methods.md, "CI's accuracy").
     cmd = "scripts/python.sh accuracy"
     out = sh(f"bash {cmd}")
-    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith("[python] "))
+    return cmd, "\n".join(l for l in out.strip().splitlines() if not l.startswith(("[python] ", "🛠")))
 
 
 def browser():
