@@ -339,10 +339,10 @@ class NmciUpdater(Updater):
     ``ω`` per independent block, the certified rule's gains, ... (module docs). The arguments
     are in ``ChernoffUpdater``'s order: ``NmciUpdater(measurement_model, omega)``.
 
-    Which rules fit a tracker's per-update budget: ``ci``, ``nmci`` (closed form, microseconds
-    to a millisecond), ``certified`` (a solve per update, milliseconds at two states per block),
-    ``sdp_cuts`` (seconds per update: for studies, not for a tracker's loop); measured in
-    ``docs/python.md``.
+    Which rules fit a tracker's per-update budget: ``ci`` and ``nmci`` are closed form;
+    ``certified``, ``sdp`` and ``sdp_cuts`` solve programs per update. One update per rule,
+    beside ``ChernoffUpdater``, is measured in ``docs/benchmarks.md`` ("Stone Soup: one update
+    per rule").
 
     Each update carries a :class:`FusionInfo` as ``update.fusion``.
 
