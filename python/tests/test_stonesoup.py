@@ -223,6 +223,45 @@ def test_inside_phd_updater():
     mixture = phd.update(hypotheses)
     weights = [c.weight for c in mixture]
     assert len(mixture) == 3 * 2 + 2 and all(np.isfinite(float(w)) and float(w) >= 0 for w in weights)
+    # PHDUpdater rebuilds its components from mean and covariance; the fusion details survive
+    # on the hypotheses it keeps, as the declared Property of their measurement predictions.
+    for multi in mixture.hypothesis[:-1]:
+        for h in multi:
+            info = h.measurement_prediction.fusion
+            assert "fusion" in type(h.measurement_prediction).properties
+            assert info.rule == "nmci" and info.blocks == ((0, 1), (2, 3)) and len(info.omega) == 2
+
+
+def test_the_fusion_details_are_a_declared_property_of_stone_soups_own_kinds():
+    rng = np.random.default_rng(12)
+    B = spd(rng, 4, [[0, 1], [2, 3]])
+    A = spd(rng, 4, [[0, 1], [2, 3]])
+    a, b = rng.standard_normal(4), rng.standard_normal(4)
+    from stonesoup.types.update import GaussianStateUpdate, TaggedWeightedGaussianStateUpdate
+    from nmci.stonesoup import FusionInfo, FusionRecord
+
+    update = NmciUpdater(None, rule="nmci", blocks=[[0, 1], [2, 3]]).update(hypothesis(a, A, b, B))
+    assert isinstance(update, GaussianStateUpdate) and isinstance(update, FusionRecord)
+    assert type(update).__name__ == "NmciGaussianStateUpdate"
+    # Declared, last (so Stone Soup's positional order is kept), and in the repr.
+    assert list(type(update).properties)[-1] == "fusion"
+    assert isinstance(update.fusion, FusionInfo) and "fusion=FusionInfo(" in repr(update)
+    assert update.hypothesis.measurement_prediction.fusion == update.fusion
+    # A copy by Stone Soup's from_state keeps it; a pickle round trip too.
+    import pickle
+    again = pickle.loads(pickle.dumps(update))
+    assert type(again) is type(update) and again.fusion == update.fusion
+    assert GaussianStateUpdate.from_state(update, target_type=type(update)).fusion == update.fusion
+    # A PHD component's prediction gives Stone Soup's tagged kind, extended.
+    prediction = TaggedWeightedGaussianStatePrediction(
+        np.reshape(b, (4, 1)), B, weight=0.5, tag="t1", timestamp=T0)
+    h = hypothesis(a, A, b, B)
+    tagged = NmciUpdater(None).update(SingleHypothesis(prediction, h.measurement))
+    assert isinstance(tagged, TaggedWeightedGaussianStateUpdate) and tagged.tag == "t1"
+    assert tagged.fusion.rule == "ci"
+    # The reducer's merge: the first component's kind, extended.
+    merged = NmciCovarianceIntersection().merge_components(GaussianState(a, A), GaussianState(b, B))
+    assert type(merged).__name__ == "NmciGaussianState" and merged.fusion.rule == "ci"
 
 
 def test_inside_a_detection_and_track_switching_tracker():
@@ -331,7 +370,8 @@ def test_the_readme_switch_runs():
     np.diag([1.0, 0.0, 0.5, 0.2]),          # a state claimed exactly
     np.full((4, 4), 0.04),                  # a broadcast row: rank one
 ])
-@pytest.mark.parametrize("kwargs", [{}, {"rule": "nmci", "blocks": [[0, 1], [2, 3]]}, {"omega": 0.5}])
+@pytest.mark.parametrize("kwargs", [{}, {"rule": "nmci", "blocks": [[0, 1], [2, 3]]}, {"omega": 0.5},
+                                    {"rule": "ici"}, {"rule": "ei"}])
 def test_degenerate_covariances_do_not_stop_the_tracker(A, kwargs):
     """Semi-definite measurement covariances: the pseudo-inverse form (docs/methods.md,
     "Semi-definite covariances"), conservative: the update's covariance dominates its gains'
@@ -358,8 +398,20 @@ def test_semidefinite_covariances_through_the_rule_functions_say_so():
     with pytest.warns(nmci.StructureWarning, match="pseudo-inverse form"):
         f = nmci.ci(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]), np.array([1.0, 2.0]), np.zeros(2))
     assert abs(f.x[1]) <= 1e-12 and f.P[1, 1] >= 3.0 * (1 - 1e-12)
+    # EI in the same form: state 0 the more informed a's, state 1 b's alone.
+    with pytest.warns(nmci.StructureWarning, match="pseudo-inverse form"):
+        f = nmci.ei(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]), np.array([1.0, 2.0]), np.zeros(2))
+    assert f.method == "ei" and np.allclose(f.P, np.diag([1.0, 3.0]), rtol=0, atol=1e-12)
+    assert np.allclose(f.x, [1.0, 0.0], rtol=0, atol=1e-12)
+    # ICI falls back to CI's form, and says so: the response is CI's.
+    with pytest.warns(nmci.StructureWarning, match="ici has no pseudo-inverse form"):
+        f = nmci.ici(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]))
+    assert f.method == "ci" and f.guarantee == "conservative"
+    with pytest.warns(nmci.StructureWarning):
+        g = nmci.ci(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]))
+    assert np.array_equal(f.P, g.P)
     with pytest.raises(nmci.InputError) as e:
-        nmci.ici(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]))
+        nmci.certified(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]))
     assert e.value.field == "pa"
 
 

@@ -31,7 +31,7 @@ use crate::fusion::nway::{
     absorb_couplings_nway, covariance_intersection_nway, non_monolithic_ci_nway, NwayResult,
     PairPattern,
 };
-use crate::fusion::rules::Method;
+use crate::fusion::rules::{Guarantee, Method};
 use crate::fusion::sdp::optimal_fusion;
 use crate::fusion::semidefinite::{self, fuse_semidefinite, SemidefiniteRule};
 use crate::fusion::{Criterion, Estimate, Fused, FusionProblem};
@@ -256,18 +256,22 @@ pub(crate) fn fuse_planned(
 }
 
 /// A two-estimate request whose covariance `refused` was refused as not positive definite:
-/// CI, nmCI and naive fusion in the pseudo-inverse form (`fusion::semidefinite`), their
-/// structure note saying so; every other rule refuses it as before.
+/// CI, nmCI, EI and naive fusion in the pseudo-inverse form (`fusion::semidefinite`), ICI by
+/// CI's form (its documented fall-back: `method` `ci` in the response), the structure note
+/// saying so; the certified rule and the SDPs refuse it as before (their proofs need positive
+/// definite covariances).
 fn semidefinite_response(
     request: &FuseRequest,
     criterion: Criterion,
     refused: InputError,
 ) -> Result<FuseResponse, RequestError> {
-    let rule = match request.method {
-        Method::Ci => SemidefiniteRule::Ci,
-        Method::Nmci => SemidefiniteRule::Nmci,
-        Method::Naive => SemidefiniteRule::Naive,
-        _ => return Err(refused.into()),
+    let (rule, method) = match request.method {
+        Method::Ci => (SemidefiniteRule::Ci, Method::Ci),
+        Method::Nmci => (SemidefiniteRule::Nmci, Method::Nmci),
+        Method::Naive => (SemidefiniteRule::Naive, Method::Naive),
+        Method::Ei => (SemidefiniteRule::Ei, Method::Ei),
+        Method::Ici => (SemidefiniteRule::Ci, Method::Ci),
+        Method::Certified | Method::Sdp | Method::SdpCuts => return Err(refused.into()),
     };
     let (xa, pa, xb, pb, pattern) = request.pair.parts()?;
     let r = match fuse_semidefinite(rule, &xa, &pa, &xb, &pb, &pattern, criterion) {
@@ -282,17 +286,26 @@ fn semidefinite_response(
             omega: r.omega.clone(),
             blocks: r.blocks.clone(),
         },
-        SemidefiniteRule::Naive => Details::None,
+        SemidefiniteRule::Naive | SemidefiniteRule::Ei => Details::None,
     };
-    let reported = if rule == SemidefiniteRule::Naive {
+    let reported = if matches!(rule, SemidefiniteRule::Naive | SemidefiniteRule::Ei) {
         Criterion::default()
     } else {
         criterion
     };
-    let mut response = response(request.method, reported, &r.fused, details);
+    let mut response = response(method, reported, &r.fused, details);
+    let how = match request.method {
+        Method::Ici => "ici has no pseudo-inverse form: ci fused it in its pseudo-inverse form instead (conservative for every cross-covariance, so also for the common information ici assumes)".to_string(),
+        m => format!("{} fused it in the pseudo-inverse form instead", m.name()),
+    };
+    let guarantee = match method.guarantee() {
+        Guarantee::Conservative => {
+            "conservative for every cross-covariance to the rounding of the eigendecomposition"
+        }
+        _ => "with the rule's own guarantee (none)",
+    };
     let note = format!(
-        "{refused}: {} fused it in the pseudo-inverse form instead, eigenvalues at most n·ε·λ_max taken as zero and their directions as uninformed; conservative for every cross-covariance to the rounding of the eigendecomposition (docs/methods.md, \"Semi-definite covariances\")",
-        request.method.name(),
+        "{refused}: {how}, eigenvalues at most n·ε·λ_max taken as zero and their directions as uninformed; {guarantee} (docs/methods.md, \"Semi-definite covariances\")",
     );
     response.structure = Some(StructureDetails {
         blocks: r.blocks.clone(),

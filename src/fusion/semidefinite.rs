@@ -1,5 +1,5 @@
-//! Semi-definite covariances: CI, nmCI and naive fusion in the pseudo-inverse (information)
-//! form.
+//! Semi-definite covariances: CI, nmCI, EI and naive fusion in the pseudo-inverse
+//! (information) form; ICI's fall-back.
 //!
 //! A covariance with a zero (or rounding-level) eigenvalue — a collapsed particle cloud, a
 //! state a sensor fixes exactly, a measurement model's broadcast row — has no inverse, and the
@@ -41,6 +41,23 @@
 //! nmCI takes one weight per independent block (exact zeros only; `structure::absorb`'s proven
 //! inflation needs positive definite blocks) and naive fusion is `(A⁺ + B⁺)⁻¹`, conservative
 //! for independent errors only, as always.
+//!
+//! **EI** (`fusion::ei`; no guarantee, as always) has the same basis: in the coordinates
+//! `z = M⁻¹ x` the information of `a` is `diag(α)` and of `b` `diag(1 − α)`, and EI keeps, per
+//! axis, the more informed estimate: `P = M diag(1 / max(αᵢ, 1 − αᵢ)) Mᵀ`,
+//! `K_a = M diag(kᵢ) M⁻¹` with `kᵢ` 1 where `αᵢ > 1 − αᵢ`, 0 where `αᵢ < 1 − αᵢ`, ½ where the
+//! two agree within EI's `η` (`|1 − 2αᵢ| ≤ 10⁻⁹ αᵢ`, i.e. variance ratio `(1 − αᵢ)/αᵢ` within
+//! `10⁻⁹` of 1). For positive definite `A`, `B` this is `fusion::ei`'s formula: the pencil's
+//! variance ratio `μᵢ` is `(1 − αᵢ)/αᵢ`, and `min(μᵢ, 1)` in `P_b`'s scale is
+//! `1/max(αᵢ, 1 − αᵢ)` in this one (tested).
+//!
+//! **ICI** (`fusion::ici`) has no pseudo-inverse form argued here: its bound
+//! `(A⁻¹ + B⁻¹ − (ωA + (1 − ω)B)⁻¹)⁻¹` mixes the covariances and their inverses, and with
+//! `A⁺` in place of `A⁻¹` the argument of Noack et al. does not carry over as written. A
+//! request for ICI on a semi-definite covariance is therefore fused by CI's form above
+//! ([`SemidefiniteRule::Ci`]), which bounds the error for *every* cross-covariance, so in
+//! particular for the correlations by common information ICI assumes: ICI's guarantee holds
+//! a fortiori, and the response says which rule fused it (`method` `ci`, and the note).
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
@@ -59,6 +76,8 @@ pub enum SemidefiniteRule {
     Nmci,
     /// Naive fusion (independent errors only).
     Naive,
+    /// Ellipsoidal intersection (no guarantee).
+    Ei,
 }
 
 /// A fusion in the pseudo-inverse form (module docs).
@@ -188,6 +207,37 @@ fn ci_block(
     ))
 }
 
+/// EI in the pseudo-inverse form (module docs): per axis of the joint basis, the more
+/// informed estimate.
+#[allow(non_snake_case)]
+fn ei(
+    x_a: &DVector<f64>,
+    Y_a: &DMatrix<f64>,
+    x_b: &DVector<f64>,
+    Y_b: &DMatrix<f64>,
+) -> Result<Fused, InputError> {
+    let n = Y_a.nrows();
+    let (M, alpha) = joint_basis(Y_a, Y_b)?;
+    let inv_d = alpha.map(|a| 1.0 / a.max(1.0 - a));
+    let k = alpha.map(|a| {
+        if (1.0 - 2.0 * a).abs() <= 1e-9 * a {
+            0.5
+        } else if a > 0.5 {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    let P = &M * DMatrix::from_diagonal(&inv_d) * M.transpose();
+    let P = (&P + P.transpose()) * 0.5;
+    // M⁻¹ = Vᵀ Lᵀ = Mᵀ (A⁺ + B⁺): M is L⁻ᵀ V with V orthogonal.
+    let M_inv = M.transpose() * (Y_a + Y_b);
+    let K_a = &M * DMatrix::from_diagonal(&k) * M_inv;
+    let K_b = DMatrix::identity(n, n) - &K_a;
+    let x = &K_a * x_a + &K_b * x_b;
+    Ok(Fused { x, P, K_a, K_b })
+}
+
 /// `K_a = P W_a`, `K_b = P W_b` and `x = K_a x_a + K_b x_b` (`W_a`, `W_b` the weighted
 /// information matrices).
 #[allow(non_snake_case)]
@@ -244,6 +294,7 @@ pub fn fuse_semidefinite(
             let (w, fused) = ci_block(x_a, &Y_a, x_b, &Y_b, criterion)?;
             (fused, vec![w], vec![whole])
         }
+        SemidefiniteRule::Ei => (ei(x_a, &Y_a, x_b, &Y_b)?, Vec::new(), vec![whole]),
         SemidefiniteRule::Nmci => {
             let blocks = independent_blocks(P_a, P_b, pattern);
             let mut fused = Fused {
@@ -363,6 +414,28 @@ mod tests {
             }
         }
         let d = |v: &[f64]| DMatrix::from_diagonal(&DVector::from_row_slice(v));
+        // EI: the covariance form's P, gains and mean, ties (equal variances on an axis)
+        // included.
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        for n in 1..=5 {
+            let A = spd(n, n + 2, &mut rng);
+            let B = if n == 3 {
+                A.clone()
+            } else {
+                spd(n, n + 2, &mut rng)
+            };
+            let xa = DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0));
+            let xb = DVector::from_fn(n, |_, _| rng.random_range(-1.0..1.0));
+            let p = FusionProblem::new(xa, A, xb, B, CrossPattern::fully_unknown(n)).unwrap();
+            let ours = fuse_semidefinite_problem(SemidefiniteRule::Ei, &p, Criterion::Trace)
+                .unwrap()
+                .fused;
+            let ei = crate::fusion::ei::ellipsoidal_intersection(&p).unwrap();
+            let scale = ei.P.amax();
+            assert!((&ours.P - &ei.P).amax() <= 1e-9 * scale, "n = {n}");
+            assert!((&ours.K_a - &ei.K_a).amax() <= 1e-8, "n = {n}");
+            assert!((&ours.x - &ei.x).amax() <= 1e-8, "n = {n}");
+        }
         let p = FusionProblem::from_covariances(
             d(&[3.0, 1.0]),
             d(&[1.0, 4.0]),
@@ -469,6 +542,27 @@ mod tests {
         let row = DMatrix::from_row_slice(2, 2, &[0.04, 0.04, 0.04, 0.04]);
         let r = run(row, d(&[4.1, 0.04]), &zero).unwrap();
         assert!(r.fused.P.trace() <= 4.14 + 1e-12);
+        // EI: state 0 takes the more informed a (½ against 2), state 1 b's alone; both
+        // zero in a direction is refused as for CI.
+        let run_ei = |A: DMatrix<f64>, B: DMatrix<f64>| {
+            fuse_semidefinite(
+                SemidefiniteRule::Ei,
+                &xa,
+                &A,
+                &zero,
+                &B,
+                &CrossPattern::fully_unknown(2),
+                Criterion::Trace,
+            )
+        };
+        let r = run_ei(d(&[0.5, 0.0]), d(&[2.0, 3.0])).unwrap();
+        assert!(
+            (&r.fused.P - d(&[0.5, 3.0])).amax() <= 1e-12,
+            "{}",
+            r.fused.P
+        );
+        assert!((&r.fused.x - DVector::from_row_slice(&[1.0, 0.0])).amax() <= 1e-12);
+        assert!(run_ei(d(&[1.0, 0.0]), d(&[2.0, 0.0])).is_err());
         // Both zero in direction 1: no bound.
         let e = run(d(&[1.0, 0.0]), d(&[2.0, 0.0]), &zero).unwrap_err();
         assert!(e.to_string().contains("both zero in some direction"), "{e}");

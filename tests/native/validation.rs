@@ -538,21 +538,30 @@ fn covariances_out_of_the_float_range_are_named_so_not_called_indefinite() {
     .is_ok());
 }
 
-/// Semi-definite covariances through the contract: `ci`, `nmci` and `naive` fuse them in the
-/// pseudo-inverse form (`fusion::semidefinite`) and say so in the structure note; every other
-/// rule refuses them as before, and an indefinite matrix keeps its refusal.
+/// Semi-definite covariances through the contract: `ci`, `nmci`, `ei` and `naive` fuse them in
+/// the pseudo-inverse form (`fusion::semidefinite`), `ici` falls back to CI's, and the note
+/// says so with the guarantee that holds; the certified rule and the SDPs refuse them as
+/// before, and an indefinite matrix keeps its refusal.
 #[test]
-fn semidefinite_covariances_are_fused_in_the_pseudo_inverse_form_by_ci_nmci_and_naive() {
+fn semidefinite_covariances_are_fused_in_the_pseudo_inverse_form_by_the_closed_form_rules() {
     let run = |pa: &str, method: &str| {
         fuse_json(&format!(
             r#"{{"pa": {pa}, "pb": [[2,0],[0,3]], "xa": [1, 2], "xb": [0, 0], "pab_unknown": [[true,false],[false,true]], "method": "{method}"}}"#
         ))
     };
     for pa in ["[[1,0],[0,0]]", "[[1,0],[0,1e-24]]"] {
-        for method in ["ci", "nmci", "naive"] {
+        for method in ["ci", "nmci", "naive", "ei", "ici"] {
             let v: serde_json::Value = serde_json::from_str(&run(pa, method).unwrap()).unwrap();
             let note = v["structure"]["note"].as_str().unwrap();
             assert!(note.contains("pseudo-inverse form"), "{method}: {note}");
+            // The rule that fused, and only a conservative one claims to be.
+            let used = if method == "ici" { "ci" } else { method };
+            assert_eq!(v["method"], used, "{method}: {v}");
+            assert_eq!(
+                note.contains("conservative for every cross-covariance"),
+                ["ci", "nmci", "ici"].contains(&method),
+                "{method}: {note}"
+            );
             if pa.contains("1e-24") && method == "nmci" {
                 // nmCI truncates each block on its own: in its block 1e-24 is a variance like
                 // any other, and a's (the smaller) is taken, mean and all.
@@ -571,7 +580,7 @@ fn semidefinite_covariances_are_fused_in_the_pseudo_inverse_form_by_ci_nmci_and_
                 "{method} {pa}: {v}"
             );
         }
-        for method in ["ici", "ei", "certified", "sdp", "sdp_cuts"] {
+        for method in ["certified", "sdp", "sdp_cuts"] {
             let e = run(pa, method).unwrap_err();
             assert_eq!(e.field().as_deref(), Some("pa"), "{method}: {e}");
         }

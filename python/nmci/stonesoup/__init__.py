@@ -15,6 +15,8 @@ entry point, so a saved configuration holding these components loads back.
   ``CombinedLinearGaussianTransitionModel`` (a modelling claim: see its docs);
 - :func:`chernoff_log_normaliser` and :func:`innovation_covariance` — the normaliser of the
   Chernoff product of two Gaussians and the innovation covariance derived from it;
+- :class:`FusionInfo` — what a fusion reports, the declared Property ``fusion`` of the types
+  :func:`with_fusion` extends (:mod:`nmci.stonesoup.types`);
 - :func:`fixed_omega_ci` — CI at a fixed weight in its pseudo-inverse form (semi-definite
   covariances), and :func:`merge_coupled_blocks` — declared blocks merged where the data couple
   them.
@@ -29,8 +31,8 @@ The three-line switch from Stone Soup's fixed-ω fusion::
 from .fuser import fuse_tracks
 from .mixturereducer import NmciCovarianceIntersection
 from .models import blocks_from_transition_model
+from .types import FusionInfo
 from .updater import (
-    FusionInfo,
     NmciUpdater,
     chernoff_log_normaliser,
     fixed_omega_ci,
@@ -38,9 +40,11 @@ from .updater import (
     merge_coupled_blocks,
 )
 from .serialise import yaml_init
+from .types import FusionRecord, with_fusion
 
 __all__ = [
     "FusionInfo",
+    "FusionRecord",
     "NmciCovarianceIntersection",
     "NmciUpdater",
     "blocks_from_transition_model",
@@ -49,5 +53,6 @@ __all__ = [
     "fuse_tracks",
     "innovation_covariance",
     "merge_coupled_blocks",
+    "with_fusion",
     "yaml_init",
 ]

@@ -12,7 +12,7 @@ from stonesoup.types.state import GaussianState
 import nmci
 from nmci._errors import InputError, RequestError
 
-from .updater import FusionInfo
+from .types import FusionInfo, with_fusion
 
 
 class _class_or_instance:
@@ -85,7 +85,8 @@ class NmciCovarianceIntersection(MixtureReducer):
         Returns
         -------
         :class:`~stonesoup.types.state.GaussianState`
-            The merged state, of the first component's kind, with ``.fusion``.
+            The merged state, of the first component's kind extended by the declared Property
+            ``fusion`` (:func:`~nmci.stonesoup.types.with_fusion`).
         """
         if not components:
             raise RequestError("no components to merge", "components")
@@ -125,6 +126,5 @@ class NmciCovarianceIntersection(MixtureReducer):
                 None if weights_ is None else tuple(float(v) for v in weights_),
                 None if blocks is None else tuple(tuple(b) for b in blocks),
                 f.guarantee)
-        merged = GaussianState.from_state(components[0], state_vector=x, covar=C)
-        merged.fusion = info
-        return merged
+        return GaussianState.from_state(components[0], state_vector=x, covar=C, fusion=info,
+                                        target_type=with_fusion(type(components[0])))

@@ -88,8 +88,7 @@ information at all in some direction) the update is refused with the field named
 """
 
 import warnings
-from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple
+from typing import Optional, Sequence
 
 import numpy as np
 from stonesoup.base import Property
@@ -100,35 +99,11 @@ from stonesoup.updater.base import Updater
 import nmci
 from nmci._errors import InputError, RequestError, StructureWarning
 
+from .types import FusionInfo, target_type
+
 #: The rules' default coupling tolerance (nmci's ``coupling_tol``), used to find the blocks the
 #: data couple.
 DEFAULT_COUPLING_TOL = 1e-9
-
-
-@dataclass(frozen=True)
-class FusionInfo:
-    """What a fusion by nmci reports, attached to each update as ``update.fusion``.
-
-    Attributes
-    ----------
-    rule : str
-        The rule that fused (``ci`` for a fixed ``omega``).
-    omega : tuple of float or None
-        The weight on the measurement of each block (``None`` for rules without one).
-    blocks : tuple of tuple of int or None
-        The blocks of states the rule used (``None`` when the rule reports none).
-    guarantee : str
-        The rule's guarantee, as nmci states it (``"conservative"``, ``"relaxation"``, ...).
-    merged : tuple of str
-        One sentence per pair of declared blocks merged because the data couple them (module
-        docs, "Declared blocks the data violate"); empty when the declared blocks held.
-    """
-
-    rule: str
-    omega: Optional[Tuple[float, ...]]
-    blocks: Optional[Tuple[Tuple[int, ...], ...]]
-    guarantee: str
-    merged: Tuple[str, ...] = ()
 
 
 def _block_list(blocks: Optional[Sequence[Sequence[int]]], n: int) -> list:
@@ -344,7 +319,11 @@ class NmciUpdater(Updater):
     beside ``ChernoffUpdater``, is measured in ``docs/benchmarks.md`` ("Stone Soup: one update
     per rule").
 
-    Each update carries a :class:`FusionInfo` as ``update.fusion``.
+    Each update carries a :class:`~nmci.stonesoup.types.FusionInfo` as ``update.fusion``, a
+    declared Property: the update is of the kind Stone Soup would build, extended by it
+    (:mod:`nmci.stonesoup.types`). The hypothesis's ``measurement_prediction`` carries the same
+    ``fusion``, which is where it survives ``PHDUpdater``, which rebuilds its components from
+    the mean and covariance alone.
 
     References
     ----------
@@ -517,7 +496,10 @@ class NmciUpdater(Updater):
         Returns
         -------
         :class:`~stonesoup.types.update.Update`
-            An update of the prediction's kind, carrying :class:`FusionInfo` as ``.fusion``.
+            An update of the kind Stone Soup builds for the prediction, with the declared
+            Property ``fusion`` (:class:`~nmci.stonesoup.types.FusionInfo`); the hypothesis's
+            ``measurement_prediction`` is replaced by the same one with that ``fusion`` (class
+            docs).
         """
         measurement, prediction = hypothesis.measurement, hypothesis.prediction
         if hypothesis.measurement_prediction is None:
@@ -559,6 +541,9 @@ class NmciUpdater(Updater):
                 merged)
         if force_symmetric_covariance:
             P = (P + P.T) / 2
-        update = Update.from_state(prediction, x, P, hypothesis, measurement.timestamp)
-        update.fusion = info
-        return update
+        mp = hypothesis.measurement_prediction
+        hypothesis.measurement_prediction = MeasurementPrediction.from_state(
+            mp, target_type=target_type(MeasurementPrediction, mp), fusion=info)
+        return Update.from_state(
+            prediction, state_vector=x, covar=P, hypothesis=hypothesis, timestamp=measurement.timestamp,
+            target_type=target_type(Update, prediction), fusion=info)
