@@ -13,6 +13,9 @@ python3 scripts/layers.py
 echo "== native: cargo test (crate, BLAS/LAPACK shims, CLI, doc examples)"
 cargo test --workspace --exclude nmci-python --all-features
 
+echo "== dependent: the README's Rust example as a crate outside the workspace (no [patch], no system BLAS/LAPACK)"
+scripts/dependent.sh
+
 echo "== wasm: wasm-pack test in headless Chromium"
 scripts/wasm.sh test
 

@@ -62,6 +62,16 @@ pub mod structure;
 #[cfg(target_arch = "wasm32")]
 pub mod wasm;
 
+// The Fortran BLAS and LAPACK symbols (`dgemm_`, `dsyevr_`, …) over the pure-Rust shims
+// (shims/*/src/ffi.rs). Inside this workspace `[patch.crates-io]` puts the shims in place of
+// the `blas` and `lapack` crates Clarabel's SDP cones call; a crate depending on nmci does not
+// see that patch, gets the real crates, and links against these symbols instead of a system
+// BLAS/LAPACK (tested: scripts/dependent.sh builds such a crate and runs the README's example).
+#[cfg(not(target_arch = "wasm32"))]
+extern crate blas_shim as _;
+#[cfg(not(target_arch = "wasm32"))]
+extern crate lapack_shim as _;
+
 /// The nalgebra nmci's matrices are, re-exported so a dependent crate uses the same version:
 /// `use nmci::nalgebra::{DMatrix, DVector};`.
 pub use nalgebra;

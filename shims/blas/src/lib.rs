@@ -22,6 +22,9 @@
 
 use nalgebra::RealField;
 
+#[cfg(not(target_arch = "wasm32"))]
+pub mod ffi;
+
 fn is_trans(t: u8) -> bool {
     matches!(t, b'T' | b't' | b'C' | b'c')
 }

@@ -26,6 +26,9 @@
 
 use nalgebra::{DMatrix, RealField, SymmetricEigen, SVD};
 
+#[cfg(not(target_arch = "wasm32"))]
+pub mod ffi;
+
 fn is_upper(uplo: u8) -> bool {
     matches!(uplo, b'U' | b'u')
 }
