@@ -24,7 +24,15 @@ pub enum InputError {
         /// Number of columns (of the offending row for nested arrays).
         cols: usize,
     },
-    /// A NaN or infinite entry.
+    /// A NaN or infinite entry of a vector.
+    #[error("{name}[{index}] is not finite (NaN or ±∞)")]
+    NotFiniteElement {
+        /// Which vector.
+        name: String,
+        /// The element (0-based).
+        index: usize,
+    },
+    /// A NaN or infinite entry of a matrix.
     #[error("{name} has a non-finite entry at ({row}, {col})")]
     NotFinite {
         /// Which input.
@@ -392,6 +400,7 @@ impl InputError {
             InputError::Empty { name }
             | InputError::NotSquare { name, .. }
             | InputError::NotFinite { name, .. }
+            | InputError::NotFiniteElement { name, .. }
             | InputError::NotSymmetric { name, .. }
             | InputError::NotPositiveDefinite { name, .. }
             | InputError::OutOfRange { name, .. }

@@ -17,9 +17,12 @@ mod canvas;
 /// A request object, parsed exactly as the CLI parses JSON: through a `serde_json::Value`,
 /// because serde-wasm-bindgen alone skips unknown fields instead of rejecting them.
 fn parse<T: DeserializeOwned>(request: JsValue) -> Result<T, RequestError> {
-    let value: serde_json::Value = serde_wasm_bindgen::from_value(request)
-        .map_err(|e| RequestError::Malformed(e.to_string()))?;
-    serde_json::from_value(value).map_err(|e| RequestError::Malformed(e.to_string()))
+    serde_json::from_value(value_of(request)?).map_err(|e| RequestError::Malformed(e.to_string()))
+}
+
+/// A JS object as a `serde_json::Value` (a NaN becomes `null`, as in `JSON.stringify`).
+fn value_of(request: JsValue) -> Result<serde_json::Value, RequestError> {
+    serde_wasm_bindgen::from_value(request).map_err(|e| RequestError::Malformed(e.to_string()))
 }
 
 /// An object this module gave out (a chart, fig. 2's rows), read back as it is: NaN stays NaN
@@ -56,13 +59,14 @@ fn to_js<T: Serialize>(value: &T) -> Result<JsValue, JsError> {
 /// the first that fails throws, naming its index.
 #[wasm_bindgen]
 pub fn fuse(request: JsValue) -> Result<JsValue, JsValue> {
-    if js_sys::Array::is_array(&request) {
-        let values: Vec<serde_json::Value> = parse(request).map_err(thrown)?;
+    // Named errors (a NaN's path, an unknown method, not an object): `api::json`.
+    let value = value_of(request).map_err(thrown)?;
+    if let serde_json::Value::Array(values) = value {
         let requests = crate::api::requests_from(values).map_err(thrown)?;
         let responses = crate::api::fuse_list(&requests).map_err(thrown)?;
         return Ok(to_js(&responses)?);
     }
-    let request: FuseRequest = parse(request).map_err(thrown)?;
+    let request: FuseRequest = crate::api::json::from_value(value, "a request").map_err(thrown)?;
     let response = crate::api::fuse(&request).map_err(thrown)?;
     Ok(to_js(&response)?)
 }

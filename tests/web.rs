@@ -175,11 +175,22 @@ fn thrown_errors_carry_the_field() {
             r#"{"pa": [[1]], "pb": [[1]], "xb": [1, 2], "method": "ci"}"#,
             Some("xb"),
         ),
-        (r#"{"pa": [[1]], "pb": [[1]], "method": "magic"}"#, None),
+        (
+            r#"{"pa": [[1]], "pb": [[1]], "method": "CI"}"#,
+            Some("method"),
+        ),
     ] {
         let (_, got) = call_with_field(JSON::parse(json).unwrap()).unwrap_err();
         assert_eq!(got.as_deref(), field, "{json}");
     }
+    // A NaN (no JSON form: a null once converted) is named by its path.
+    let req =
+        JSON::parse(r#"{"pa": [[1, 0], [0, 1]], "pb": [[1, 0], [0, 1]], "method": "ci"}"#).unwrap();
+    let xa = js_sys::Array::of2(&JsValue::from_f64(f64::NAN), &JsValue::from_f64(0.0));
+    Reflect::set(&req, &"xa".into(), &xa).unwrap();
+    let (message, field) = call_with_field(req).unwrap_err();
+    assert_eq!(field.as_deref(), Some("xa"));
+    assert!(message.contains("`xa[0]` is null"), "{message}");
 }
 
 /// The page reads the rules from the registry: `rules()` is `nmci::rules::RULES`, serialised.

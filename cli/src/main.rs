@@ -26,6 +26,7 @@ mod cli {
     #[derive(Subcommand)]
     enum Command {
         /// Fuse two estimates: read a JSON request from FILE (or stdin), print the JSON response.
+        #[command(after_help = fuse_help())]
         Fuse {
             /// Request file; standard input when absent or `-`.
             file: Option<PathBuf>,
@@ -56,6 +57,9 @@ mod cli {
             /// (or the shard file with --first-run).
             #[arg(long, default_value = "out/track")]
             out: PathBuf,
+            /// Also print the summary (summary.json's content) on stdout.
+            #[arg(long)]
+            json: bool,
         },
         /// Merge shards of a study (`nmci track --first-run`) into the study itself, bit for bit
         /// what one `nmci track` of all the runs gives, and write its files.
@@ -113,6 +117,20 @@ mod cli {
             #[arg(long, default_value = "out/fig2")]
             out: PathBuf,
         },
+    }
+
+    /// `nmci fuse --help`'s epilogue: the methods (from the rule registry), the request's
+    /// fields (from the contract) and an example.
+    fn fuse_help() -> String {
+        let methods: Vec<String> = nmci::rules::rules()
+            .iter()
+            .map(|r| format!("  {:<10} {} ({})", r.name, r.label, r.guarantee.phrase()))
+            .collect();
+        format!(
+            "Methods (\"method\"):\n{}\n\nRequest fields: {}.\nEvery field, default and error: docs/contract.md.\n\nExample:\n  echo '{{\"pa\":[[3,0],[0,1]],\"pb\":[[1,0],[0,4]],\"pab_unknown\":[[true,false],[false,true]],\"method\":\"nmci\"}}' | nmci fuse",
+            methods.join("\n"),
+            nmci::contract::request_fields().join(", ")
+        )
     }
 
     /// `nmci fig2`: runs in parallel, `fig2.csv` and the two-panel `fig2.svg`.
@@ -219,6 +237,7 @@ mod cli {
     }
 
     #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)]
     fn track(
         config: Option<PathBuf>,
         runs: Option<usize>,
@@ -227,6 +246,7 @@ mod cli {
         no_coin: bool,
         first_run: Option<usize>,
         out: PathBuf,
+        json: bool,
     ) -> Result<String, String> {
         use indicatif::{ProgressBar, ProgressStyle};
         use nmci::study::*;
@@ -244,7 +264,7 @@ mod cli {
         };
         let bar = ProgressBar::new((run_pieces(cfg.runs, STUDY_RULES.len()) + coin_pieces) as u64).with_style(
             ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} rules × slices of runs (+ exact COIN per estimator), {elapsed} (eta {eta})",
+                "{bar:40} {pos}/{len} parts done (each rule's share of the runs, then the exact COIN of each estimator), {elapsed} (eta {eta})",
             )
             .map_err(|e| e.to_string())?,
         );
@@ -271,14 +291,18 @@ mod cli {
         let study = study_parallel(&cfg, &model, || bar.inc(1)).map_err(|e| e.to_string())?;
         bar.finish_and_clear();
         write_study(&study, &out).map_err(|e| e.to_string())?;
-        Ok(format!(
-            "{} runs × {} steps in {:.1} s; wrote {}/summary.json, per-step CSVs and SVG figures\n{}",
+        let mut done = format!(
+            "{} runs × {} steps in {:.1} s; wrote {}/summary.json, per-step CSVs and SVG figures",
             cfg.runs,
             cfg.steps,
             started.elapsed().as_secs_f64(),
             out.display(),
-            serde_json::to_string_pretty(&study.report()).map_err(|e| e.to_string())?
-        ))
+        );
+        if json {
+            done.push('\n');
+            done += &serde_json::to_string_pretty(&study.report()).map_err(|e| e.to_string())?;
+        }
+        Ok(done)
     }
 
     /// `nmci merge`: reads shards (files, or every `shard-*.json` in folders), merges them
@@ -414,7 +438,8 @@ mod cli {
                 no_coin,
                 first_run,
                 out,
-            } => track(config, runs, steps, seed, no_coin, first_run, out),
+                json,
+            } => track(config, runs, steps, seed, no_coin, first_run, out, json),
             Command::Merge { inputs, out } => merge(inputs, out),
             Command::Sweep {
                 config,

@@ -28,6 +28,47 @@ pub(crate) fn nmci(args: &[&str], stdin: &str) -> (i32, String, String) {
 
 const PAPER: &str = r#"{"pa": [[3, 0], [0, 1]], "pb": [[1, 0], [0, 4]], "pab_unknown": [[true, false], [false, true]], "method": "nmci"}"#;
 
+/// `nmci fuse --help` lists every method of the registry, the request's fields and an example
+/// that runs.
+#[test]
+fn fuse_help_lists_the_methods_the_fields_and_an_example() {
+    let (code, out, err) = nmci(&["fuse", "--help"], "");
+    assert_eq!(code, 0, "{err}");
+    for rule in nmci::rules::rules() {
+        assert!(
+            out.contains(&format!("  {:<10} {}", rule.name, rule.label)),
+            "{out}"
+        );
+    }
+    for field in nmci::contract::request_fields() {
+        assert!(out.contains(&field), "{field}: {out}");
+    }
+    let example = out.lines().find(|l| l.contains("| nmci fuse")).unwrap();
+    let request = example.split('\'').nth(1).unwrap();
+    let (code, answer, err) = nmci(&["fuse"], request);
+    assert_eq!(code, 0, "{err}");
+    assert!(answer.contains("\"trace\": 2.0"), "{answer}");
+}
+
+/// Errors name the field, not a position in the JSON, for data; a text that is not JSON keeps
+/// its line and column (it is the user's).
+#[test]
+fn errors_name_the_field() {
+    let (code, _, err) = nmci(&["fuse"], r#"{"pa": [[1]], "pb": [[1]], "method": "CI"}"#);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("`method`: unknown method `CI` (names are lower case: `ci`)"),
+        "{err}"
+    );
+    let (_, _, err) = nmci(&["fuse"], "[1]");
+    assert_eq!(
+        err.trim(),
+        "nmci: request 0: invalid request: a request is a JSON object (got a number)"
+    );
+    let (_, _, err) = nmci(&["fuse"], r#"{"pa": [[1]], "pb": [[1]], "xa": [1, 2, 3 "#);
+    assert!(err.contains("line 1 column"), "{err}");
+}
+
 #[test]
 fn fuse_from_stdin_and_file() {
     let (code, out, err) = nmci(&["fuse"], PAPER);
@@ -483,6 +524,8 @@ fn track_equals_the_sequential_study_and_applies_its_configuration() {
     );
     assert_eq!(code, 0, "{err}");
     assert!(stdout.contains("2 runs × 7 steps"), "{stdout}");
+    // Quiet: one line on stdout; the summary only with --json.
+    assert_eq!(stdout.trim_end().lines().count(), 1, "{stdout}");
     let written: StudyReport =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let config = StudyConfig {

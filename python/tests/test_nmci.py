@@ -458,7 +458,24 @@ BAD_CALLS = [
     (lambda: nmci.nmci(np.eye(2), np.eye(2), blocks=[[0], "x"]), nmci.RequestError, "`blocks[1][0]`: TypeError"),
     (lambda: nmci._nmci.fuse_arrays("ci", np.eye(2), np.eye(2), colour=1), nmci.RequestError, "unknown field `colour`, expected one of criterion, samples"),
     (lambda: nmci._nmci.fuse_arrays("volume", np.eye(2), np.eye(2)), nmci.RequestError, "`method`: unknown variant `volume`"),
+    (lambda: nmci.ci(np.eye(2), np.eye(2), np.array([np.nan, 0.0])), nmci.InputError, "x_a[0] is not finite"),
+    (lambda: nmci.fuse({"pa": [[1.0]], "pb": [[1.0]], "method": "CI"}), nmci.RequestError, "(names are lower case: `ci`)"),
 ]
+
+
+def test_request_errors_name_the_field_not_a_position_in_json_the_user_never_wrote():
+    with pytest.raises(nmci.RequestError) as raised:
+        nmci.fuse({"pa": [[1.0]], "pb": [[1.0]], "method": "CI"})
+    assert raised.value.field == "method"
+    with pytest.raises(nmci.RequestError) as raised:
+        nmci.fuse({"pa": [[1.0]], "pb": [[1.0]], "samples": "many", "method": "sdp"})
+    assert "line" not in str(raised.value) and "column" not in str(raised.value)
+    with pytest.raises(nmci.RequestError) as raised:
+        nmci.fuse([{"pa": [[1.0]], "pb": [[1.0]], "method": "ci"}, 3])
+    assert "Wire" not in str(raised.value) and "a request is a JSON object (got a number)" in str(raised.value)
+    with pytest.raises(nmci.InputError) as raised:
+        nmci.ci(np.eye(2), np.eye(2), np.array([0.0, np.inf]))
+    assert raised.value.field == "xa" and "x_a[1]" in str(raised.value)
 
 
 @pytest.mark.parametrize("call,error,needle", BAD_CALLS, ids=[c[2] for c in BAD_CALLS])

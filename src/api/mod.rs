@@ -8,6 +8,7 @@
 //! rejected.
 
 mod fields;
+pub(crate) mod json;
 mod request;
 mod response;
 mod stack;
@@ -552,13 +553,14 @@ pub fn fuse_json(request: &str) -> Result<String, RequestError> {
         });
     }
     let malformed = |e: serde_json::Error| RequestError::Malformed(e.to_string());
-    if request.trim_start().starts_with('[') {
+    // Through a `Value`, so that errors name fields, not text positions (`json`).
+    let value = json::parse_text(request)?;
+    if let serde_json::Value::Array(values) = value {
         // A list: each element read and run as a request alone ([`fuse_list`]).
-        let values: Vec<serde_json::Value> = serde_json::from_str(request).map_err(malformed)?;
         let responses = fuse_list(&requests_from(values)?)?;
         return serde_json::to_string_pretty(&responses).map_err(malformed);
     }
-    let req: FuseRequest = serde_json::from_str(request).map_err(malformed)?;
+    let req: FuseRequest = json::from_value(value, "a request")?;
     let res = fuse(&req)?;
     serde_json::to_string_pretty(&res).map_err(malformed)
 }

@@ -336,9 +336,9 @@ pub(crate) fn requests_from(
         .into_iter()
         .enumerate()
         .map(|(index, value)| {
-            serde_json::from_value(value).map_err(|e| RequestError::InList {
+            super::json::from_value(value, "a request").map_err(|e| RequestError::InList {
                 index,
-                source: Box::new(RequestError::Malformed(e.to_string())),
+                source: Box::new(e),
             })
         })
         .collect()

@@ -233,10 +233,9 @@ pub(crate) fn validate_vector(name: &str, v: &DVector<f64>, n: usize) -> Result<
         });
     }
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-        return Err(InputError::NotFinite {
+        return Err(InputError::NotFiniteElement {
             name: name.into(),
-            row: i,
-            col: 0,
+            index: i,
         });
     }
     Ok(())

@@ -258,7 +258,7 @@ fn vector_and_pattern_errors() {
         CrossPattern::diagonal(2),
     )
     .unwrap_err();
-    assert_eq!(e.to_string(), "x_b has a non-finite entry at (1, 0)");
+    assert_eq!(e.to_string(), "x_b[1] is not finite (NaN or ±∞)");
     let e = FusionProblem::new(
         DVector::zeros(2),
         I.clone(),
