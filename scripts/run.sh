@@ -15,4 +15,17 @@ scripts/wasm.sh build
 echo
 echo "nmci explorer: http://127.0.0.1:$port/"
 echo "(Ctrl-C stops the server)"
-exec python3 -m http.server "$port" --bind 127.0.0.1 --directory www
+# Python's file server, with the docs the page links to served as UTF-8 text.
+exec python3 - "$port" <<'PY'
+import functools, http.server, sys
+
+class Handler(http.server.SimpleHTTPRequestHandler):
+    extensions_map = {**http.server.SimpleHTTPRequestHandler.extensions_map,
+                      ".md": "text/markdown; charset=utf-8", ".wasm": "application/wasm", ".js": "text/javascript"}
+
+server = http.server.ThreadingHTTPServer(("127.0.0.1", int(sys.argv[1])), functools.partial(Handler, directory="www"))
+try:
+    server.serve_forever()
+except KeyboardInterrupt:
+    pass
+PY

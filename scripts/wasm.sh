@@ -41,6 +41,10 @@ case "${1:-}" in
     # Guard: a symbol missing on wasm32 (e.g. an unpatched BLAS routine) becomes an import
     # from "env" instead of a link error. The package must import nothing from "env".
     node scripts/check-env-imports.mjs "$out_dir"
+    # The docs the page's "What am I looking at?" panels link to, beside it (www/docs/, not
+    # committed: docs/ is the one copy).
+    mkdir -p www/docs
+    cp docs/explorer.md docs/methods.md www/docs/
     ;;
   test)
     browser=$(setting test browser)

@@ -278,7 +278,8 @@ pub fn explore_with_memo(
 /// at random); on one block of three states its
 /// upper end is the loop's own rule, proven on cones of directions
 /// ([`crate::certify::certify_rule`]). The page runs it after [`explore`] when the bracket is
-/// open at `n ≤ 3`, where it can close it. `None` when the loop has no bracket.
+/// open at `n ≤ 4` (`www/prove-client.js`, `PROVE_MAX_N`), where it can close it. `None` when
+/// the loop has no bracket.
 ///
 /// ```
 /// let req: nmci::explore::ExploreRequest = serde_json::from_str(r#"{"pa": [[3,0],[0,1]],

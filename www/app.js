@@ -9,8 +9,10 @@ import { createProveClient, worthProving } from "./prove-client.js";
 
 const $ = (id) => document.getElementById(id);
 // How a rule's ellipse is stroked follows its guarantee: the conservative rules solid, each
-// thinner than the one before so coinciding bounds stay visible (CI under nmCI under the
-// certified rule); relaxations dashed; the unguaranteed rules dotted.
+// thinner than the one before (CI under the certified rule); relaxations dashed; the
+// unguaranteed rules dotted. nmCI, which often coincides with the certified rule and the
+// SDP (the paper's example), is drawn last and long-dashed, so the lines beneath show in its
+// gaps and its own colour stays visible.
 const STROKE = (() => {
   const stroke = { pa: { width: 2, dash: "none" }, pb: { width: 2, dash: "none" } };
   let k = 0;
@@ -20,6 +22,7 @@ const STROKE = (() => {
       : { width: 1.8, dash: "2 3" };
   }
   stroke.proven = { width: 1.6, dash: "none" }; // a proven bound: solid
+  stroke.nmci = { ...stroke.nmci, dash: "9 5" };
   return stroke;
 })();
 
@@ -47,6 +50,7 @@ const client = createExploreClient({
       prover.start(analysed);
     }
     clearErrors();
+    document.body.dataset.stale = "false";
     render();
   },
   onError: (error, field) => showInputError(error, field),
@@ -316,7 +320,8 @@ function render() {
     const rg = el("g", { opacity: 0.32, id: "layer-region" }, g);
     el("path", { d: region.map((m) => ellipsePath(m, toPx)).join(""), fill: STYLE.region.color, stroke: "none" }, rg);
   }
-  for (const k of LAYERS.filter((l) => l !== "region")) {
+  const onTop = ["nmci"]; // drawn last (STROKE)
+  for (const k of [...LAYERS.filter((l) => l !== "region" && !onTop.includes(l)), ...onTop.filter((l) => LAYERS.includes(l))]) {
     if (!state.layers[k] || !mats[k]) continue;
     el("path", {
       id: `layer-${k}`, d: ellipsePath(marginal(mats[k], i, j), toPx), fill: "none",
@@ -399,6 +404,7 @@ function buildLegend() {
     const sw = document.createElement("span");
     sw.className = l === "region" ? "swatch fill" : "swatch";
     sw.style[l === "region" ? "background" : "borderColor"] = STYLE[l].color;
+    if (STROKE[l] && STROKE[l].dash !== "none") sw.style.borderTopStyle = STROKE[l].dash.startsWith("2 ") ? "dotted" : "dashed";
     lab.append(box, sw, document.createTextNode(STYLE[l].label));
     legend.appendChild(lab);
   }
@@ -412,7 +418,20 @@ function download(name, type, content) {
   setTimeout(() => URL.revokeObjectURL(a.href), 1000);
 }
 
+// Stale: while an input error is shown, the numbers and the picture are those of the last
+// valid input (style.css greys them and shows #stale-note).
+function watchStale() {
+  const slots = ["err-pa", "err-pb", "err-pattern", "err-settings"].map($);
+  const update = () => {
+    document.body.dataset.stale = String(Boolean(last) && slots.some((e) => e.textContent !== ""));
+  };
+  const observer = new MutationObserver(update);
+  for (const e of slots) observer.observe(e, { childList: true, characterData: true, subtree: true });
+  update();
+}
+
 function init() {
+  watchStale();
   $("dim").replaceChildren(...[2, 3, 4, 5, 6].map((k) => new Option(String(k), k)));
   $("sampler").replaceChildren(...Object.entries(SAMPLERS).map(([value, label]) => new Option(label, value)));
   buildLegend();

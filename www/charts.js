@@ -12,6 +12,9 @@ const last = new Map(); // canvas → the chart drawn last
  * (`data-points`) and the lines' legend labels (`data-labels`). */
 export function drawChart(canvas, chart) {
   last.set(canvas, chart);
+  // The panel's placeholder gives way to the first chart drawn.
+  canvas.hidden = false;
+  canvas.closest(".study-plots")?.querySelector(".placeholder")?.setAttribute("hidden", "");
   const width = Math.round(canvas.clientWidth) || 560;
   const height = Math.round(canvas.clientHeight) || 300;
   const points = draw_chart(canvas, chart, width, height);

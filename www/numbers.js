@@ -90,19 +90,31 @@ export function renderNumbersPanel(a, s, second = null) {
   }
   for (const report of a.rules) {
     const rule = RULE[report.method];
-    // The guarantee in words where it is not "conservative"; on hover for every rule.
-    const tr_ = row(rule.name, rule.colour, rule.label, rule.guarantee === "conservative" ? "" : rule.phrase);
+    const r = report.response;
+    const [mt, cls] = r ? margin(report.margin, r.trace) : [];
+    const [ct, ccls] = r ? coin(report.coin) : [];
+    // The guarantee in words where it is not "conservative"; on hover for every rule. A
+    // relaxation flagged red says why that can happen.
+    const flagged = rule.guarantee === "relaxation" && (cls === "neg" || ccls === "neg");
+    const note = rule.guarantee === "conservative" ? "" : flagged ? `${rule.phrase}: bounds only the P_ab it sampled, and a drawn one exceeds it` : rule.phrase;
+    const tr_ = row(rule.name, rule.colour, rule.label, note);
     tr_.title = `${rule.label}: ${rule.phrase}`;
     if (rule.unguaranteed) tr_.className = "unguaranteed";
-    const r = report.response;
     if (!r) {
       cells(tr_, [["na", `not available: ${report.error}`]]);
       tr_.lastChild.colSpan = 5;
       continue;
     }
-    const [mt, cls] = margin(report.margin, r.trace);
-    const [ct, ccls] = coin(report.coin);
     cells(tr_, [["trace", f3(r.trace)], ["det", f3(r.det)], ["omega", omega(r)], [`margin ${cls}`, mt], [`coin ${ccls}`, ct]]);
+  }
+
+  // The second stage's proven rule (the cutting planes' gains with the bound proven for them):
+  // a row of its own once it has finished.
+  const proven = second?.proof?.rule;
+  if (proven) {
+    const tr_ = row("proven", STYLE.proven.color, STYLE.proven.label, "second stage, conservative");
+    tr_.title = "the cutting planes' gains with the bound proven for them, every rounding enclosed (its gains and P̄ are in the JSON export)";
+    cells(tr_, [["trace", f3(proven.trace)], ["det", "—"], ["omega", "—"], ["margin", "—"], ["coin", "—"]]);
   }
 
   const response = (m) => a.rules.find((r) => r.method === m)?.response;

@@ -9,7 +9,9 @@ const $ = (s) => document.querySelector(s);
 const COLORS = ["#1f77b4", "#e07b00", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22"];
 // The rules that fuse k ≥ 2 estimates (`nway` in the registry), each drawn thinner than the
 // one before so coinciding bounds stay visible.
-const NWAY = RULES.filter((r) => r.nway).map((r, k) => ({ ...r, width: Math.max(1.4, 3 - 0.8 * k) }));
+// Each thinner than the one before; nmCI, drawn last, long-dashed so CI shows in its gaps
+// where the two coincide.
+const NWAY = RULES.filter((r) => r.nway).map((r, k) => ({ ...r, width: Math.max(1.4, 3 - 0.8 * k), dash: r.name === "nmci" ? "9 5" : "none" }));
 const MAX = 8;
 const FIELDS = ["x1", "x2", "p11", "p12", "p22"];
 // Three estimates, each good along one direction: nmCI takes x₁ from the first and x₂ from
@@ -141,8 +143,24 @@ function draw(estimates, results) {
   });
   for (const rule of NWAY) {
     const r = results[rule.name];
-    el("path", { id: `nway-layer-${rule.name}`, d: ellipsePath(r.p, at(r.x)), fill: "none", stroke: rule.colour, "stroke-width": rule.width }, svg);
+    el("path", { id: `nway-layer-${rule.name}`, d: ellipsePath(r.p, at(r.x)), fill: "none", stroke: rule.colour, "stroke-width": rule.width, "stroke-dasharray": rule.dash }, svg);
   }
+  // The legend: each estimate's colour, then the rules' (nmCI long-dashed, drawn over CI where
+  // they coincide).
+  const item = (colour, label, { width = 1.5, dash = "none" } = {}) => {
+    const span = document.createElement("span");
+    const swatch = document.createElement("span");
+    swatch.className = "swatch";
+    swatch.style.borderColor = colour;
+    swatch.style.borderTopWidth = `${width}px`;
+    if (dash !== "none") swatch.style.borderTopStyle = "dashed";
+    span.append(swatch, ` ${label}`);
+    return span;
+  };
+  $("#nway-legend").replaceChildren(
+    ...estimates.map((e, k) => item(COLORS[k], `e${k + 1}`)),
+    ...NWAY.map((rule) => item(rule.colour, `N-way ${rule.label}`, rule)),
+  );
 }
 
 $("#nway-add").addEventListener("click", () => {

@@ -20,6 +20,8 @@ function showTab(name) {
     $(`#tab-${tab}`).setAttribute("aria-selected", String(on));
     panel.hidden = !on;
   }
+  // The footer's timing is the explorer's.
+  $("#timing").hidden = name !== "explorer";
 }
 $("#tab-explorer").addEventListener("click", () => showTab("explorer"));
 $("#tab-study").addEventListener("click", () => showTab("study"));
@@ -69,6 +71,7 @@ function drawNetwork() {
     $("#study-network-caption").textContent = network.text_mismatch
       ? `Does not fit the paper's text: ${network.text_mismatch}.`
       : "Fits the paper's text: groups 1–2 reach agent 11 only through agent 7, and groups 3–4 reach agent 7 also without agent 11.";
+    $("#study-network-caption").append(" Red: agent 7, whose numbers are shown; blue: agent 11, the neighbour it fuses (ω 7←11). Thick curves: links between groups.");
   } catch (err) {
     const message = err.message || String(err);
     if ($("#study-network").value === "custom") $("#study-links").classList.add("bad");

@@ -891,9 +891,91 @@ test("every tab fits a 1400 px and a phone-width window: no page-wide horizontal
         const [w, cssW] = await canvas.evaluate((c) => [c.width / devicePixelRatio, c.clientWidth]);
         assert.ok(Math.abs(w - cssW) <= 1, `${tab} at ${width} px: a chart drawn ${w} px wide in a ${cssW} px box`);
       }
+      // At 1400 px nothing needs its box scrolled: every table and button is whole.
+      if (width === 1400) {
+        const cut = await page.evaluate((tab) => [...document.querySelectorAll(`#${tab} .table-scroll`)]
+          .filter((b) => b.offsetParent && b.scrollWidth > b.clientWidth + 1).map((b) => b.firstElementChild.id), tab);
+        assert.deepEqual(cut, [], `${tab} at 1400 px: a table cut by its box`);
+      }
+      // Numbers never break inside a token: single-number cells do not wrap.
+      const wrapping = await page.evaluate((tab) => [...document.querySelectorAll(`#${tab} td.trace, #${tab} td.det, #${tab} td.margin`)]
+        .filter((td) => getComputedStyle(td).whiteSpace !== "nowrap").length, tab);
+      assert.equal(wrapping, 0, `${tab} at ${width} px`);
       await page.screenshot({ path: join(out, `fit-${width}-${tab}.png`), fullPage: true });
     }
   }
   await page.setViewportSize({ width: 1400, height: 900 });
   await page.click("#tab-explorer");
+});
+
+test("each tab says what it shows: a 'What am I looking at?' panel whose doc links are served", async () => {
+  for (const tab of ["explorer", "study", "fig2", "nway"]) {
+    await page.click(`#tab-${tab}`);
+    const panel = page.locator(`#explain-${tab}`);
+    await panel.locator("summary").click();
+    assert.ok(await panel.isVisible(), tab);
+    const links = await panel.locator("a").evaluateAll((as) => as.map((a) => a.href));
+    assert.ok(links.length > 0, tab);
+    for (const href of links) {
+      const response = await page.request.get(href);
+      assert.equal(response.status(), 200, href);
+      assert.match(await response.text(), /^# /, href);
+    }
+  }
+  await page.click("#tab-explorer");
+  for (const term of ["conservative", "relaxation", "bracket", "proven", "certificate level, sectors, cones", "COIN"]) {
+    assert.match(await text("#explain-explorer"), new RegExp(term), term);
+  }
+  // The footer's timing belongs to the explorer.
+  assert.ok(await page.locator("#timing").isVisible());
+  await page.click("#tab-nway");
+  assert.ok(!(await page.locator("#timing").isVisible()));
+  // The N-way picture has a legend: each estimate, then the two rules.
+  await page.waitForFunction(() => document.body.dataset.nway === "ready");
+  assert.deepEqual((await page.locator("#nway-legend > span").allInnerTexts()).map((t) => t.trim()), ["e1", "e2", "e3", "N-way CI", "N-way nmCI"]);
+  // The study panel says what will be drawn before the run; the network's colours are named.
+  await page.click("#tab-study");
+  assert.ok(await page.locator("#study-placeholder").isVisible());
+  assert.equal(await page.locator("#study canvas.chart:visible").count(), 0);
+  assert.match(await text("#study-network-caption"), /Red: agent 7.*blue: agent 11/);
+  await page.click("#tab-explorer");
+});
+
+test("nmCI stays visible where it coincides with other bounds: drawn last, long-dashed", async () => {
+  const layers = await page.locator("#plot g[clip-path] path[id^=layer-]").evaluateAll((ps) => ps.map((p) => [p.id, p.getAttribute("stroke-dasharray")]));
+  assert.deepEqual(layers.at(-1), ["layer-nmci", "9 5"], JSON.stringify(layers));
+});
+
+test("after an invalid edit the old numbers are marked stale until the input is valid again", async () => {
+  assert.equal(await page.evaluate(() => document.body.dataset.stale), "false");
+  await cell("pa", 1, 1).fill("abc");
+  await page.waitForFunction(() => document.body.dataset.stale === "true");
+  assert.ok(await page.locator("#stale-note").isVisible());
+  await cell("pa", 1, 1).fill("3");
+  await settle();
+  await page.waitForFunction(() => document.body.dataset.stale === "false");
+  assert.ok(!(await page.locator("#stale-note").isVisible()));
+});
+
+test("the paper's preset at n = 4: the page's bracket is the CLI's for the same request, and the second stage closes it as sdp_cuts does", async () => {
+  await page.selectOption("#dim", "4");
+  await settle();
+  // The matrices the page fills in: the new states' variances 1 in both, a diagonal pattern.
+  const eye4 = (d) => d.map((v, i) => d.map((_, j) => (i === j ? v : 0)));
+  const request = { pa: eye4([3, 1, 1, 1]), pb: eye4([1, 4, 1, 1]), pab_unknown: eye4([1, 1, 1, 1]).map((r) => r.map(Boolean)), samples: 200, seed: 0 };
+  const sdp = cli({ ...request, method: "sdp" });
+  const ends = (t) => t.match(/\[([\d.]+), ([\d.]+)\]/).slice(1).map(Number);
+  const [lo, hi] = ends(await text("#gap"));
+  assert.equal(lo, Number(sdp.lower_bound.toFixed(6)));
+  assert.equal(hi, Number(sdp.upper_bound.toFixed(6)));
+  assert.match(await text("#gap-verdict"), /^open/);
+  // The worst case lies at correlations ±1 between the tied variances, which samples miss;
+  // the cutting planes find it, in the page and in the CLI.
+  await page.waitForFunction(() => document.body.dataset.proving === "false", null, { timeout: 120_000 });
+  assert.match(await text("#gap-verdict"), /^proven optimal to 10⁻⁶/);
+  const { samples, seed, ...cuts } = request;
+  assert.ok(cli({ ...cuts, method: "sdp_cuts" }).gap_closed);
+  // The best proven bound is a row of the table.
+  assert.equal(await page.locator("#row-proven").count(), 1);
+  assert.match(await text("#row-proven"), /cutting planes, proven bound/);
 });
