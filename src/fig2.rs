@@ -253,6 +253,9 @@ pub fn fig2_summary(config: &Fig2Config, runs: &[Vec<Fig2Record>]) -> Vec<Fig2Ro
         .collect()
 }
 
+/// The size of each of `fig2.svg`'s two panels (`nmci fig2` and the page's export).
+pub const FIG2_SVG_SIZE: (u32, u32) = (900, 400);
+
 /// `fig2.csv`: `samples, dev_median, dev_min, dev_max, eig_nmci_median, …, failures` (the
 /// issue's columns), then the COIN columns `coin_nmci_median, …, coin_opt_max`.
 pub fn fig2_csv(rows: &[Fig2Row]) -> String {
@@ -304,7 +307,7 @@ pub fn write_fig2(
 #[cfg(all(feature = "files", not(target_arch = "wasm32")))]
 fn fig2_chart(path: &std::path::Path, rows: &[Fig2Row], runs: usize) -> Result<(), ReportError> {
     let [dev, eig] = fig2_charts(rows, runs);
-    crate::chart::write_svg(path, &[&dev, &eig], (900, 400))
+    crate::chart::write_svg(path, &[&dev, &eig], FIG2_SVG_SIZE)
 }
 
 /// Fig. 2's two charts from its summary rows over `runs` runs: `‖P_nmCI − P_opt‖₂` against

@@ -1,5 +1,10 @@
 //! The wasm-bindgen bindings: a thin layer over [`crate::contract::fuse`], [`crate::explore::explore`], the
 //! fig. 2 study ([`crate::fig2::fig2_run`]) and the tracking study ([`crate::sim::LiveStudy`]). No logic lives here.
+//!
+//! The npm package's API is `fuse`, `rules`, `contract_fields`, `explore`, `prove` and
+//! `version`, typed in `npm/index.d.ts`. The page's own exports (its panic hook, the study's
+//! and fig. 2's workers, the chart drawing) and the test hook are `skip_typescript`: they are
+//! in the module for the page, not declared for users.
 
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -76,7 +81,7 @@ pub fn fuse(request: JsValue) -> Result<JsValue, JsValue> {
 /// not be used again. The hook runs first and stores the panic's message on the global object
 /// as `nmciPanic`, so the worker can report what happened before the page replaces it
 /// (`www/crash.js`).
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub fn install_panic_hook() {
     std::panic::set_hook(Box::new(|info| {
         // Setting a property on the global object cannot fail.
@@ -90,7 +95,8 @@ pub fn install_panic_hook() {
 
 /// Test-only: panics with `message`. The end-to-end test calls it through the explorer's
 /// worker to check that a panic is reported and the worker replaced; the page never does.
-#[wasm_bindgen]
+/// Left out of the package's TypeScript declarations (a test hook, not an API).
+#[wasm_bindgen(skip_typescript)]
 pub fn panic_for_test(message: &str) {
     panic!("{message}");
 }
@@ -119,7 +125,7 @@ pub fn rules() -> Result<JsValue, JsError> {
 
 /// The tracking study's estimators in report order ([`crate::sim::estimators`]): name, label,
 /// colour and whether the charts draw it.
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub fn study_estimators() -> Result<JsValue, JsError> {
     to_js(&crate::sim::estimators().collect::<Vec<_>>())
 }
@@ -160,7 +166,7 @@ pub fn prove(request: JsValue) -> Result<JsValue, JsValue> {
 }
 
 /// The tracking study advanced a few steps at a time (for a Web Worker with live plots).
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub struct Study {
     inner: LiveStudy,
 }
@@ -241,7 +247,7 @@ impl Study {
 /// The runs of a study for the rules of `WORKER_RULES[1]`, advanced a few steps at a time:
 /// what the page runs in a second Web Worker beside the [`Study`] that runs the other rules
 /// ([`crate::sim::LiveRules`]).
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub struct StudyRules {
     inner: LiveRules,
 }
@@ -271,7 +277,7 @@ impl StudyRules {
 
 /// The exact COIN of a study on its own, advanced a few estimator-steps at a time: what the
 /// page runs in a second Web Worker beside the runs ([`crate::sim::LiveCoin`]).
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub struct StudyCoin {
     inner: LiveCoin,
 }
@@ -339,7 +345,7 @@ impl StudyCoin {
 /// The exact COIN of the estimators of `COIN_WORKER_ESTIMATORS[1]`, advanced a few
 /// estimator-steps at a time: what the page runs in a second COIN worker beside the
 /// [`StudyCoin`] that propagates the others ([`crate::sim::LiveCoinPart`]).
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub struct StudyCoinPart {
     inner: LiveCoinPart,
 }
@@ -371,7 +377,7 @@ impl StudyCoinPart {
 /// optional), drawn: `{svg, text_mismatch}`, `text_mismatch` `undefined` when the network
 /// fits the paper's text ([`crate::sim::check_text`]) and otherwise why not. Throws on an
 /// invalid configuration.
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub fn study_network(config: JsValue) -> Result<JsValue, JsError> {
     #[derive(Serialize)]
     struct Network {
@@ -391,7 +397,7 @@ pub fn study_network(config: JsValue) -> Result<JsValue, JsError> {
 /// The named networks, as links between groups (1-based pairs, beside the rings): `paper`,
 /// the default (the best fit of `nmci sweep`), and `figure`, the bridges read from the
 /// paper's figure ([`crate::sim::FIGURE_BRIDGES`]).
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub fn study_networks() -> Result<JsValue, JsError> {
     #[derive(Serialize)]
     struct Networks {
@@ -406,14 +412,14 @@ pub fn study_networks() -> Result<JsValue, JsError> {
 
 /// Run `run` of the paper's fig. 2 study ([`crate::fig2::fig2_run`]): `config` has the keys of
 /// [`crate::fig2::Fig2Config`] (`runs`, `sizes`, `seed`); returns one record per sample-set size.
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub fn fig2_run(config: JsValue, run: usize) -> Result<JsValue, JsError> {
     let config: Fig2Config = parse(config)?;
     to_js(&crate::fig2::fig2_run(&config, run)?)
 }
 
 /// The rows of `fig2.csv` ([`crate::fig2::fig2_summary`]) from the records of the runs done so far.
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub fn fig2_summary(config: JsValue, runs: JsValue) -> Result<JsValue, JsError> {
     let config: Fig2Config = parse(config)?;
     let runs: Vec<Vec<Fig2Record>> = parse(runs)?;
@@ -425,7 +431,7 @@ pub fn fig2_summary(config: JsValue, runs: JsValue) -> Result<JsValue, JsError> 
 /// ([`crate::chart::draw`]); returns the number of points drawn per line. Throws when the
 /// object is not a chart or the canvas cannot be drawn on. Feature `charts` (the page's build).
 #[cfg(feature = "charts")]
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub fn draw_chart(
     canvas: web_sys::HtmlCanvasElement,
     chart: JsValue,
@@ -451,9 +457,52 @@ pub fn draw_chart(
     Ok(chart.drawn_points().into_iter().map(|n| n as u32).collect())
 }
 
+/// A per-step series file of the study as `nmci track` writes it ([`crate::study::series_csv`]:
+/// `nees.csv`, `rmse.csv`, `two_sigma.csv`, `coin.csv`) from a view's row-major series
+/// (`series.len() / steps` estimators) and the time step.
+#[wasm_bindgen(skip_typescript)]
+pub fn study_series_csv(series: Vec<f64>, steps: usize, dt: f64) -> Result<String, JsError> {
+    if steps == 0 || series.len() % steps != 0 {
+        return Err(JsError::new(&format!(
+            "{} values are not whole series of {steps} steps",
+            series.len()
+        )));
+    }
+    let rows: Vec<Vec<f64>> = series.chunks(steps).map(<[f64]>::to_vec).collect();
+    Ok(crate::sim::series_csv(&rows, dt))
+}
+
+/// One of the study's charts (an object of `Study.charts()` or `StudyCoin`'s) as the SVG file
+/// `nmci track` writes for it ([`crate::chart::charts_svg`] at [`crate::sim::STUDY_SVG_SIZE`]).
+#[wasm_bindgen(skip_typescript)]
+pub fn study_chart_svg(chart: JsValue) -> Result<String, JsError> {
+    let chart: crate::chart::Chart = parse_own(chart)?;
+    crate::chart::charts_svg(&[&chart], crate::sim::STUDY_SVG_SIZE)
+        .map_err(|e| JsError::new(&format!("cannot draw the chart: {}", e.0)))
+}
+
+/// Fig. 2's files as `nmci fig2` writes them, from the rows of [`fig2_summary`] and the runs
+/// they summarise: `fig2.csv` ([`crate::fig2::fig2_csv`]) or `fig2.svg` (its two charts at
+/// [`crate::fig2::FIG2_SVG_SIZE`]).
+#[wasm_bindgen(skip_typescript)]
+pub fn fig2_file(name: &str, rows: JsValue, runs: usize) -> Result<String, JsError> {
+    let rows: Vec<crate::fig2::Fig2Row> = parse_own(rows)?;
+    match name {
+        "fig2.csv" => Ok(crate::fig2::fig2_csv(&rows)),
+        "fig2.svg" => {
+            let [dev, eig] = crate::fig2::fig2_charts(&rows, runs);
+            crate::chart::charts_svg(&[&dev, &eig], crate::fig2::FIG2_SVG_SIZE)
+                .map_err(|e| JsError::new(&format!("cannot draw the charts: {}", e.0)))
+        }
+        other => Err(JsError::new(&format!(
+            "fig. 2 writes fig2.csv and fig2.svg, not {other}"
+        ))),
+    }
+}
+
 /// Fig. 2's two charts ([`crate::fig2::fig2_charts`]) from the rows of [`fig2_summary`] and the
 /// runs they summarise.
-#[wasm_bindgen]
+#[wasm_bindgen(skip_typescript)]
 pub fn fig2_charts(rows: JsValue, runs: usize) -> Result<JsValue, JsError> {
     let rows: Vec<crate::fig2::Fig2Row> = parse_own(rows)?;
     to_js(&crate::fig2::fig2_charts(&rows, runs))

@@ -6,6 +6,7 @@ import { EXPLORER_RULES } from "./rules.js";
 import { createExploreClient } from "./explore-client.js";
 import { renderNumbersPanel, STYLE } from "./numbers.js";
 import { createProveClient, worthProving } from "./prove-client.js";
+import { download } from "./charts.js";
 
 const $ = (id) => document.getElementById(id);
 // How a rule's ellipse is stroked follows its guarantee: the conservative rules solid, each
@@ -410,13 +411,49 @@ function buildLegend() {
   }
 }
 
-function download(name, type, content) {
-  const a = document.createElement("a");
-  a.href = URL.createObjectURL(new Blob([content], { type }));
-  a.download = name;
-  a.click();
-  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+/** The picture as a file: a title naming the matrices and the states shown, the plot, and a
+ * legend of the layers drawn (each line in its own stroke), without the drag handles. */
+function exportedSvg() {
+  const NS = "http://www.w3.org/2000/svg";
+  const node = (tag, attrs, parent, text) => {
+    const e = document.createElementNS(NS, tag);
+    for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+    if (text !== undefined) e.textContent = text;
+    parent.appendChild(e);
+    return e;
+  };
+  const s = analysedState ?? state;
+  const rows = (m) => `[${m.map((r) => `[${r.map((v) => +v.toPrecision(6)).join(", ")}]`).join(", ")}]`;
+  const pattern = s.pattern.map((r) => r.map((b) => (b ? "1" : "0")).join("")).join(" ");
+  const [i, j] = s.view;
+  const shown = LAYERS.filter((l) => s.layers[l] && $(`layer-${l}`));
+  const top = 44, rowH = 18, width = 520, height = top + 520 + 12 + shown.length * rowH;
+  const root = document.createElementNS(NS, "svg");
+  root.setAttribute("xmlns", NS);
+  root.setAttribute("viewBox", `0 0 ${width} ${height}`);
+  root.setAttribute("width", width);
+  root.setAttribute("height", height);
+  node("rect", { width, height, fill: "#fff" }, root);
+  node("title", {}, root, `nmci: ${shown.map((l) => STYLE[l].label).join(", ")}`);
+  node("text", { x: 10, y: 18, "font-size": 13, "font-weight": 600, fill: "#111" }, root,
+    `P_a = ${rows(s.pa)}, P_b = ${rows(s.pb)}`);
+  node("text", { x: 10, y: 36, "font-size": 11, fill: "#444" }, root,
+    `P_ab pattern ${pattern} (1 = unknown, 0 = known zero); 1σ marginals of x${i + 1}, x${j + 1}; ${s.criterion}, ${s.samples} SDP samples, seed ${s.seed}`);
+  const plot = $("plot").cloneNode(true);
+  plot.querySelectorAll(".handle").forEach((h) => h.remove());
+  const g = node("g", { transform: `translate(0, ${top})` }, root);
+  for (const child of [...plot.childNodes]) g.appendChild(child);
+  shown.forEach((l, k) => {
+    const y = top + 520 + 12 + k * rowH + rowH / 2;
+    const line = { x1: 14, x2: 44, y1: y, y2: y, stroke: STYLE[l].color, "stroke-width": l === "region" ? 8 : STROKE[l].width };
+    if (l === "region") line.opacity = 0.35;
+    else if (STROKE[l].dash !== "none") line["stroke-dasharray"] = STROKE[l].dash;
+    node("line", line, root);
+    node("text", { x: 52, y: y + 4, "font-size": 12, fill: "#111" }, root, STYLE[l].label);
+  });
+  return root;
 }
+
 
 // Stale: while an input error is shown, the numbers and the picture are those of the last
 // valid input (style.css greys them and shows #stale-note).
@@ -500,9 +537,7 @@ function init() {
     });
   }
   $("export-svg").addEventListener("click", () => {
-    const svg = $("plot").cloneNode(true);
-    svg.querySelectorAll(".handle").forEach((h) => h.remove());
-    download("nmci-view.svg", "image/svg+xml", new XMLSerializer().serializeToString(svg));
+    download("nmci-view.svg", "image/svg+xml", new XMLSerializer().serializeToString(exportedSvg()));
   });
   $("export-json").addEventListener("click", () => {
     if (!last) return;

@@ -23,6 +23,15 @@ export function drawChart(canvas, chart) {
   return points;
 }
 
+/** Downloads `content` as the file `name` (the page's exports). */
+export function download(name, type, content) {
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(new Blob([content], { type }));
+  a.download = name;
+  a.click();
+  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+}
+
 let pending = false;
 addEventListener("resize", () => {
   if (pending) return;

@@ -1,8 +1,8 @@
 // The "Fig. 2" tab: the paper's sample-size study (wasm `fig2_run`, one run at a time in a
 // Web Worker), redrawn as the runs come in as a table and the two charts of `nmci fig2`'s
 // fig2.svg (wasm `fig2_charts`, drawn by `draw_chart`).
-import { drawChart } from "./charts.js";
-import { fig2_charts } from "./pkg/nmci.js";
+import { download, drawChart } from "./charts.js";
+import { fig2_charts, fig2_file } from "./pkg/nmci.js";
 import { readWholeNumbers, workerTab } from "./worker-tab.js";
 
 const $ = (s) => document.querySelector(s);
@@ -24,7 +24,17 @@ function readConfig() {
 
 const fmt = (v) => (v === null || v === undefined || !Number.isFinite(v) ? "—" : v.toExponential(2));
 
+// The last rows and the runs they summarise: the files `nmci fig2` writes (wasm `fig2_file`),
+// once every run is in.
+let last = null;
+$("#fig2-export").addEventListener("click", () => {
+  const name = $("#fig2-export-file").value;
+  download(name, name.endsWith(".csv") ? "text/csv" : "image/svg+xml", fig2_file(name, last.rows, last.runsDone));
+});
+
 function render(rows, runsDone, elapsedMs) {
+  last = { rows, runsDone };
+  $("#fig2-export").disabled = runsDone < total;
   $("#fig2-bar").style.width = `${(100 * runsDone) / total}%`;
   $("#fig2-progress").textContent = `${runsDone} of ${total} runs · ${(elapsedMs / 1000).toFixed(1)} s`;
   const body = $("#fig2-table tbody");
@@ -53,6 +63,7 @@ workerTab({
   readConfig: () => {
     const config = readConfig();
     total = config.runs;
+    $("#fig2-export").disabled = true;
     return config;
   },
   onProgress: (msg) => render(msg.rows, msg.runsDone, msg.elapsedMs),

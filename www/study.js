@@ -4,9 +4,9 @@
 // headline table and the four charts (drawn by the wasm module, as `nmci track` draws its SVG
 // files) as their chunks come in. The network is
 // picked (paper fit, the figure's reading, custom links) and drawn by the wasm module.
-import { drawChart } from "./charts.js";
+import { download, drawChart } from "./charts.js";
 import { readWholeNumbers, workerTab } from "./worker-tab.js";
-import init, { study_estimators, study_network, study_networks } from "./pkg/nmci.js";
+import init, { study_chart_svg, study_estimators, study_network, study_networks, study_series_csv } from "./pkg/nmci.js";
 
 const $ = (s) => document.querySelector(s);
 // The estimators in the series' order, with their labels: from the wasm module
@@ -71,7 +71,6 @@ function drawNetwork() {
     $("#study-network-caption").textContent = network.text_mismatch
       ? `Does not fit the paper's text: ${network.text_mismatch}.`
       : "Fits the paper's text: groups 1–2 reach agent 11 only through agent 7, and groups 3–4 reach agent 7 also without agent 11.";
-    $("#study-network-caption").append(" Red: agent 7, whose numbers are shown; blue: agent 11, the neighbour it fuses (ω 7←11). Thick curves: links between groups.");
   } catch (err) {
     const message = err.message || String(err);
     if ($("#study-network").value === "custom") $("#study-links").classList.add("bad");
@@ -103,6 +102,22 @@ let runs = null;
 let coin = null;
 let coinOn = false;
 
+// The files `nmci track` writes, of the finished study: the per-step CSVs (wasm
+// `study_series_csv`) and the charts as SVG (`study_chart_svg`), from the numbers the page shows.
+function studyFile(name) {
+  const view = runs.view;
+  const [stem, ext] = name.split(".");
+  if (ext === "csv") {
+    const [series, steps] = stem === "coin" ? [coin.view.coin, coin.view.coin_len] : [view[stem], view.series_len];
+    return study_series_csv(series, steps, view.dt);
+  }
+  return study_chart_svg(stem === "coin" ? coin.chart : runs.charts[stem]);
+}
+$("#study-export").addEventListener("click", () => {
+  const name = $("#study-export-file").value;
+  download(name, name.endsWith(".csv") ? "text/csv" : "image/svg+xml", studyFile(name));
+});
+
 function render() {
   if (!runs) return;
   const view = runs.view;
@@ -120,6 +135,10 @@ function render() {
   const coinFinished = !coinOn || (c && c.finished);
   const elapsed = `${(Math.max(view.elapsed_ms, c ? c.elapsed_ms : 0) / 1000).toFixed(1)} s`;
   const coinText = coinOn ? (coinFinished ? "; exact COIN done" : `; exact COIN ${Math.floor((100 * coinDone) / coinTotal)}%: step ${c ? c.coin_len : 0} of ${view.steps}`) : "";
+  // The files are of the finished study (coin.* only with the exact COIN).
+  $("#study-export").disabled = !(runsDone && coinFinished);
+  for (const option of $("#study-export-file").options) option.disabled = option.value.startsWith("coin") && !coinOn;
+  if ($("#study-export-file").selectedOptions[0]?.disabled) $("#study-export-file").value = "nees.csv";
   $("#study-progress").textContent =
     runsDone && coinFinished
       ? `done: ${view.runs} run${view.runs === 1 ? "" : "s"} × ${view.steps} steps${coinOn ? " and the exact COIN" : ""} in ${elapsed}${runSeconds}`
@@ -176,6 +195,7 @@ const tab = workerTab({
   readConfig,
   split: (config) => {
     runs = coin = null;
+    $("#study-export").disabled = true;
     coinOn = config.coin;
     const runsOnly = { ...config, coin: false };
     return [runsOnly, coinOn ? config : null, runsOnly, coinOn ? config : null];

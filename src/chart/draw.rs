@@ -1,11 +1,10 @@
 //! Drawing a [`Chart`] with plotters (feature `charts`): [`draw`] on any backend, [`charts_svg`]
-//! natively. The layout is in the parent module's docs.
+//! as SVG text (the CLI's files, the page's exports). The layout is in the parent module's docs.
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::{Axis, Chart, Line};
-#[cfg(not(target_arch = "wasm32"))]
 use crate::DrawError;
 
 /// A `#rrggbb` colour (black for anything else; the registry's colours are checked by a test).
@@ -261,7 +260,6 @@ fn tick(v: f64, log: bool) -> String {
 /// let svg = nmci::chart::charts_svg(&[&chart], (560, 300)).unwrap();
 /// assert!(svg.starts_with("<svg") && svg.contains("y = x²"));
 /// ```
-#[cfg(not(target_arch = "wasm32"))]
 pub fn charts_svg(charts: &[&Chart], (width, height): (u32, u32)) -> Result<String, DrawError> {
     let mut svg = String::new();
     {

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 #[cfg(feature = "charts")]
 mod draw;
-#[cfg(all(feature = "charts", not(target_arch = "wasm32")))]
+#[cfg(feature = "charts")]
 pub use draw::charts_svg;
 #[cfg(feature = "charts")]
 pub use draw::draw;

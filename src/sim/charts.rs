@@ -5,6 +5,23 @@ use crate::chart::{Axis, Band, Chart, Line};
 
 use super::{Estimator, StudyConfig, StudyRule, StudySummary};
 
+/// The size of each study chart's SVG file (`nmci track`'s `nees.svg`, …, and the page's
+/// exports of the same charts).
+pub const STUDY_SVG_SIZE: (u32, u32) = (900, 480);
+
+/// A per-step series file (`nees.csv`, `rmse.csv`, `two_sigma.csv`, `coin.csv`): a row per step
+/// (`step`, `time` = step·`dt`), a column per estimator, every value as Rust prints it (so it
+/// reads back to the same bits). What `nmci track` writes and the page exports.
+pub fn series_csv(series: &[Vec<f64>], dt: f64) -> String {
+    let names: Vec<&str> = super::estimators().map(|e| e.name()).collect();
+    let mut csv = format!("step,time,{}\n", names.join(","));
+    for k in 0..series.first().map_or(0, Vec::len) {
+        let row: Vec<String> = series.iter().map(|s| s[k].to_string()).collect();
+        csv += &format!("{},{},{}\n", k + 1, (k + 1) as f64 * dt, row.join(","));
+    }
+    csv
+}
+
 /// `#rrggbb` of `(r, g, b)`.
 fn hex((r, g, b): (u8, u8, u8)) -> String {
     format!("#{r:02x}{g:02x}{b:02x}")

@@ -30,7 +30,7 @@ mod sweep;
 mod trace;
 
 pub use batch::{simulate_run, simulate_run_for_rule, simulate_runs_for_rule, RunBatch, RunState};
-pub use charts::{coin_chart, study_charts};
+pub use charts::{coin_chart, series_csv, study_charts, STUDY_SVG_SIZE};
 pub use coin::{coin_series, ErrorPropagation};
 pub use draw::network_svg;
 pub use estimators::{Estimator, Storage, StudyRule, STUDY_RULES};

@@ -6,9 +6,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::ReportError;
 
-use super::{
-    estimators, network_svg, Candidate, Estimator, Study, StudyConfig, SweepConfig, SweepReport,
-};
+use super::{network_svg, Candidate, Study, StudyConfig, SweepConfig, SweepReport};
 
 /// Writes a study's files into `out` (created if missing): `summary.json` (the
 /// [`StudyReport`](super::StudyReport)), `nees.csv`, `rmse.csv`, `two_sigma.csv`, `coin.csv`
@@ -43,8 +41,6 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
         "network.svg",
         network_svg(&cfg.scenario, cfg.agent, cfg.watched),
     )?;
-    let all: Vec<Estimator> = estimators().collect();
-    let names: Vec<&str> = all.iter().map(|e| e.name()).collect();
     for (file, series) in [
         ("nees.csv", &summary.nees_series),
         ("rmse.csv", &summary.rmse_series),
@@ -54,17 +50,7 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
         if series.is_empty() {
             continue;
         }
-        let mut csv = format!("step,time,{}\n", names.join(","));
-        for k in 0..cfg.steps {
-            let row: Vec<String> = series.iter().map(|s| s[k].to_string()).collect();
-            csv += &format!(
-                "{},{},{}\n",
-                k + 1,
-                (k + 1) as f64 * cfg.scenario.dt,
-                row.join(",")
-            );
-        }
-        write(file, csv)?;
+        write(file, super::series_csv(series, cfg.scenario.dt))?;
     }
     let mut csv = String::from("step,run,omega_ci");
     let blocks = traces
@@ -89,7 +75,7 @@ pub fn write_study(study: &Study, out: &Path) -> Result<Vec<PathBuf>, ReportErro
     // Figures (SVG): the charts the page draws (src/chart/).
     for (name, chart) in super::study_charts(cfg, summary, cfg.runs) {
         let path = out.join(format!("{name}.svg"));
-        crate::chart::write_svg(&path, &[&chart], (900, 480))?;
+        crate::chart::write_svg(&path, &[&chart], super::STUDY_SVG_SIZE)?;
         written.borrow_mut().push(path);
     }
     Ok(written.into_inner())

@@ -58,7 +58,7 @@ test("a list of requests gives the list of responses, and a bad one is named", (
 
 /** The property names of `interface name { … }` in a declaration file. */
 function declared(text, name) {
-  const body = text.match(new RegExp(`export interface ${name} \\{([\\s\\S]*?)\\n\\}`))[1];
+  const body = text.match(new RegExp(`export interface ${name}(?: extends [^{]+)? \\{([\\s\\S]*?)\\n\\}`))[1];
   return [...body.matchAll(/^  (\w+)\??:/gm)].map((m) => m[1]).sort();
 }
 
@@ -67,6 +67,33 @@ test("the types declare exactly the contract's fields, as the Rust crate lists t
   const types = readFileSync(join(dir, "node_modules", "nmci", "contract.d.ts"), "utf8");
   assert.deepEqual(declared(types, "FuseRequest"), [...fields.request].sort());
   assert.deepEqual(declared(types, "FuseResponse"), [...fields.response].sort());
+});
+
+test("the API's other functions are typed as they answer, and the page's exports and test hooks are not declared", () => {
+  const script = `
+    import { rules, explore, prove, version } from "nmci";
+    const state = { pa: [[3, 0, 0], [0, 1, 0], [0, 0, 2]], pb: [[1, 0, 0], [0, 4, 0], [0, 0, 1]],
+                    pab_unknown: [[true, true, false], [true, true, true], [false, true, true]], region_samples: 20 };
+    const a = explore(state), p = prove(state);
+    console.log(JSON.stringify({ rule: Object.keys(rules()[0]), exploration: Object.keys(a), gap: Object.keys(a.gap),
+      report: Object.keys(a.rules[0]), proof: p ? Object.keys(p) : null, version: version() }));`;
+  const got = JSON.parse(node(["--input-type=module", "-e", script]));
+  const types = readFileSync(join(dir, "node_modules", "nmci", "index.d.ts"), "utf8");
+  assert.deepEqual(declared(types, "RuleInfo"), [...got.rule].sort());
+  const subset = (keys, ...names) => keys.forEach((k) => assert.ok(names.some((n) => declared(types, n).includes(k)), `${names[0]}.${k} is not declared`));
+  subset(got.exploration, "Exploration");
+  subset(got.gap, "Gap");
+  subset(got.report, "RuleReport");
+  assert.ok(got.proof, "the three-state state's first bracket is open, so prove() answers");
+  subset(got.proof, "Proof", "Gap");
+  assert.match(got.version, /^\d+\.\d+\.\d+/);
+  const generated = readFileSync(join(dir, "node_modules", "nmci", "nmci.d.ts"), "utf8");
+  // Declared as functions or classes (the module's raw wasm exports stay listed in `InitOutput`).
+  const declaredApi = [...`${generated}\n${types}`.matchAll(/^export (?:declare )?(?:function|class) (\w+)/gm)].map((m) => m[1]);
+  for (const hidden of ["panic_for_test", "install_panic_hook", "Study", "StudyCoin", "fig2_run", "draw_chart"]) {
+    assert.ok(!declaredApi.includes(hidden), hidden);
+  }
+  assert.deepEqual([...new Set(declaredApi)].sort(), ["contract_fields", "explore", "fuse", "initSync", "prove", "rules", "version"]);
 });
 
 test("the types compile against a typed example, and reject a wrong method and a wrong type", () => {

@@ -427,6 +427,12 @@ test("the picture exports as SVG and the numbers as JSON", async () => {
   assert.match(svg, /^<svg[^>]*xmlns="http:\/\/www.w3.org\/2000\/svg"/);
   assert.match(svg, /id="layer-nmci"/);
   assert.doesNotMatch(svg, /class="handle"/, "drag handles are not exported");
+  // A title naming the matrices, and a legend line per layer drawn.
+  assert.match(svg, /P_a = \[\[3, 0\], \[0, 1\]\], P_b = \[\[1, 0\], \[0, 4\]\]/);
+  assert.match(svg, /<title>nmci: [^<]*nmCI/);
+  const drawn = (svg.match(/id="layer-/g) ?? []).length;
+  const legend = [...svg.matchAll(/<line [^>]*x1="14"/g)].length;
+  assert.equal(legend, drawn, "one legend line per layer drawn");
   const [jsonDownload] = await Promise.all([page.waitForEvent("download"), page.click("#export-json")]);
   const numbers = JSON.parse(await readFile(await jsonDownload.path(), "utf8"));
   const nmci = numbers.rules.find((r) => r.method === "nmci").response;
@@ -730,6 +736,36 @@ test("the study tab runs a short study live and shows nmCI tighter than CI", asy
     assert.ok((await pixelsOf(id, CI_RGB)) > 50, `${id}: CI's colour not drawn`);
   }
   await page.screenshot({ path: join(out, "study.png"), fullPage: true });
+  // The files `nmci track` writes, exported from the page: the CSVs equal to the CLI's for
+  // the same study; the charts its SVGs.
+  const dir = join(out, "track-cli");
+  execFileSync("cargo", ["run", "--quiet", "--bin", "nmci", "--", "track", "--runs", "2", "--steps", "80", "--seed", "4", "--out", dir], { cwd: root });
+  const exported = async (name) => {
+    await page.selectOption("#study-export-file", name);
+    const [download] = await Promise.all([page.waitForEvent("download"), page.click("#study-export")]);
+    assert.equal(download.suggestedFilename(), name);
+    return readFile(await download.path(), "utf8");
+  };
+  for (const name of ["nees.csv", "rmse.csv", "two_sigma.csv", "coin.csv"]) {
+    const [mine, cli] = [await exported(name), await readFile(join(dir, name), "utf8")];
+    const rowsOf = (t) => t.trim().split("\n").map((l) => l.split(","));
+    const [a, b] = [rowsOf(mine), rowsOf(cli)];
+    assert.deepEqual(a[0], b[0], `${name}: header`);
+    assert.equal(a.length, b.length, name);
+    // The same arithmetic in wasm and natively: equal to 1e-12 relative (libm may differ in
+    // the last bits).
+    a.slice(1).forEach((row, k) => row.forEach((v, j) => {
+      const [x, y] = [Number(v), Number(b[k + 1][j])];
+      assert.ok(x === y || Math.abs(x - y) <= 1e-12 * Math.max(Math.abs(x), Math.abs(y)), `${name} row ${k + 1} col ${j}: ${x} vs ${y}`);
+    }));
+  }
+  for (const name of ["nees.svg", "coin.svg"]) {
+    const [mine, cli] = [await exported(name), await readFile(join(dir, name), "utf8")];
+    const size = (t) => t.match(/<svg[^>]*width="(\d+)" height="(\d+)"/).slice(1);
+    assert.deepEqual(size(mine), size(cli), name);
+    const labels = (t) => [...t.matchAll(/<text[^>]*>([^<]*[A-Za-z][^<]*)<\/text>/g)].map((m) => m[1]).filter((l) => !/^[\d.e+-]+$/.test(l));
+    assert.deepEqual(labels(mine), labels(cli), `${name}: titles, legend and axis labels`);
+  }
 });
 
 test("the study tab draws the chosen network, says whether it fits the paper's text, and runs it", async () => {
@@ -829,6 +865,24 @@ test("the fig. 2 tab runs the sample-size study: non-conservative at N = 1, nmCI
   assert.equal(await page.getAttribute("#fig2-eig", "data-points"), "2,3,3");
   assert.ok((await pixelsOf("#fig2-eig", NMCI_RGB)) > 20, "nmCI's colour not drawn");
   await page.screenshot({ path: join(out, "fig2.png"), fullPage: true });
+  // `nmci fig2`'s files, exported: its CSV columns and the numbers the table shows; its
+  // two-panel SVG at the CLI's size.
+  const dir = join(out, "fig2-cli");
+  execFileSync("cargo", ["run", "--quiet", "--bin", "nmci", "--", "fig2", "--runs", "2", "--sizes", "1,10,100", "--out", dir], { cwd: root });
+  const exported = async (name) => {
+    await page.selectOption("#fig2-export-file", name);
+    const [download] = await Promise.all([page.waitForEvent("download"), page.click("#fig2-export")]);
+    return readFile(await download.path(), "utf8");
+  };
+  const csv = (await exported("fig2.csv")).trim().split("\n").map((l) => l.split(","));
+  const cliCsv = (await readFile(join(dir, "fig2.csv"), "utf8")).trim().split("\n").map((l) => l.split(","));
+  assert.deepEqual(csv[0], cliCsv[0], "the CLI's columns");
+  assert.deepEqual(csv.slice(1).map((r) => r[0]), ["1", "10", "100"]);
+  const column = (name) => csv[0].indexOf(name);
+  csv.slice(1).forEach((r, k) => assert.equal(Number(r[column("failures")]), Number(rows[k][6])));
+  const svg = await exported("fig2.svg");
+  const size = (t) => t.match(/<svg[^>]*width="(\d+)" height="(\d+)"/).slice(1);
+  assert.deepEqual(size(svg), size(await readFile(join(dir, "fig2.svg"), "utf8")));
   await page.click("#tab-explorer");
 });
 
@@ -937,7 +991,7 @@ test("each tab says what it shows: a 'What am I looking at?' panel whose doc lin
   await page.click("#tab-study");
   assert.ok(await page.locator("#study-placeholder").isVisible());
   assert.equal(await page.locator("#study canvas.chart:visible").count(), 0);
-  assert.match(await text("#study-network-caption"), /Red: agent 7.*blue: agent 11/);
+  assert.match(await text("#study-network-legend"), /Red: agent 7.*blue: agent 11/);
   await page.click("#tab-explorer");
 });
 
