@@ -7,6 +7,7 @@ import { createExploreClient } from "./explore-client.js";
 import { renderNumbersPanel, STYLE } from "./numbers.js";
 import { createProveClient, worthProving } from "./prove-client.js";
 import { download } from "./charts.js";
+import { watchTables } from "./tables.js";
 
 const $ = (id) => document.getElementById(id);
 // How a rule's ellipse is stroked follows its guarantee: the conservative rules solid, each
@@ -469,6 +470,7 @@ function watchStale() {
 
 function init() {
   watchStale();
+  watchTables();
   $("dim").replaceChildren(...[2, 3, 4, 5, 6].map((k) => new Option(String(k), k)));
   $("sampler").replaceChildren(...Object.entries(SAMPLERS).map(([value, label]) => new Option(label, value)));
   buildLegend();
