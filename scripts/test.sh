@@ -1,14 +1,38 @@
 #!/usr/bin/env bash
-# Every test: install what is missing, then native (cargo test), wasm in headless Chromium
-# (wasm-pack test), the page end-to-end in headless Chromium, the npm package, and the Python
-# package (pytest).
+# Every test: install what is missing, then formatting and lints, native (cargo test), a crate
+# depending on nmci from outside the workspace, wasm in headless Chromium (wasm-pack test), the
+# page end-to-end in headless Chromium, the npm package, and the Python package (pytest).
+#   scripts/test.sh         -> all of it (the README's test command; CI runs it)
+#   scripts/test.sh quick   -> the contributor's tier: formatting, lints, the library's unit
+#                              tests, the shims' and the CLI's tests (minutes, no browser)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="$HOME/.cargo/bin:$PATH"
-scripts/setup.sh test
+what=${1:-all}
 
-echo "== layers: the library's dependencies and its modules' imports (scripts/layers.py)"
-python3 scripts/layers.py
+lint() {
+  echo "== format and lints: cargo fmt --check, cargo clippy -D warnings (native, and the library for wasm32)"
+  cargo fmt --all --check
+  cargo clippy --workspace --all-targets --all-features --quiet -- -D warnings
+  cargo clippy -p nmci --target wasm32-unknown-unknown --lib --features charts --quiet -- -D warnings
+  python3 scripts/layers.py
+}
+
+case "$what" in
+  quick)
+    scripts/setup.sh build
+    lint
+    echo "== quick: the library's unit tests, the shims, the CLI"
+    cargo test --quiet -p nmci --lib --all-features
+    cargo test --quiet -p blas -p lapack -p nmci-cli
+    exit 0
+    ;;
+  all) ;;
+  *) echo "usage: scripts/test.sh [quick]" >&2; exit 2 ;;
+esac
+
+scripts/setup.sh test
+lint
 
 echo "== native: cargo test (crate, BLAS/LAPACK shims, CLI, doc examples)"
 cargo test --workspace --exclude nmci-python --all-features

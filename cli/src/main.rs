@@ -237,7 +237,6 @@ mod cli {
     }
 
     #[allow(clippy::too_many_arguments)]
-    #[allow(clippy::too_many_arguments)]
     fn track(
         config: Option<PathBuf>,
         runs: Option<usize>,
