@@ -410,6 +410,10 @@ def test_semidefinite_covariances_through_the_rule_functions_say_so():
     with pytest.warns(nmci.StructureWarning):
         g = nmci.ci(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]))
     assert np.array_equal(f.P, g.P)
+    # In a stack such a pair is the single call's.
+    with pytest.warns(nmci.StructureWarning, match="pseudo-inverse form"):
+        s = nmci.ci(np.stack([np.diag([1.0, 0.0]), np.eye(2)]), np.stack([np.diag([2.0, 3.0]), 2 * np.eye(2)]))
+    assert np.array_equal(s.P[0], g.P)
     with pytest.raises(nmci.InputError) as e:
         nmci.certified(np.diag([1.0, 0.0]), np.diag([2.0, 3.0]))
     assert e.value.field == "pa"

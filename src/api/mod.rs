@@ -266,7 +266,47 @@ fn semidefinite_response(
     criterion: Criterion,
     refused: InputError,
 ) -> Result<FuseResponse, RequestError> {
-    let (rule, method) = match request.method {
+    let (xa, pa, xb, pb, pattern) = request.pair.parts()?;
+    let pair = semidefinite_pair(
+        request.method,
+        [&xa, &xb],
+        [&pa, &pb],
+        &pattern,
+        criterion,
+        refused,
+    )?;
+    let mut response = response(pair.method, pair.criterion, &pair.fused, pair.details);
+    response.structure = Some(pair.structure);
+    Ok(response)
+}
+
+/// A pair fused in the pseudo-inverse form ([`semidefinite_pair`]).
+pub(crate) struct SemidefinitePair {
+    /// The rule that fused (`ci` for an `ici` request).
+    pub method: Method,
+    /// The criterion the response reports.
+    pub criterion: Criterion,
+    /// The result.
+    pub fused: Fused,
+    /// The rule's details.
+    pub details: Details,
+    /// The blocks and the note saying what was done.
+    pub structure: StructureDetails,
+}
+
+/// The pseudo-inverse form's fusion of a pair whose covariance `refused` was refused as not
+/// positive definite, for a request of `method` (see [`semidefinite_response`]; a stack's pairs
+/// go through it too, so a stack's pair is the single request's): the refusal itself where the
+/// form does not apply.
+pub(crate) fn semidefinite_pair(
+    method: Method,
+    [xa, xb]: [&DVector<f64>; 2],
+    [pa, pb]: [&DMatrix<f64>; 2],
+    pattern: &CrossPattern,
+    criterion: Criterion,
+    refused: InputError,
+) -> Result<SemidefinitePair, RequestError> {
+    let (rule, used) = match method {
         Method::Ci => (SemidefiniteRule::Ci, Method::Ci),
         Method::Nmci => (SemidefiniteRule::Nmci, Method::Nmci),
         Method::Naive => (SemidefiniteRule::Naive, Method::Naive),
@@ -274,8 +314,7 @@ fn semidefinite_response(
         Method::Ici => (SemidefiniteRule::Ci, Method::Ci),
         Method::Certified | Method::Sdp | Method::SdpCuts => return Err(refused.into()),
     };
-    let (xa, pa, xb, pb, pattern) = request.pair.parts()?;
-    let r = match fuse_semidefinite(rule, &xa, &pa, &xb, &pb, &pattern, criterion) {
+    let r = match fuse_semidefinite(rule, xa, pa, xb, pb, pattern, criterion) {
         Ok(r) => r,
         // Not positive semi-definite either: the covariance form's refusal says it best.
         Err(InputError::NotPositiveDefinite { .. }) => return Err(refused.into()),
@@ -294,12 +333,11 @@ fn semidefinite_response(
     } else {
         criterion
     };
-    let mut response = response(method, reported, &r.fused, details);
-    let how = match request.method {
+    let how = match method {
         Method::Ici => "ici has no pseudo-inverse form: ci fused it in its pseudo-inverse form instead (conservative for every cross-covariance, so also for the common information ici assumes)".to_string(),
         m => format!("{} fused it in the pseudo-inverse form instead", m.name()),
     };
-    let guarantee = match method.guarantee() {
+    let guarantee = match used.guarantee() {
         Guarantee::Conservative => {
             "conservative for every cross-covariance to the rounding of the eigendecomposition"
         }
@@ -308,17 +346,22 @@ fn semidefinite_response(
     let note = format!(
         "{refused}: {how}, eigenvalues at most n·ε·λ_max taken as zero and their directions as uninformed; {guarantee} (docs/methods.md, \"Semi-definite covariances\")",
     );
-    response.structure = Some(StructureDetails {
-        blocks: r.blocks.clone(),
-        exact_blocks: r.blocks.len(),
-        coupling_tol: 0.0,
-        absorbed: false,
-        couplings: Vec::new(),
-        trace_added: 0.0,
-        nmci_trace_cost: None,
-        note: Some(note),
-    });
-    Ok(response)
+    Ok(SemidefinitePair {
+        method: used,
+        criterion: reported,
+        structure: StructureDetails {
+            blocks: r.blocks.clone(),
+            exact_blocks: r.blocks.len(),
+            coupling_tol: 0.0,
+            absorbed: false,
+            couplings: Vec::new(),
+            trace_added: 0.0,
+            nmci_trace_cost: None,
+            note: Some(note),
+        },
+        fused: r.fused,
+        details,
+    })
 }
 
 /// N-way CI (`method` `ci`) or nmCI (`nmci`) of a request's `estimates` and `patterns`.

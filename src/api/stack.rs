@@ -3,7 +3,9 @@
 //!
 //! Each pair is the request [`super::fuse`] would get with that pair's matrices and the stack's
 //! method and options, and its numbers are that request's, bit for bit (tested): the same
-//! checks, the same structure handling (declared `blocks`, `coupling_tol`), the same rule.
+//! checks, the same structure handling (declared `blocks`, `coupling_tol`), the same rule, and
+//! for a pair with a semi-definite covariance the same pseudo-inverse form
+//! (`fusion::semidefinite`, [`super::semidefinite_pair`]) and note.
 //! A stack takes the rules whose response is the estimate, its bound, the gains and the
 //! weights — `ci`, `nmci`, `ici`, `ei`, `naive`; the SDPs and the certified rule report a
 //! bracket or a certificate per pair and are called per pair.
@@ -23,12 +25,13 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::error::RequestError;
 use crate::fusion::rules::Method;
+use crate::fusion::semidefinite::definiteness_refusal;
 use crate::fusion::{Fused, FusionProblem};
 use crate::structure::CrossPattern;
 
 use super::{
-    check_blocks, fuse, structured, ClosedForm, CovarianceSummary, Details, FuseRequest,
-    FuseResponse, Options, PairInput, Structured,
+    check_blocks, fuse, semidefinite_pair, structured, ClosedForm, CovarianceSummary, Details,
+    FuseRequest, FuseResponse, Options, PairInput, Structured,
 };
 
 /// `k` pairs of `n`-state estimates, row-major and contiguous: `pa`, `pb` hold `k · n · n`
@@ -256,18 +259,39 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
     };
     let one = |i: usize| -> Result<Pair, RequestError> {
         let at = i * nn..(i + 1) * nn;
+        let pattern_of = || match &shared {
+            Some(p) => Ok(p.clone()),
+            None => pattern(i),
+        };
         let pair = || -> Result<_, RequestError> {
-            let pattern = match &shared {
-                Some(p) => p.clone(),
-                None => pattern(i)?,
-            };
-            let problem = FusionProblem::new(
+            let pattern = pattern_of()?;
+            let problem = match FusionProblem::new(
                 vector(request.xa, i),
                 row_major(n, &request.pa[at.clone()]),
                 vector(request.xb, i),
                 row_major(n, &request.pb[at.clone()]),
                 pattern,
-            )?;
+            ) {
+                Ok(problem) => problem,
+                // Semi-definite: the pseudo-inverse form, as the single request (its inputs
+                // read again: only a refused pair pays for it).
+                Err(e) if definiteness_refusal(&e) => {
+                    let pattern = pattern_of()?;
+                    let p = semidefinite_pair(
+                        request.method,
+                        [&vector(request.xa, i), &vector(request.xb, i)],
+                        [
+                            &row_major(n, &request.pa[at.clone()]),
+                            &row_major(n, &request.pb[at.clone()]),
+                        ],
+                        &pattern,
+                        criterion,
+                        e,
+                    )?;
+                    return Ok((p.fused, p.details, p.structure.note));
+                }
+                Err(e) => return Err(e.into()),
+            };
             let Structured {
                 problem, details, ..
             } = structured(problem, &settings, request.method)?;
@@ -390,6 +414,34 @@ mod tests {
                 );
                 assert_eq!(stack.trace[i], one.trace);
             }
+        }
+    }
+
+    /// A semi-definite pair takes the pseudo-inverse form, as its single request does (an
+    /// `ici` stack's such pair fused by CI's, its note saying so).
+    #[test]
+    fn a_semidefinite_pair_is_the_single_request() {
+        let pa = [3.0, 0.5, 0.5, 1.0, 1.0, 0.0, 0.0, 0.0];
+        let pb = [1.0, 0.2, 0.2, 4.0, 2.0, 0.0, 0.0, 3.0];
+        for method in [
+            Method::Ci,
+            Method::Nmci,
+            Method::Ici,
+            Method::Ei,
+            Method::Naive,
+        ] {
+            let stack = fuse_stack(&request(method, &pa, &pb)).unwrap();
+            let rows = |s: &[f64]| s.chunks(2).map(<[f64]>::to_vec).collect::<Vec<_>>();
+            let one = fuse(&FuseRequest::new(method, rows(&pa[4..]), rows(&pb[4..]))).unwrap();
+            assert_eq!(&stack.p[4..], one.p.concat().as_slice(), "{method:?}");
+            assert_eq!(stack.trace[1], one.trace);
+            let note = stack.notes[1].as_deref().unwrap();
+            assert!(note.contains("pseudo-inverse form"), "{method:?}: {note}");
+            assert_eq!(
+                note,
+                one.structure.as_ref().unwrap().note.as_deref().unwrap()
+            );
+            assert!(stack.notes[0].is_none());
         }
     }
 
