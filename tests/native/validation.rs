@@ -288,7 +288,7 @@ fn request_errors() {
             "unknown field `extra`", Some("extra")),
         (r#"{"pa": [[1]], "pb": [[1]]}"#, "missing field `method`", Some("method")),
         (r#"{"pa": [[1]], "pb": [[1]], "method": "best"}"#,
-            "unknown variant `best`", None),
+            "`method`: unknown method `best`; the methods are ci, nmci", Some("method")),
         (r#"{"pa": [[1]], "pb": [[1]], "method": "ci", "criterion": "max"}"#,
             "unknown variant `max`", None),
         (r#"{"pa": [[1, 0], [0]], "pb": [[1]], "method": "ci"}"#,
