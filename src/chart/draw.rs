@@ -160,7 +160,6 @@ pub fn draw<DB: DrawingBackend>(
     let (_, plot) = area.split_vertically(legend_bottom as u32 + 2);
     let mut builder = ChartBuilder::on(&plot);
     builder
-        .margin_left(6)
         .margin_right(12)
         .margin_bottom(4)
         .x_label_area_size(TEXT * 3)
