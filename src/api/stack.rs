@@ -387,61 +387,59 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_pair_of_the_stack_is_the_single_request() {
-        let pa = [3.0, 0.5, 0.5, 1.0, 2.0, -0.3, -0.3, 1.5];
-        let pb = [1.0, 0.2, 0.2, 4.0, 1.0, 0.0, 0.0, 1.0];
-        for method in [
+    /// Every pair of a two-pair stack, for every stacked rule, is its single request bit for
+    /// bit, its structure note included; the notes, per rule and pair.
+    fn pairs_are_single_requests(pa: &[f64], pb: &[f64]) -> Vec<Vec<Option<String>>> {
+        let rows = |s: &[f64]| s.chunks(2).map(<[f64]>::to_vec).collect::<Vec<_>>();
+        let methods = [
             Method::Ci,
             Method::Nmci,
             Method::Ici,
             Method::Ei,
             Method::Naive,
-        ] {
-            let stack = fuse_stack(&request(method, &pa, &pb)).unwrap();
-            for i in 0..2 {
-                let rows = |s: &[f64]| s.chunks(2).map(<[f64]>::to_vec).collect::<Vec<_>>();
-                let one = fuse(&FuseRequest::new(
-                    method,
-                    rows(&pa[4 * i..4 * i + 4]),
-                    rows(&pb[4 * i..4 * i + 4]),
-                ))
-                .unwrap();
-                assert_eq!(
-                    &stack.p[4 * i..4 * i + 4],
-                    one.p.concat().as_slice(),
-                    "{method:?}"
-                );
-                assert_eq!(stack.trace[i], one.trace);
-            }
-        }
+        ];
+        methods
+            .into_iter()
+            .map(|method| {
+                let stack = fuse_stack(&request(method, pa, pb)).unwrap();
+                for i in 0..2 {
+                    let at = 4 * i..4 * i + 4;
+                    let one = fuse(&FuseRequest::new(
+                        method,
+                        rows(&pa[at.clone()]),
+                        rows(&pb[at.clone()]),
+                    ))
+                    .unwrap();
+                    assert_eq!(&stack.p[at], one.p.concat().as_slice(), "{method:?}");
+                    assert_eq!(stack.trace[i], one.trace);
+                    let note = one.structure.as_ref().and_then(|s| s.note.clone());
+                    assert_eq!(stack.notes[i], note, "{method:?}");
+                }
+                stack.notes
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_pair_of_the_stack_is_the_single_request() {
+        pairs_are_single_requests(
+            &[3.0, 0.5, 0.5, 1.0, 2.0, -0.3, -0.3, 1.5],
+            &[1.0, 0.2, 0.2, 4.0, 1.0, 0.0, 0.0, 1.0],
+        );
     }
 
     /// A semi-definite pair takes the pseudo-inverse form, as its single request does (an
     /// `ici` stack's such pair fused by CI's, its note saying so).
     #[test]
     fn a_semidefinite_pair_is_the_single_request() {
-        let pa = [3.0, 0.5, 0.5, 1.0, 1.0, 0.0, 0.0, 0.0];
-        let pb = [1.0, 0.2, 0.2, 4.0, 2.0, 0.0, 0.0, 3.0];
-        for method in [
-            Method::Ci,
-            Method::Nmci,
-            Method::Ici,
-            Method::Ei,
-            Method::Naive,
-        ] {
-            let stack = fuse_stack(&request(method, &pa, &pb)).unwrap();
-            let rows = |s: &[f64]| s.chunks(2).map(<[f64]>::to_vec).collect::<Vec<_>>();
-            let one = fuse(&FuseRequest::new(method, rows(&pa[4..]), rows(&pb[4..]))).unwrap();
-            assert_eq!(&stack.p[4..], one.p.concat().as_slice(), "{method:?}");
-            assert_eq!(stack.trace[1], one.trace);
-            let note = stack.notes[1].as_deref().unwrap();
-            assert!(note.contains("pseudo-inverse form"), "{method:?}: {note}");
-            assert_eq!(
-                note,
-                one.structure.as_ref().unwrap().note.as_deref().unwrap()
-            );
-            assert!(stack.notes[0].is_none());
+        let notes = pairs_are_single_requests(
+            &[3.0, 0.5, 0.5, 1.0, 1.0, 0.0, 0.0, 0.0],
+            &[1.0, 0.2, 0.2, 4.0, 2.0, 0.0, 0.0, 3.0],
+        );
+        for pair in notes {
+            assert!(pair[0].is_none());
+            let note = pair[1].as_deref().unwrap();
+            assert!(note.contains("pseudo-inverse form"), "{note}");
         }
     }
 
