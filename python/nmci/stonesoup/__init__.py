@@ -31,7 +31,7 @@ The three-line switch from Stone Soup's fixed-ω fusion::
 from .fuser import fuse_tracks
 from .mixturereducer import NmciCovarianceIntersection
 from .models import blocks_from_transition_model
-from .types import FusionInfo
+from .types import FusionInfo, FusionRecord, with_fusion
 from .updater import (
     NmciUpdater,
     chernoff_log_normaliser,
@@ -40,7 +40,6 @@ from .updater import (
     merge_coupled_blocks,
 )
 from .serialise import yaml_init
-from .types import FusionRecord, with_fusion
 
 __all__ = [
     "FusionInfo",

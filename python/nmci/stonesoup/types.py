@@ -51,7 +51,8 @@ class FusionInfo:
 
 
 class FusionRecord(Base):
-    """The mark of a Stone Soup type extended by :func:`with_fusion`: it declares ``fusion``."""
+    """The mark of a Stone Soup type extended by :func:`with_fusion` (the extension declares
+    ``fusion``): ``isinstance(update, FusionRecord)`` tells an nmci fusion's result."""
 
 
 _EXTENDED: Dict[type, type] = {}
@@ -70,7 +71,7 @@ def with_fusion(cls: type) -> type:
     -------
     type
         ``Nmci<cls.__name__>``, a subclass of ``cls`` and :class:`FusionRecord`, created once and
-        kept in this module (so pickles and YAML find it by name).
+        kept in this module (so a pickle finds it by name).
     """
     if issubclass(cls, FusionRecord):
         return cls
@@ -99,7 +100,7 @@ def target_type(kind: type, state) -> type:
 
 
 def __getattr__(name: str) -> type:
-    # An extended type named in a pickle or a YAML tag before this process created it.
+    # An extended type a pickle names before this process created it.
     if name.startswith("Nmci"):
         wanted = name[len("Nmci"):]
         for mapping in CreatableFromState.class_mapping.values():
