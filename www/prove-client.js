@@ -1,8 +1,8 @@
 // The explorer's second stage (wasm `prove`: the cutting planes, and at three states their own
 // rule proven on cones of directions): run after an analysis whose proven bracket is open at
 // n ≤ PROVE_MAX_N, where it can close it (at four states its lower end: the worst cases the
-// samples missed, e.g. a correlation of exactly ±1 between tied variances), in a worker of its own (www/prove-worker.js) with a
-// time limit of PROVE_SECONDS. A new edit cancels it: a proof still running is abandoned (its
+// samples missed, e.g. a correlation of exactly ±1 between tied variances), in a worker of
+// its own (www/prove-worker.js) with a time limit of PROVE_SECONDS. A new edit cancels it: a proof still running is abandoned (its
 // worker terminated; wasm cannot be interrupted from outside) and the next one gets a fresh
 // worker. A worker that crashed is dropped the same way. Timings go to
 // `window.nmciStats.proofTimings` (the end-to-end test reads them).
@@ -10,8 +10,9 @@ import { request } from "./explore-client.js";
 
 /** The largest n the page proves at: at four states the cutting planes' upper end is the
  * certificate's the page has already, but their lower end finds the worst cases the sampled
- * SDP missed (the paper's preset at n = 4 closes so, as `nmci fuse` with `sdp_cuts` does);
- * beyond four their proofs are out of this page's time limit. */
+ * SDP missed (the paper's preset at n = 4 closes so, as `nmci fuse` with `sdp_cuts` does).
+ * Five and six states are not offered: what the proof achieves there within PROVE_SECONDS has
+ * not been measured (issue 65). */
 export const PROVE_MAX_N = 4;
 /** The proof's time limit in seconds (the wasm `prove` then returns its best bracket so far). */
 export const PROVE_SECONDS = 30;
