@@ -9,8 +9,12 @@
    taken through a facade is an edge to where it is defined. Unit tests (`#[cfg(test)] mod`)
    are left out: a test may drive the layers above its module. A loop is printed with the
    lines that make each edge.
+3. Short: no function of the library's code (src/, cli/src/, python/src/, shims/*/src/) is
+   longer than MAX_FN_LINES lines, from `fn` to its closing brace: a proof step a reviewer
+   checks fits on a screen or two (docs/development.md, "Functions").
 
-`python3 scripts/layers.py --graph` prints the module graph instead.
+`python3 scripts/layers.py --graph` prints the module graph instead; `--functions` the ten
+longest functions.
 """
 
 import re
@@ -21,6 +25,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "src"
 FORBIDDEN = ["clap", "indicatif", "toml", "plotters"]
+MAX_FN_LINES = 150
+CODE = ["src", "cli/src", "python/src", "shims/blas/src", "shims/lapack/src"]
 
 
 def lean() -> list[str]:
@@ -42,7 +48,7 @@ def module_of(path: Path) -> tuple[str, ...]:
 def strip_comments(text: str) -> str:
     """The code without comments and without its unit tests (`#[cfg(test)] mod …` to the end
     of the file: a test may drive the layers above its module)."""
-    text = re.split(r"#\[cfg\(test\)\]\s*mod\s", text)[0]
+    text = re.split(r"#\[cfg\(test\)\]\s*(?:#\[[^\]]*\]\s*)*mod\s", text)[0]
     text = re.sub(r"/\*.*?\*/", "", text, flags=re.S)
     return "\n".join(re.sub(r"//.*", "", line) for line in text.splitlines())
 
@@ -124,7 +130,8 @@ def graph():
             src, rest = walk(m, path, modules)
             # `pub use a::b as c` re-exports `b` under the name `c`.
             last = path.split("::")[-1].split(" as ")[-1].strip()
-            if src is not None and rest:
+            # A glob names no item: what it re-exports is found by its own name.
+            if src is not None and rest and last != "*":
                 reexports.setdefault(m, {})[last] = src
     edges: dict[tuple, dict[tuple, list[str]]] = {}
     for f in files:
@@ -178,6 +185,64 @@ def cycles(modules, edges):
     return out
 
 
+def blank_comments_and_literals(text: str) -> str:
+    """`text` with comments, strings and character literals blanked (newlines kept), so that
+    braces count only as code."""
+    out, i, n = [], 0, len(text)
+    while i < n:
+        if text.startswith("//", i):
+            j = text.find("\n", i)
+            j = n if j < 0 else j
+        elif text.startswith("/*", i):
+            j = text.find("*/", i) + 2
+        elif (m := re.match(r'r(#*)"', text[i:i + 8])) and (i == 0 or not (text[i - 1].isalnum() or text[i - 1] == "_")):
+            end = '"' + m.group(1)
+            j = text.find(end, i + len(m.group(0))) + len(end)
+        elif text[i] == '"':
+            j = i + 1
+            while text[j] != '"':
+                j += 2 if text[j] == "\\" else 1
+            j += 1
+        elif m := re.match(r"'(\\.|[^\\'])'|'\\u\{[0-9a-fA-F]+\}'", text[i:i + 12]):
+            j = i + len(m.group(0))
+        else:
+            out.append(text[i])
+            i += 1
+            continue
+        out.append(re.sub(r"[^\n]", " ", text[i:j]))
+        i = j
+    return "".join(out)
+
+
+def functions():
+    """(lines, "path:line name") of every function with a body in the library's code."""
+    found = []
+    for root in CODE:
+        for f in sorted((ROOT / root).rglob("*.rs")):
+            s = blank_comments_and_literals(f.read_text())
+            for m in re.finditer(r"\bfn\s+(\w+)", s):
+                k, depth = m.end(), 0
+                while k < len(s):  # the body's brace, or `;` for a declaration
+                    c = s[k]
+                    depth += c in "(<["
+                    depth -= c in ")>]"
+                    if depth <= 0 and c in ";{":
+                        break
+                    k += 1
+                if k >= len(s) or s[k] == ";":
+                    continue
+                level, j = 0, k
+                while j < len(s):
+                    level += s[j] == "{"
+                    level -= s[j] == "}"
+                    if level == 0:
+                        break
+                    j += 1
+                first = s.count("\n", 0, m.start()) + 1
+                found.append((s.count("\n", 0, j) + 2 - first, f"{f.relative_to(ROOT)}:{first} {m.group(1)}"))
+    return sorted(found, reverse=True)
+
+
 def name(m):
     return "::".join(m) or "crate"
 
@@ -188,6 +253,10 @@ def main():
         for m in sorted(edges):
             print(f"{name(m)} -> {', '.join(name(t) for t in sorted(edges[m]))}")
         return 0
+    if "--functions" in sys.argv:
+        for lines, where in functions()[:10]:
+            print(lines, where)
+        return 0
     problems = lean()
     for comp in cycles(modules, edges):
         lines = [f"module loop: {' <-> '.join(name(m) for m in comp)}"]
@@ -197,11 +266,13 @@ def main():
                 if t in members:
                     lines.append(f"  {name(m)} -> {name(t)}: {why[0]}" + (f" (+{len(why) - 1})" if len(why) > 1 else ""))
         problems.append("\n".join(lines))
+    long = [(lines, where) for lines, where in functions() if lines > MAX_FN_LINES]
+    problems += [f"{where}: {lines} lines, longer than {MAX_FN_LINES} (split it into named steps)" for lines, where in long]
     for p in problems:
         print(p, file=sys.stderr)
     if problems:
         return 1
-    print(f"layers: {len(modules)} modules, no loop; the library's dependencies are lean")
+    print(f"layers: {len(modules)} modules, no loop; the library's dependencies are lean; no function over {MAX_FN_LINES} lines")
     return 0
 
 

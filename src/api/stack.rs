@@ -23,11 +23,11 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::error::RequestError;
+use crate::error::{InputError, RequestError};
 use crate::fusion::rules::Method;
 use crate::fusion::semidefinite::definiteness_refusal;
-use crate::fusion::{Fused, FusionProblem};
-use crate::structure::CrossPattern;
+use crate::fusion::{Criterion, Fused, FusionProblem};
+use crate::structure::{CrossPattern, StructureSettings};
 
 use super::{
     check_blocks, fuse, semidefinite_pair, structured, ClosedForm, CovarianceSummary, Details,
@@ -99,6 +99,24 @@ type Pair = (Fused, Details, Option<String>);
 const PARALLEL_FROM: usize = 64;
 
 impl StackResponse {
+    /// A response with room for `count` pairs of `n` states.
+    fn empty(count: usize, n: usize) -> Self {
+        let nn = n * n;
+        StackResponse {
+            count,
+            n,
+            x: Vec::with_capacity(count * n),
+            p: Vec::with_capacity(count * nn),
+            ka: Vec::with_capacity(count * nn),
+            kb: Vec::with_capacity(count * nn),
+            trace: Vec::with_capacity(count),
+            det: Vec::with_capacity(count),
+            omega: Vec::new(),
+            blocks: Vec::new(),
+            notes: Vec::with_capacity(count),
+        }
+    }
+
     /// Appends one pair's result.
     fn push(&mut self, (fused, details, note): Pair) {
         let n = self.n;
@@ -149,7 +167,6 @@ impl StackResponse {
 /// assert_eq!(stack.omega, [0.0, 1.0, 1.0, 0.0]);
 /// ```
 pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestError> {
-    let n = request.n;
     let rule = ClosedForm::of(request.method).ok_or_else(|| {
         RequestError::invalid(
             "method",
@@ -159,6 +176,32 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
             ),
         )
     })?;
+    let (count, shared_pattern) = shape(request)?;
+    let mut out = StackResponse::empty(count, request.n);
+    if count == 0 {
+        return Ok(out);
+    }
+    let stack = Stack::new(request, rule, shared_pattern)?;
+    #[cfg(not(target_arch = "wasm32"))]
+    if count >= PARALLEL_FROM && rayon::current_num_threads() > 1 {
+        use rayon::prelude::*;
+        let pairs: Vec<Result<Pair, RequestError>> =
+            (0..count).into_par_iter().map(|i| stack.pair(i)).collect();
+        for pair in pairs {
+            out.push(pair?);
+        }
+        return Ok(out);
+    }
+    for i in 0..count {
+        out.push(stack.pair(i)?);
+    }
+    Ok(out)
+}
+
+/// The stack's number of pairs, and whether one pattern stands for every pair's: every
+/// field's length checked against `pa`'s.
+fn shape(request: &StackRequest<'_>) -> Result<(usize, bool), RequestError> {
+    let n = request.n;
     let nn = n * n;
     if n == 0 || request.pa.len() % nn != 0 {
         return Err(RequestError::invalid(
@@ -191,129 +234,138 @@ pub fn fuse_stack(request: &StackRequest<'_>) -> Result<StackResponse, RequestEr
             ))
         }
     };
-    let mut out = StackResponse {
-        count,
-        n,
-        x: Vec::with_capacity(count * n),
-        p: Vec::with_capacity(count * nn),
-        ka: Vec::with_capacity(count * nn),
-        kb: Vec::with_capacity(count * nn),
-        trace: Vec::with_capacity(count),
-        det: Vec::with_capacity(count),
-        omega: Vec::new(),
-        blocks: Vec::new(),
-        notes: Vec::with_capacity(count),
-    };
-    if count == 0 {
-        return Ok(out);
+    Ok((count, shared_pattern))
+}
+
+/// An error of pair `index`, as the stack reports it.
+fn in_stack(index: usize) -> impl Fn(RequestError) -> RequestError {
+    move |e| RequestError::InStack {
+        index,
+        source: Box::new(e),
     }
-    let in_stack = |index: usize| {
-        move |e: RequestError| RequestError::InStack {
-            index,
-            source: Box::new(e),
+}
+
+/// What every pair of a stack shares: the request, its rule, criterion and structure
+/// settings, and the pattern when one stands for all.
+struct Stack<'r, 'a> {
+    request: &'r StackRequest<'a>,
+    rule: ClosedForm,
+    criterion: Criterion,
+    settings: StructureSettings,
+    shared: Option<CrossPattern>,
+}
+
+impl<'r, 'a> Stack<'r, 'a> {
+    /// The request's checks, which depend on the sizes and the options only: one pair's
+    /// request stands for every pair's.
+    fn new(
+        request: &'r StackRequest<'a>,
+        rule: ClosedForm,
+        shared_pattern: bool,
+    ) -> Result<Self, RequestError> {
+        let (n, nn) = (request.n, request.n * request.n);
+        let rows = |s: &[f64]| s.chunks(n).map(<[f64]>::to_vec).collect::<Vec<_>>();
+        let first = FuseRequest {
+            pair: PairInput {
+                pa: rows(&request.pa[..nn]),
+                pb: rows(&request.pb[..nn]),
+                xa: request.xa.map(|v| v[..n].to_vec()),
+                xb: request.xb.map(|v| v[..n].to_vec()),
+                pab_unknown: request
+                    .pab_unknown
+                    .map(|m| m[..nn].chunks(n).map(<[bool]>::to_vec).collect()),
+                blocks: request.blocks.clone(),
+                coupling_tol: request.coupling_tol,
+            },
+            method: request.method,
+            options: request.options.clone(),
+            estimates: None,
+            patterns: None,
+        };
+        let mut stack = Stack {
+            request,
+            rule,
+            criterion: first.plan().map_err(in_stack(0))?.criterion,
+            settings: first.pair.structure_settings(),
+            shared: None,
+        };
+        if shared_pattern {
+            stack.shared = Some(stack.own_pattern(0).map_err(|e| in_stack(0)(e.into()))?);
         }
-    };
-    // The request's checks, which depend on the sizes and the options only: one pair's request
-    // stands for every pair's.
-    let rows = |s: &[f64]| s.chunks(n).map(<[f64]>::to_vec).collect::<Vec<_>>();
-    let first = FuseRequest {
-        pair: PairInput {
-            pa: rows(&request.pa[..nn]),
-            pb: rows(&request.pb[..nn]),
-            xa: request.xa.map(|v| v[..n].to_vec()),
-            xb: request.xb.map(|v| v[..n].to_vec()),
-            pab_unknown: request
-                .pab_unknown
-                .map(|m| m[..nn].chunks(n).map(<[bool]>::to_vec).collect()),
-            blocks: request.blocks.clone(),
-            coupling_tol: request.coupling_tol,
-        },
-        method: request.method,
-        options: request.options.clone(),
-        estimates: None,
-        patterns: None,
-    };
-    let criterion = first.plan().map_err(in_stack(0))?.criterion;
-    let settings = first.pair.structure_settings();
-    // The pattern as `PairInput::problem` builds it: the given one, else the declared blocks'.
-    let pattern = |i: usize| match (request.pab_unknown, &request.blocks) {
-        (Some(m), _) => {
-            let m = if shared_pattern {
-                m
-            } else {
-                &m[i * nn..(i + 1) * nn]
-            };
-            Ok(CrossPattern::from_fn(n, |r, c| m[r * n + c]))
+        Ok(stack)
+    }
+
+    /// Pair `i`'s pattern as `PairInput::problem` builds it: the given one, else the declared
+    /// blocks'.
+    fn own_pattern(&self, i: usize) -> Result<CrossPattern, InputError> {
+        let (n, nn) = (self.request.n, self.request.n * self.request.n);
+        match (self.request.pab_unknown, &self.request.blocks) {
+            (Some(m), _) => {
+                // One pattern for every pair, or pair `i`'s (`shape`).
+                let m = if m.len() == nn {
+                    m
+                } else {
+                    &m[i * nn..(i + 1) * nn]
+                };
+                Ok(CrossPattern::from_fn(n, |r, c| m[r * n + c]))
+            }
+            (None, Some(blocks)) => CrossPattern::within_blocks(n, blocks),
+            (None, None) => Ok(CrossPattern::fully_unknown(n)),
         }
-        (None, Some(blocks)) => CrossPattern::within_blocks(n, blocks),
-        (None, None) => Ok(CrossPattern::fully_unknown(n)),
-    };
-    let shared = if shared_pattern {
-        Some(pattern(0).map_err(|e| in_stack(0)(e.into()))?)
-    } else {
-        None
-    };
-    let vector = |v: Option<&[f64]>, i: usize| match v {
-        Some(v) => DVector::from_row_slice(&v[i * n..(i + 1) * n]),
-        None => DVector::zeros(n),
-    };
-    let one = |i: usize| -> Result<Pair, RequestError> {
-        let at = i * nn..(i + 1) * nn;
-        let pattern_of = || match &shared {
+    }
+
+    fn pattern(&self, i: usize) -> Result<CrossPattern, RequestError> {
+        match &self.shared {
             Some(p) => Ok(p.clone()),
-            None => pattern(i),
-        };
-        let pair = || -> Result<_, RequestError> {
-            let pattern = pattern_of()?;
-            let problem = match FusionProblem::new(
-                vector(request.xa, i),
-                row_major(n, &request.pa[at.clone()]),
-                vector(request.xb, i),
-                row_major(n, &request.pb[at.clone()]),
-                pattern,
-            ) {
-                Ok(problem) => problem,
-                // Semi-definite: the pseudo-inverse form, as the single request (its inputs
-                // read again: only a refused pair pays for it).
-                Err(e) if definiteness_refusal(&e) => {
-                    let pattern = pattern_of()?;
-                    let p = semidefinite_pair(
-                        request.method,
-                        [&vector(request.xa, i), &vector(request.xb, i)],
-                        [
-                            &row_major(n, &request.pa[at.clone()]),
-                            &row_major(n, &request.pb[at.clone()]),
-                        ],
-                        &pattern,
-                        criterion,
-                        e,
-                    )?;
-                    return Ok((p.fused, p.details, p.structure.note));
-                }
-                Err(e) => return Err(e.into()),
-            };
-            let Structured {
-                problem, details, ..
-            } = structured(problem, &settings, request.method)?;
-            check_blocks(request.method, &problem)?;
-            let (fused, rule_details) = rule.fuse(&problem, criterion)?;
-            Ok((fused, rule_details, details.and_then(|s| s.note)))
-        };
-        pair().map_err(in_stack(i))
-    };
-    #[cfg(not(target_arch = "wasm32"))]
-    if count >= PARALLEL_FROM && rayon::current_num_threads() > 1 {
-        use rayon::prelude::*;
-        let pairs: Vec<Result<Pair, RequestError>> = (0..count).into_par_iter().map(one).collect();
-        for pair in pairs {
-            out.push(pair?);
+            None => Ok(self.own_pattern(i)?),
         }
-        return Ok(out);
     }
-    for i in 0..count {
-        out.push(one(i)?);
+
+    /// Pair `i`'s mean (zero when not given) and covariance.
+    fn estimate(&self, v: Option<&[f64]>, p: &[f64], i: usize) -> (DVector<f64>, DMatrix<f64>) {
+        let n = self.request.n;
+        let x = match v {
+            Some(v) => DVector::from_row_slice(&v[i * n..(i + 1) * n]),
+            None => DVector::zeros(n),
+        };
+        (x, row_major(n, &p[i * n * n..(i + 1) * n * n]))
     }
-    Ok(out)
+
+    /// Pair `i` fused, exactly as its single request; its errors name it.
+    fn pair(&self, i: usize) -> Result<Pair, RequestError> {
+        self.fuse_pair(i).map_err(in_stack(i))
+    }
+
+    fn fuse_pair(&self, i: usize) -> Result<Pair, RequestError> {
+        let request = self.request;
+        let (xa, pa) = self.estimate(request.xa, request.pa, i);
+        let (xb, pb) = self.estimate(request.xb, request.pb, i);
+        let problem = match FusionProblem::new(xa, pa, xb, pb, self.pattern(i)?) {
+            Ok(problem) => problem,
+            // Semi-definite: the pseudo-inverse form, as the single request (its inputs read
+            // again: only a refused pair pays for it).
+            Err(e) if definiteness_refusal(&e) => {
+                let (xa, pa) = self.estimate(request.xa, request.pa, i);
+                let (xb, pb) = self.estimate(request.xb, request.pb, i);
+                let p = semidefinite_pair(
+                    request.method,
+                    [&xa, &xb],
+                    [&pa, &pb],
+                    &self.pattern(i)?,
+                    self.criterion,
+                    e,
+                )?;
+                return Ok((p.fused, p.details, p.structure.note));
+            }
+            Err(e) => return Err(e.into()),
+        };
+        let Structured {
+            problem, details, ..
+        } = structured(problem, &self.settings, request.method)?;
+        check_blocks(request.method, &problem)?;
+        let (fused, rule_details) = self.rule.fuse(&problem, self.criterion)?;
+        Ok((fused, rule_details, details.and_then(|s| s.note)))
+    }
 }
 
 /// The `n × n` matrix whose rows are the consecutive `n`-number pieces of `s`.

@@ -46,14 +46,47 @@ use crate::linalg::cholesky_of;
 
 /// A proven lower bound on the robust optimum `V*` of `problem` from admissible cross blocks
 /// `cross[i]` and dual matrices `duals[i]` (module docs); `0` when nothing can be proven.
+///
+/// The steps of the module docs' argument: the terms `(X_i, Λ_i)` checked ([`terms`]), `σ`
+/// ([`sigma`]), `f`'s coefficients `H`, `g`, `c₀` as balls ([`quadratic`]), `μ ≤ λ_min(H)`
+/// proven ([`proven_mu`]), `v̂ ≈ −H⁻¹ g` ([`minimiser`]), and `f(v̂) − ‖r‖²/μ` rounded down
+/// ([`f_lower`]), divided by `σ`.
 #[allow(non_snake_case)]
 pub fn lower_bound(
     problem: &FusionProblem,
     cross: &[&DMatrix<f64>],
     duals: &[DMatrix<f64>],
 ) -> f64 {
+    let terms = terms(problem, cross, duals);
+    if terms.is_empty() {
+        return 0.0;
+    }
+    let sigma = sigma(&terms, problem.dim());
+    let f = quadratic(problem, &terms);
+    let Some(mu) = proven_mu(&f.H) else {
+        return 0.0;
+    };
+    let Some(v) = minimiser(&f) else {
+        return 0.0;
+    };
+    match f_lower(&f, &v, mu) {
+        Some(numerator) => down(numerator / sigma, 2),
+        None => 0.0,
+    }
+}
+
+/// The terms `(X_i, Λ_i)` that can be checked: each `J_i` proven PSD (pulled towards
+/// `P_ab = 0` if needed, `admissible`), each `Λ_i` shifted until proven PSD; a term of the
+/// wrong size, with a non-finite entry, or that cannot be proven is dropped (dropping a term
+/// keeps the bound valid).
+#[allow(non_snake_case)]
+fn terms(
+    problem: &FusionProblem,
+    cross: &[&DMatrix<f64>],
+    duals: &[DMatrix<f64>],
+) -> Vec<(DMatrix<f64>, DMatrix<f64>)> {
     let n = problem.dim();
-    let mut terms: Vec<(DMatrix<f64>, DMatrix<f64>)> = Vec::new(); // (X_i, Λ_i)
+    let mut terms = Vec::new();
     for (X, L) in cross.iter().zip(duals) {
         if X.shape() != (n, n)
             || L.shape() != (n, n)
@@ -69,13 +102,15 @@ pub fn lower_bound(
         };
         terms.push((X, L));
     }
-    if terms.is_empty() {
-        return 0.0;
-    }
-    // σ ≥ λ_max(Σ Λ_i): 1 + ‖Σ Λ_i − I‖_F.
+    terms
+}
+
+/// `σ = 1 + ‖Σ Λ_i − I‖_F` rounded up: `σ ≥ λ_max(Σ Λ_i)`.
+#[allow(non_snake_case)]
+fn sigma(terms: &[(DMatrix<f64>, DMatrix<f64>)], n: usize) -> f64 {
     let sum_minus_i = BallMatrix::from_fn(n, n, |r, c| {
         let mut d = Dot::new();
-        for (_, L) in &terms {
+        for (_, L) in terms {
             d.add(Ball::exact(L[(r, c)]));
         }
         if r == c {
@@ -91,8 +126,22 @@ pub fn lower_bound(
             .map(|(m, r)| m.abs() + r),
         3 * n * n + 6,
     );
-    let sigma = up(1.0 + fro, 2);
-    // S_i, C_i as balls; H = Σ S_i ⊗ Λ_i, g = vec Σ Λ_i C_i, c₀ = Σ ⟨Λ_i, P_b⟩.
+    up(1.0 + fro, 2)
+}
+
+/// `f(v) = vᵀ H v + 2 gᵀ v + c₀` as balls (module docs).
+#[allow(non_snake_case)]
+struct Quadratic {
+    H: BallMatrix,
+    g: Vec<Ball>,
+    c0: Ball,
+}
+
+/// `S_i = P_a + P_b − X_i − X_iᵀ`, `C_i = X_iᵀ − P_b` as balls; `H = Σ S_i ⊗ Λ_i`,
+/// `g = vec Σ Λ_i C_i`, `c₀ = Σ ⟨Λ_i, P_b⟩`.
+#[allow(non_snake_case)]
+fn quadratic(problem: &FusionProblem, terms: &[(DMatrix<f64>, DMatrix<f64>)]) -> Quadratic {
+    let n = problem.dim();
     let sc: Vec<(BallMatrix, BallMatrix)> = terms
         .iter()
         .map(|(X, _)| {
@@ -141,21 +190,30 @@ pub fn lower_bound(
         })
         .collect();
     let mut c0 = Dot::new();
-    for (_, L) in &terms {
+    for (_, L) in terms {
         for r in 0..n {
             for c in 0..n {
                 c0.add_exact_prod(L[(r, c)], problem.P_b[(r, c)]);
             }
         }
     }
-    let c0 = c0.ball();
-    // μ ≤ λ_min(H), proven.
+    Quadratic {
+        H,
+        g,
+        c0: c0.ball(),
+    }
+}
+
+/// `μ > 0` with `H − μ I` proven PSD: half the estimated `λ_min(H)`, halved up to 20 times;
+/// `None` if the estimate is not positive or no `μ` is proven.
+#[allow(non_snake_case)]
+fn proven_mu(H: &BallMatrix) -> Option<f64> {
     let estimate = SymmetricEigen::new(H.mid.clone()).eigenvalues.min();
     if estimate.is_nan() || estimate <= 0.0 {
-        return 0.0;
+        return None;
     }
+    let nn = H.mid.nrows();
     let mut mu = 0.5 * estimate;
-    let mut proven_mu = None;
     for _ in 0..20 {
         let mut shifted = H.clone();
         for i in 0..nn {
@@ -164,57 +222,59 @@ pub fn lower_bound(
             shifted.mid[(i, i)] = m;
         }
         if is_psd(&shifted.mid, &shifted.rad) {
-            proven_mu = Some(mu);
-            break;
+            return Some(mu);
         }
         mu *= 0.5;
     }
-    let Some(mu) = proven_mu else {
-        return 0.0;
-    };
-    // v̂ ≈ −H⁻¹ g.
-    let g_mid = DVector::from_iterator(nn, g.iter().map(|b| b.mid));
-    let v = match cholesky_of(H.mid.clone()) {
+    None
+}
+
+/// `v̂ ≈ −H⁻¹ g` (any `v̂` is valid; zero where `H`'s midpoint has no Cholesky factor);
+/// `None` if not finite.
+fn minimiser(f: &Quadratic) -> Option<DVector<f64>> {
+    let nn = f.g.len();
+    let g_mid = DVector::from_iterator(nn, f.g.iter().map(|b| b.mid));
+    let v = match cholesky_of(f.H.mid.clone()) {
         Some(ch) => -ch.solve(&g_mid),
         None => DVector::zeros(nn),
     };
-    if v.iter().any(|x| !x.is_finite()) {
-        return 0.0;
-    }
-    // f(v̂) and r = H v̂ + g as balls.
-    let mut f = Dot::new();
+    v.iter().all(|x| x.is_finite()).then_some(v)
+}
+
+/// `f(v̂) − ‖r‖²/μ` rounded down, `r = H v̂ + g` (module docs): a lower bound on `min f`;
+/// `None` unless positive.
+fn f_lower(f: &Quadratic, v: &DVector<f64>, mu: f64) -> Option<f64> {
+    let nn = f.g.len();
+    let mut fv = Dot::new();
     let mut r_sq = 0.0;
     for a in 0..nn {
         let mut ra = Dot::new();
         for b in 0..nn {
             let w = v[a] * v[b];
-            f.add_prod(
-                H.at(a, b),
+            fv.add_prod(
+                f.H.at(a, b),
                 Ball {
                     mid: w,
                     rad: up(U * w.abs(), 1),
                 },
             );
-            ra.add_prod(H.at(a, b), Ball::exact(v[b]));
+            ra.add_prod(f.H.at(a, b), Ball::exact(v[b]));
         }
-        ra.add(g[a]);
+        ra.add(f.g[a]);
         let ra = ra.ball();
         let mag = ra.mid.abs() + ra.rad;
         r_sq += mag * mag;
-        f.add_prod(g[a], Ball::exact(2.0 * v[a]));
+        fv.add_prod(f.g[a], Ball::exact(2.0 * v[a]));
     }
-    f.add(c0);
-    let f_low = f.ball().lower();
+    fv.add(f.c0);
+    let f_low = fv.ball().lower();
     let penalty = up(up(r_sq, 2 * nn + 2) / mu, 2);
     let numerator = Ball {
         mid: f_low - penalty,
         rad: 0.0,
     }
     .lower();
-    if numerator.is_nan() || numerator <= 0.0 {
-        return 0.0;
-    }
-    down(numerator / sigma, 2)
+    (!numerator.is_nan() && numerator > 0.0).then_some(numerator)
 }
 
 /// The admissible joint covariance nearest to `X` on the segment to `P_ab = 0` that can be

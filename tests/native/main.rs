@@ -15,6 +15,7 @@ mod certify;
 mod charts;
 mod ci;
 mod cuts;
+mod docs;
 mod explore;
 mod fig2;
 mod fixtures;

@@ -10,11 +10,12 @@ use crate::fusion::scale::Pow2;
 use crate::fusion::upper::{trace_upper_bound, young_bound, young_omega};
 use crate::fusion::{Criterion, FusionProblem};
 
+use super::assemble::Piece;
 use super::geometry::cone_multipliers;
 use super::refine::certify_adaptive;
 use super::repair::repair_failed;
 use super::settings::{CertifySettings, Family, RETRY_REPAIR_RTOL};
-use super::sos::{certify_pieces, BlockCertificate, Piece};
+use super::sos::{certify_pieces, BlockCertificate};
 
 /// What [`certify`] finds for one block: its gain and proven bound, and how they were found.
 #[allow(non_snake_case)]

@@ -219,6 +219,7 @@
 //! `K J Kᵀ` is too). Blocks above [`CertifySettings::max_block_dim`] states, or whose cone
 //! would exceed [`CertifySettings::max_cone`], are refused with a typed error.
 
+mod assemble;
 mod block;
 mod geometry;
 mod layout;

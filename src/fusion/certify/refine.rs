@@ -17,9 +17,10 @@ use crate::fusion::program::Deadline;
 use crate::fusion::upper::trace_upper_bound;
 use crate::fusion::FusionProblem;
 
+use super::assemble::Piece;
 use super::geometry::{bisect, cone_generators, cone_piece};
 use super::settings::CertifySettings;
-use super::sos::{certify_pieces, BlockCertificate, Piece};
+use super::sos::{certify_pieces, BlockCertificate};
 
 /// A round whose proven trace falls by less than this fraction of the trace ends the
 /// refinement (the brackets close at `10⁻⁶`).

@@ -79,6 +79,10 @@ pub(super) struct MultiplierPart {
 /// ⪰ 0` is proven (each multiplier's `C' ← C' + δ'I` until `C' ⪰ 0` is, first), then `Q ← Q + ηI` until
 /// `G + E ⪰ 0` is proven. `Q` only grows (by multiples of `I`), so a piece proven before
 /// stays proven.
+///
+/// In steps: the multipliers ([`proven_multipliers`]), condition 1 ([`proven_condition_one`]),
+/// `T_αβ = ⟨J₀, C_αβ⟩` ([`exposure`]), then `Q` shifted until the Gram matrix `G + E`
+/// ([`gram_residual`]) is proven PSD, at most 60 times.
 #[allow(non_snake_case)]
 pub(super) fn repair(
     problem: &FusionProblem,
@@ -89,8 +93,57 @@ pub(super) fn repair(
     G: &DMatrix<f64>,
     parts: Vec<MultiplierPart>,
 ) -> Result<(), SolveError> {
+    let parts = proven_multipliers(parts, lay.m)?;
+    let C = proven_condition_one(lay, K_a, C, &parts)?;
+    let T = exposure(problem, lay, &C);
+    let place = gram_places(lay);
+    let mut eta = 0.0;
+    for _ in 0..60 {
+        let Y = gram_residual(lay, Q, &T, G, &parts, &place);
+        if is_psd(&Y.mid, &Y.rad) {
+            return Ok(());
+        }
+        let shift = psd_shift(&Y).ok_or_else(|| repair_failed("G + E"))?;
+        let step = if eta == 0.0 { shift } else { shift.max(eta) };
+        let step = step + 1e-16 * Q.amax().max(f64::MIN_POSITIVE);
+        for k in 0..lay.n {
+            Q[(k, k)] += step;
+        }
+        eta += step;
+    }
+    Err(repair_failed("G + E"))
+}
+
+/// Each multiplier's `C' ⪰ 0` proven, its diagonal shifted if needed (the diagonal holds no
+/// cross entry, and `C` enters only through `C − Σ S ⊗ C'`, proven next).
+#[allow(non_snake_case)]
+fn proven_multipliers(
+    parts: Vec<MultiplierPart>,
+    m: usize,
+) -> Result<Vec<MultiplierPart>, SolveError> {
+    let zero = DMatrix::zeros(m, m);
+    parts
+        .into_iter()
+        .map(|MultiplierPart { S, Cp, gp }| {
+            let first = BallMatrix::exact(&Cp);
+            let Cp = shift_until_proven(Cp, &first, "C' ⪰ 0", |shifted| is_psd(shifted, &zero))?;
+            Ok(MultiplierPart { S, Cp, gp })
+        })
+        .collect()
+}
+
+/// Condition 1 proven: `C` (shifted by `δI` if needed) with `C − Σ S ⊗ C' − W D Wᵀ ⪰ 0`, `W`
+/// (`N × nb`) the gain's entries by monomial as balls, `D` the multinomial weights `c_β`
+/// (exact integers).
+#[allow(non_snake_case)]
+fn proven_condition_one(
+    lay: &Layout,
+    K_a: &DMatrix<f64>,
+    C: DMatrix<f64>,
+    parts: &[MultiplierPart],
+) -> Result<DMatrix<f64>, SolveError> {
     let n = lay.n;
-    let (m, s, N) = (lay.m, lay.mons.len(), lay.big());
+    let (m, N) = (lay.m, lay.big());
     let K_b = BallMatrix::identity_minus(K_a);
     let k_entry = |k: usize, p: usize| {
         if p < n {
@@ -99,7 +152,6 @@ pub(super) fn repair(
             K_b.at(k, p - n)
         }
     };
-    // W (N × nb) as balls, with each column scaled by c_β (exact integers) on one side.
     let nb = lay.lower.len();
     let W = BallMatrix::from_fn(N, nb, |row, t| {
         let (alpha, p) = (row / m, row % m);
@@ -117,22 +169,11 @@ pub(super) fn repair(
             rad: up(c * w.rad + U * mid.abs(), 3),
         }
     });
-    // Each multiplier's C' ⪰ 0 proven first (its diagonal shifted if needed: the diagonal
-    // holds no cross entry, and C enters only through C − Σ S ⊗ C', proven next).
-    let zero = DMatrix::zeros(m, m);
-    let parts = parts
-        .into_iter()
-        .map(|MultiplierPart { S, Cp, gp }| {
-            let first = BallMatrix::exact(&Cp);
-            let Cp = shift_until_proven(Cp, &first, "C' ⪰ 0", |shifted| is_psd(shifted, &zero))?;
-            Ok(MultiplierPart { S, Cp, gp })
-        })
-        .collect::<Result<Vec<_>, SolveError>>()?;
     let margin = |C: &DMatrix<f64>| {
         BallMatrix::from_fn(N, N, |x, y| {
             let mut d = Dot::new();
             d.add(Ball::exact(C[(x, y)]));
-            for part in &parts {
+            for part in parts {
                 // − (S ⊗ C')[(a,p),(b,q)] = − S_ab C'_pq (level 1: x = a m + p).
                 d.add_prod(
                     Ball::exact(-part.S[(x / m, y / m)]),
@@ -153,17 +194,22 @@ pub(super) fn repair(
         })
     };
     let first = margin(&C).symmetrized();
-    let C = shift_until_proven(C, &first, "C − W D Wᵀ", |shifted| {
+    shift_until_proven(C, &first, "C − W D Wᵀ", |shifted| {
         let b = margin(shifted).symmetrized();
         is_psd(&b.mid, &b.rad)
-    })?;
-    // T_αβ = ⟨J₀, C_αβ⟩ as balls.
+    })
+}
+
+/// `T_αβ = ⟨J₀, C_αβ⟩` as balls (`J₀` the joint covariance with zero cross blocks).
+#[allow(non_snake_case)]
+fn exposure(problem: &FusionProblem, lay: &Layout, C: &DMatrix<f64>) -> BallMatrix {
+    let (n, m, s) = (lay.n, lay.m, lay.mons.len());
     let J0 = |p: usize, q: usize| match (p < n, q < n) {
         (true, true) => problem.P_a[(p, q)],
         (false, false) => problem.P_b[(p - n, q - n)],
         _ => 0.0,
     };
-    let T = BallMatrix::from_fn(s, s, |a, b| {
+    BallMatrix::from_fn(s, s, |a, b| {
         let mut d = Dot::new();
         for p in 0..m {
             for q in 0..m {
@@ -174,9 +220,13 @@ pub(super) fn repair(
             }
         }
         d.ball()
-    });
-    // Where each degree-2r coefficient goes in the Gram matrix E: (α, α) when γ = 2α, else
-    // half on (α, β) and half on (β, α) for the first α < β with α + β = γ.
+    })
+}
+
+/// Where each degree-`2r` coefficient goes in the Gram matrix `E`: `(α, α)` when `γ = 2α`,
+/// else half on `(α, β)` and half on `(β, α)` for the first `α < β` with `α + β = γ`.
+fn gram_places(lay: &Layout) -> Vec<(usize, usize)> {
+    let s = lay.mons.len();
     let mut place: Vec<Option<(usize, usize)>> = vec![None; lay.products.len()];
     for a in 0..s {
         place[lay.sum[a][a]] = Some((a, a));
@@ -189,64 +239,68 @@ pub(super) fn repair(
             }
         }
     }
-    let mut eta = 0.0;
-    for _ in 0..60 {
-        // e_γ = coef_γ(‖v‖^{2(r−1)} vᵀQv) − Σ_{α+β=γ} (T_αβ + G_αβ), as balls.
-        let mut coef = vec![Dot::new(); lay.products.len()];
-        for (beta, c) in &lay.lower {
-            for k in 0..n {
-                for l in 0..n {
-                    coef[lay.quad(beta, k, l)].add_exact_prod(*c, Q[(k, l)]);
-                }
-            }
-        }
-        for a in 0..s {
-            for b in 0..s {
-                let t = T.at(a, b);
-                let d = &mut coef[lay.sum[a][b]];
-                d.add(Ball {
-                    mid: -t.mid,
-                    rad: t.rad,
-                });
-                d.add(Ball::exact(-G[(a, b)]));
-            }
-        }
-        for part in &parts {
-            for (g, d) in coef.iter_mut().enumerate() {
-                let c = lay.multiplier_coefficient(&part.S, g);
-                if c != 0.0 {
-                    d.add_exact_prod(-c, part.gp);
-                }
-            }
-        }
-        let mut Y = BallMatrix::exact(G);
-        for (g, d) in coef.iter().enumerate() {
-            let e = d.ball();
-            let (a, b) = place[g].expect("every degree-2r monomial splits");
-            if a == b {
-                let mid = Y.mid[(a, a)] + e.mid;
-                Y.rad[(a, a)] = up(e.rad + U * mid.abs(), 3);
-                Y.mid[(a, a)] = mid;
-            } else {
-                for (x, y) in [(a, b), (b, a)] {
-                    let mid = Y.mid[(x, y)] + 0.5 * e.mid;
-                    Y.rad[(x, y)] = up(0.5 * e.rad + U * mid.abs(), 3);
-                    Y.mid[(x, y)] = mid;
-                }
-            }
-        }
-        if is_psd(&Y.mid, &Y.rad) {
-            return Ok(());
-        }
-        let shift = psd_shift(&Y).ok_or_else(|| repair_failed("G + E"))?;
-        let step = if eta == 0.0 { shift } else { shift.max(eta) };
-        let step = step + 1e-16 * Q.amax().max(f64::MIN_POSITIVE);
+    place
+        .into_iter()
+        .map(|p| p.expect("every degree-2r monomial splits"))
+        .collect()
+}
+
+/// `G + E` as balls, `E` the Gram matrix (placed by `place`) of the residual
+/// `e_γ = coef_γ(‖v‖^{2(r−1)} vᵀQv) − Σ_{α+β=γ} (T_αβ + G_αβ) − Σ_j g'_j coef_γ(q_j)`.
+#[allow(non_snake_case)]
+fn gram_residual(
+    lay: &Layout,
+    Q: &DMatrix<f64>,
+    T: &BallMatrix,
+    G: &DMatrix<f64>,
+    parts: &[MultiplierPart],
+    place: &[(usize, usize)],
+) -> BallMatrix {
+    let (n, s) = (lay.n, lay.mons.len());
+    let mut coef = vec![Dot::new(); lay.products.len()];
+    for (beta, c) in &lay.lower {
         for k in 0..n {
-            Q[(k, k)] += step;
+            for l in 0..n {
+                coef[lay.quad(beta, k, l)].add_exact_prod(*c, Q[(k, l)]);
+            }
         }
-        eta += step;
     }
-    Err(repair_failed("G + E"))
+    for a in 0..s {
+        for b in 0..s {
+            let t = T.at(a, b);
+            let d = &mut coef[lay.sum[a][b]];
+            d.add(Ball {
+                mid: -t.mid,
+                rad: t.rad,
+            });
+            d.add(Ball::exact(-G[(a, b)]));
+        }
+    }
+    for part in parts {
+        for (g, d) in coef.iter_mut().enumerate() {
+            let c = lay.multiplier_coefficient(&part.S, g);
+            if c != 0.0 {
+                d.add_exact_prod(-c, part.gp);
+            }
+        }
+    }
+    let mut Y = BallMatrix::exact(G);
+    for (g, d) in coef.iter().enumerate() {
+        let e = d.ball();
+        let (a, b) = place[g];
+        if a == b {
+            let mid = Y.mid[(a, a)] + e.mid;
+            Y.rad[(a, a)] = up(e.rad + U * mid.abs(), 3);
+            Y.mid[(a, a)] = mid;
+        } else {
+            for (x, y) in [(a, b), (b, a)] {
+                let mid = Y.mid[(x, y)] + 0.5 * e.mid;
+                Y.rad[(x, y)] = up(0.5 * e.rad + U * mid.abs(), 3);
+                Y.mid[(x, y)] = mid;
+            }
+        }
+    }
+    Y
 }
 
 /// `M` itself when `first` (the enclosure of what must be PSD, formed from `M`) is proven

@@ -289,10 +289,10 @@ fn adaptive_cones_never_looser_than_their_first_round_and_stop_at_the_budget() {
     let four = super::block::certify_block(&p, None, Family::Cones(4), &settings).unwrap();
     // The cones' shares of the dual sum to n (stationarity in Q's diagonal), as the cut
     // rule reads them.
-    let pieces: Vec<super::sos::Piece> = cone_generators(4)
+    let pieces: Vec<super::assemble::Piece> = cone_generators(4)
         .unwrap()
         .iter()
-        .map(|u| super::sos::Piece {
+        .map(|u| super::assemble::Piece {
             multipliers: cone_piece(u),
         })
         .collect();
