@@ -62,7 +62,7 @@ case "$what" in
     # The CLI to compare with: the dev build (`cargo test` has built its dependencies); the
     # contract tests compare its output with the release wheel's to the bit.
     cargo build --quiet -p nmci-cli
-    NMCI_CLI="$PWD/target/debug/nmci" "$py" -m pytest -q python/tests
+    NMCI_CLI="$PWD/target/debug/nmci" "$py" -m pytest -q --durations=10 python/tests
     ;;
   bench)
     "$py" scripts/bench_python.py

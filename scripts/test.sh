@@ -10,8 +10,12 @@ cd "$(dirname "$0")/.."
 export PATH="$HOME/.cargo/bin:$PATH"
 what=${1:-all}
 
+# Each stage's heading, with the minutes and seconds the command has run so far.
+stage() { printf '== [%d:%02d] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
+trap 'stage "end, exit status $?"' EXIT
+
 lint() {
-  echo "== format and lints: cargo fmt --check, cargo clippy -D warnings (native, and the library for wasm32)"
+  stage "format and lints: cargo fmt --check, cargo clippy -D warnings (native, and the library for wasm32)"
   cargo fmt --all --check
   cargo clippy --workspace --all-targets --all-features --quiet -- -D warnings
   cargo clippy -p nmci --target wasm32-unknown-unknown --lib --features charts --quiet -- -D warnings
@@ -22,7 +26,7 @@ case "$what" in
   quick)
     scripts/setup.sh build
     lint
-    echo "== quick: the library's unit tests, the shims, the CLI"
+    stage "quick: the library's unit tests, the shims, the CLI"
     cargo test --quiet -p nmci --lib --all-features
     cargo test --quiet -p blas -p lapack -p nmci-cli
     exit 0
@@ -34,18 +38,18 @@ esac
 scripts/setup.sh test
 lint
 
-echo "== native: cargo test (crate, BLAS/LAPACK shims, CLI, doc examples)"
+stage "native: cargo test (crate, BLAS/LAPACK shims, CLI, doc examples)"
 cargo test --workspace --exclude nmci-python --all-features
 
-echo "== dependent: the README's Rust example as a crate outside the workspace (no [patch], no system BLAS/LAPACK)"
+stage "dependent: the README's Rust example as a crate outside the workspace (no [patch], no system BLAS/LAPACK)"
 scripts/dependent.sh
 
-echo "== wasm: wasm-pack test in headless Chromium"
+stage "wasm: wasm-pack test in headless Chromium"
 scripts/wasm.sh test
 
-echo "== page and npm package: build and pack the wasm, drive the explorer in headless Chromium, install the package and run its example"
+stage "page and npm package: build and pack the wasm, drive the explorer in headless Chromium, install the package and run its example"
 scripts/wasm.sh pack
 node --test tests/e2e/
 
-echo "== python: build the wheel (maturin) into target/py and run pytest"
+stage "python: build the wheel (maturin) into target/py and run pytest"
 scripts/python.sh test
