@@ -3,8 +3,9 @@
 //! the repository (`src/…`, `tests/…`, …) or names a source file by a path relative to
 //! `src/` (`fusion/lower.rs`) — is a file or folder of the repository. Braces expand
 //! (`shims/{blas,lapack}/src/ffi.rs` is two paths) and `*` matches one name in a folder; a
-//! trailing `:line` is dropped. Generated places (`target/`, `test-output/`) and placeholders
-//! in capitals (`OUT/shard-A.json`) are not paths of the repository.
+//! trailing `:line` is dropped. Generated places — the folders `.gitignore` names
+//! (`target/`, `www/docs/`, …), which a fresh clone does not have — and placeholders in
+//! capitals (`OUT/shard-A.json`) are not paths of the repository.
 
 use std::path::{Path, PathBuf};
 
@@ -80,11 +81,24 @@ fn exists(base: &Path, path: &str) -> bool {
     candidates.iter().any(|p| p.exists())
 }
 
+/// The folders the repository ignores (`.gitignore`'s lines ending in `/`): generated, so
+/// not in a fresh clone.
+fn generated() -> Vec<String> {
+    let ignore = std::fs::read_to_string(root().join(".gitignore")).unwrap_or_default();
+    ignore
+        .lines()
+        .map(str::trim)
+        .filter(|l| l.ends_with('/') && !l.starts_with('#'))
+        .map(|l| l.trim_start_matches('/').to_string())
+        .collect()
+}
+
 /// The repository paths `text` (the file `doc`) names, with their line numbers, each as the
 /// candidates it may be relative to.
 fn named_paths(doc: &Path, text: &str) -> Vec<(usize, String, Vec<PathBuf>)> {
     let root = root();
     let folder = doc.parent().unwrap_or(&root).to_path_buf();
+    let generated = generated();
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         // Relative links: `](path)` not to a web address or an anchor.
@@ -110,16 +124,13 @@ fn named_paths(doc: &Path, text: &str) -> Vec<(usize, String, Vec<PathBuf>)> {
             let placeholder = span
                 .split('/')
                 .any(|p| p.len() > 1 && p.chars().all(|c| c.is_ascii_uppercase()));
-            if placeholder || span.starts_with(['/', '~']) || span.contains("://") {
+            let ignored = generated.iter().any(|g| span.starts_with(g.as_str()));
+            if placeholder || ignored || span.starts_with(['/', '~']) || span.contains("://") {
                 continue;
             }
             if ROOTS.iter().any(|r| span.starts_with(r)) {
                 out.push((i + 1, span.to_string(), vec![root.clone()]));
-            } else if span.contains('/')
-                && !span.starts_with("target/")
-                && !span.starts_with("test-output/")
-                && SOURCE.iter().any(|e| span.ends_with(e))
-            {
+            } else if span.contains('/') && SOURCE.iter().any(|e| span.ends_with(e)) {
                 let bases = vec![root.clone(), root.join("src"), folder.clone()];
                 out.push((i + 1, span.to_string(), bases));
             }
@@ -172,7 +183,7 @@ fn the_path_scan_finds_what_it_should() {
     let root = root();
     let doc = root.join("docs/example.md");
     let text = "see `src/nowhere.rs:12`, `shims/{blas,lapack}/src/ffi.rs`, [guide](rust.md), \
-                `target/py`, `OUT/shard-A.json` and `fusion/lower.rs`.";
+                `target/py`, `www/docs/`, `OUT/shard-A.json` and `fusion/lower.rs`.";
     let found = named_paths(&doc, text);
     let names: Vec<&str> = found.iter().map(|(_, p, _)| p.as_str()).collect();
     assert_eq!(
@@ -192,4 +203,8 @@ fn the_path_scan_finds_what_it_should() {
     assert!(both.iter().all(|p| ok(2, p)));
     assert!(ok(3, "fusion/lower.rs"));
     assert!(exists(&root, "shims/*/src/ffi.rs") && !exists(&root, "shims/*/src/none.rs"));
+    let generated = generated();
+    assert!(["target/", "www/docs/", "test-output/"]
+        .iter()
+        .all(|g| generated.iter().any(|x| x == g)));
 }
